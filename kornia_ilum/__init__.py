@@ -1,0 +1,12 @@
+"""kornia_ilum: HDR lighting from one LDR portrait, with Kornia-style differentiable ops.
+
+Implements "Learning Illumination from Diverse Portraits" (LeGendre et al., SIGGRAPH Asia 2020).
+The conventions (frame, mirror-ball and lat-long mappings, units, reference spheres) are in
+``docs/conventions.rst`` (SPEC.md).
+"""
+
+__version__ = "0.1.0.dev0"
+
+from kornia_ilum import core, geometry
+
+__all__ = ["__version__", "core", "geometry"]

@@ -1,0 +1,28 @@
+"""Input checks and typed errors shared by every kornia_ilum entry point."""
+
+from kornia_ilum.core.check import check_positive_int, check_same_device, check_tensor, checks_active
+from kornia_ilum.core.errors import (
+    BaseError,
+    EmptyTensorError,
+    HDRIOError,
+    IlumError,
+    NonFiniteError,
+    ShapeError,
+    TypeCheckError,
+    ValueCheckError,
+)
+
+__all__ = [
+    "check_tensor",
+    "check_same_device",
+    "check_positive_int",
+    "checks_active",
+    "BaseError",
+    "EmptyTensorError",
+    "HDRIOError",
+    "IlumError",
+    "NonFiniteError",
+    "ShapeError",
+    "TypeCheckError",
+    "ValueCheckError",
+]

@@ -1,0 +1,120 @@
+"""Input checks for every public entry point.
+
+One function, :func:`check_tensor`, validates a tensor argument and raises a typed error whose
+message names the argument and the expected shape. It honours Kornia's global switch
+(:func:`kornia.core.check.disable_checks` or ``KORNIA_CHECKS=0``), and it skips the value checks
+(NaN/Inf) while :func:`torch.compile` traces, so that compiled graphs stay free of host syncs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+from kornia.core.check import are_checks_enabled
+
+from kornia_ilum.core.errors import EmptyTensorError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
+
+__all__ = ["check_tensor", "check_same_device", "check_positive_int", "checks_active"]
+
+
+def checks_active() -> bool:
+    """Whether input checks run now (Kornia's global switch, and not while tracing)."""
+    return are_checks_enabled() and not torch.jit.is_scripting()
+
+
+def _fmt(shape: Sequence[str]) -> str:
+    return "(" + ", ".join(shape) + ")"
+
+
+def check_tensor(
+    x: Any,
+    name: str,
+    shape: Sequence[str] | None = None,
+    *,
+    floating: bool = True,
+    finite: bool = True,
+    nonempty: bool = True,
+    nonnegative: bool = False,
+) -> None:
+    """Validate a tensor argument.
+
+    Args:
+        x: the value to check.
+        name: the argument's name, used in the message.
+        shape: expected shape as a list of dimension names. A name that is a number must match exactly,
+            a leading ``"*"`` accepts any number of leading dimensions, and ``"3|1"`` accepts either size.
+        floating: require a floating-point dtype.
+        finite: require every value to be finite (skipped while compiling).
+        nonempty: require no zero-sized dimension.
+        nonnegative: require every value to be ``>= 0`` (skipped while compiling).
+
+    Raises:
+        TypeCheckError: ``x`` is no tensor, or has the wrong dtype.
+        ShapeError: ``x`` has the wrong number of dimensions or a wrong fixed size.
+        EmptyTensorError: ``x`` has a zero-sized dimension.
+        NonFiniteError: ``x`` holds NaN or Inf.
+        ValueCheckError: ``x`` holds negative values where they are not allowed.
+
+    Examples:
+        >>> check_tensor(torch.zeros(2, 9, 3), "sh", ["B", "9", "3"])
+        >>> check_tensor(torch.zeros(2, 8, 3), "sh", ["B", "9", "3"])
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ShapeError: sh must have shape (B, 9, 3), got (2, 8, 3)
+    """
+    if not checks_active():
+        return
+    if not isinstance(x, torch.Tensor):
+        want = f" of shape {_fmt(shape)}" if shape is not None else ""
+        raise TypeCheckError(f"{name} must be a torch.Tensor{want}, got {type(x).__name__}")
+    got = tuple(x.shape)
+    if shape is not None:
+        dims = list(shape)
+        if dims and dims[0] == "*":
+            dims = dims[1:]
+            ok = x.dim() >= len(dims)
+            tail = got[len(got) - len(dims) :] if dims else ()
+        else:
+            ok = x.dim() == len(dims)
+            tail = got
+        if ok:
+            for want_dim, have in zip(dims, tail):
+                options = want_dim.split("|")
+                if all(o.isdigit() for o in options) and have not in {int(o) for o in options}:
+                    ok = False
+                    break
+        if not ok:
+            raise ShapeError(f"{name} must have shape {_fmt(shape)}, got {got}")
+    if floating and not x.is_floating_point():
+        raise TypeCheckError(f"{name} must be a floating-point tensor, got dtype {x.dtype}")
+    if nonempty and x.numel() == 0:
+        expected = f" {_fmt(shape)}" if shape is not None else ""
+        raise EmptyTensorError(f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)")
+    if torch.compiler.is_compiling():
+        return
+    if finite and x.is_floating_point() and not bool(torch.isfinite(x).all()):
+        raise NonFiniteError(f"{name} must be finite, but it holds NaN or Inf")
+    if nonnegative and bool((x < 0).any()):
+        raise ValueCheckError(f"{name} must be non-negative (lighting is never negative), got min {x.min().item():g}")
+
+
+def check_same_device(*named: tuple[str, torch.Tensor]) -> None:
+    """Raise :class:`ValueCheckError` unless all tensors share one device."""
+    if not checks_active() or len(named) < 2:
+        return
+    devices = {t.device for _, t in named}
+    if len(devices) > 1:
+        desc = ", ".join(f"{n} on {t.device}" for n, t in named)
+        raise ValueCheckError(f"tensors must be on one device, got {desc}")
+
+
+def check_positive_int(value: Any, name: str, allowed: Sequence[int] | None = None) -> None:
+    """Raise :class:`TypeCheckError` / :class:`ValueCheckError` unless ``value`` is a positive int."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeCheckError(f"{name} must be an int, got {type(value).__name__}")
+    if value <= 0:
+        raise ValueCheckError(f"{name} must be positive, got {value}")
+    if allowed is not None and value not in allowed:
+        raise ValueCheckError(f"{name} must be one of {tuple(allowed)}, got {value}")

@@ -1,0 +1,43 @@
+"""Sphere geometry: mirror-ball and lat-long grids, solid angles, resampling and rotation (SPEC.md)."""
+
+from kornia_ilum.geometry.latlong import (
+    angles_to_latlong_pixel,
+    direction_to_latlong,
+    latlong_angles,
+    latlong_directions,
+    latlong_solid_angles,
+    latlong_to_direction,
+)
+from kornia_ilum.geometry.mirror_ball import (
+    direction_to_mirror_ball,
+    lights_to_mirror_ball,
+    mirror_ball_directions,
+    mirror_ball_pixel_index,
+    mirror_ball_solid_angles,
+    mirror_ball_to_direction,
+    mirror_ball_to_lights,
+    mirror_ball_uv,
+    mirror_ball_valid,
+    pixel_to_uv,
+    uv_to_pixel,
+)
+
+__all__ = [
+    "angles_to_latlong_pixel",
+    "direction_to_latlong",
+    "direction_to_mirror_ball",
+    "latlong_angles",
+    "latlong_directions",
+    "latlong_solid_angles",
+    "latlong_to_direction",
+    "lights_to_mirror_ball",
+    "mirror_ball_directions",
+    "mirror_ball_pixel_index",
+    "mirror_ball_solid_angles",
+    "mirror_ball_to_direction",
+    "mirror_ball_to_lights",
+    "mirror_ball_uv",
+    "mirror_ball_valid",
+    "pixel_to_uv",
+    "uv_to_pixel",
+]

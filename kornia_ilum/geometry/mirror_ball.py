@@ -1,0 +1,305 @@
+r"""The mirror-ball (Lambert azimuthal equal-area) lighting grid of SPEC.md.
+
+Convention:
+    Frame: +X right, +Y up, +Z toward the camera; a direction ``d`` means light arriving *from* ``d``.
+    An ``S x S`` grid has pixel centres ``u = (2j + 1)/S - 1`` and ``v = 1 - (2i + 1)/S`` for row ``i``
+    and column ``j``; with ``r^2 = u^2 + v^2`` the direction is
+    ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)``. The centre is +Z, the rim is -Z. A pixel is
+    valid iff its centre has ``r <= 1``; invalid pixels hold 0.
+
+    The map is equal-area: ``dOmega = 4 du dv``, so a pixel fully inside the disk spans ``16 / S^2`` sr.
+    Rim pixels get their exact share: the disk is partitioned among the valid pixels by nearest valid
+    pixel centre (inside a valid pixel that is the pixel itself), the part of the disk in each pixel
+    square is integrated analytically, and only the split of an *invalid* pixel's sliver between its
+    valid neighbours is supersampled. The solid angles therefore sum to ``4 pi`` to float precision at
+    every size, and :func:`mirror_ball_pixel_index` assigns every direction to the pixel whose solid angle
+    covers it, which is what energy-conserving resampling needs.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import torch
+
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import ShapeError
+
+__all__ = [
+    "mirror_ball_uv",
+    "mirror_ball_valid",
+    "mirror_ball_directions",
+    "mirror_ball_solid_angles",
+    "mirror_ball_to_direction",
+    "direction_to_mirror_ball",
+    "uv_to_pixel",
+    "pixel_to_uv",
+    "mirror_ball_pixel_index",
+    "mirror_ball_to_lights",
+    "lights_to_mirror_ball",
+]
+
+_RIM_SUPERSAMPLES = 64  # per axis, only for splitting invalid rim slivers between valid neighbours
+
+
+def mirror_ball_uv(
+    size: int, *, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32
+) -> torch.Tensor:
+    r"""Pixel-centre coordinates ``(u, v)`` of an ``S x S`` mirror ball.
+
+    Args:
+        size: the side ``S`` in pixels.
+        device: device of the result.
+        dtype: floating dtype of the result.
+
+    Returns:
+        ``(S, S, 2)`` tensor; ``[..., 0]`` is ``u`` (right), ``[..., 1]`` is ``v`` (up).
+
+    Examples:
+        >>> mirror_ball_uv(2)[0, 0]
+        tensor([-0.5000,  0.5000])
+    """
+    check_positive_int(size, "size")
+    c = (2 * torch.arange(size, device=device, dtype=torch.float64) + 1) / size - 1
+    v, u = torch.meshgrid(-c, c, indexing="ij")
+    return torch.stack([u, v], dim=-1).to(dtype)
+
+
+def mirror_ball_valid(size: int, *, device: torch.device | str | None = None) -> torch.Tensor:
+    r"""Boolean ``(S, S)`` mask of the pixels whose centre lies on the ball (``r <= 1``).
+
+    Examples:
+        >>> mirror_ball_valid(4).sum().item()
+        12
+    """
+    uv = mirror_ball_uv(size, device=device, dtype=torch.float64)
+    return (uv.square().sum(-1) <= 1.0 + 1e-12)
+
+
+def mirror_ball_to_direction(uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Map mirror-ball coordinates to unit directions.
+
+    Args:
+        uv: ``(..., 2)`` continuous coordinates ``(u, v)`` in ``[-1, 1]``.
+
+    Returns:
+        ``(d, valid)``: ``(..., 3)`` unit directions and the ``(...)`` boolean mask ``r <= 1``. Points
+        outside the ball are clamped radially onto the rim (direction -Z) so that ``d`` stays finite.
+
+    Convention:
+        ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)`` (SPEC.md, mirror ball).
+
+    Examples:
+        >>> d, valid = mirror_ball_to_direction(torch.tensor([[0.0, 0.0], [1.0, 0.0]]))
+        >>> d
+        tensor([[ 0.,  0.,  1.],
+                [ 0.,  0., -1.]])
+    """
+    check_tensor(uv, "uv", ["*", "2"])
+    r2 = uv.square().sum(-1, keepdim=True)
+    valid = r2.squeeze(-1) <= 1.0 + 1e-6
+    r2c = r2.clamp(max=1.0)
+    scale = 2.0 * torch.sqrt((1.0 - r2c).clamp(min=0.0))
+    # outside the disk: project onto the rim, where d = -Z regardless of the azimuth
+    uv_in = torch.where(r2 > 1.0, uv / r2.sqrt().clamp(min=1e-12), uv)
+    d = torch.cat([uv_in * scale, 1.0 - 2.0 * r2c], dim=-1)
+    return d, valid
+
+
+def direction_to_mirror_ball(d: torch.Tensor) -> torch.Tensor:
+    r"""Map directions to continuous mirror-ball coordinates ``(u, v)``; the inverse of
+    :func:`mirror_ball_to_direction`.
+
+    Args:
+        d: ``(..., 3)`` directions; they are normalised first.
+
+    Returns:
+        ``(..., 2)`` coordinates with ``r = sqrt((1 - z) / 2) <= 1``. Directions near -Z map to the rim
+        along the azimuth of ``(x, y)``; exactly -Z maps to the rim point ``(0, -1)``.
+
+    Examples:
+        >>> direction_to_mirror_ball(torch.tensor([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]))
+        tensor([[0.0000, 0.0000],
+                [0.7071, 0.0000]])
+    """
+    check_tensor(d, "d", ["*", "3"])
+    d = d / d.norm(dim=-1, keepdim=True).clamp(min=torch.finfo(d.dtype).tiny)
+    xy, z = d[..., :2], d[..., 2:]
+    # (u, v) = (x, y) / sqrt(2 (1 + z)): stable away from z = -1; near -Z use r * (x, y) / |(x, y)|.
+    front = xy / torch.sqrt((2.0 * (1.0 + z)).clamp(min=1e-12))
+    rho = xy.norm(dim=-1, keepdim=True)
+    r = torch.sqrt(((1.0 - z) * 0.5).clamp(min=0.0, max=1.0))
+    fallback = torch.zeros_like(xy)
+    fallback[..., 1] = -1.0
+    back = torch.where(rho > 1e-12, r * xy / rho.clamp(min=1e-12), r * fallback)
+    return torch.where(z > -0.5, front, back)
+
+
+def uv_to_pixel(uv: torch.Tensor, size: int) -> torch.Tensor:
+    r"""Continuous ``(u, v)`` to continuous pixel coordinates ``(col, row)``; centres are integers.
+
+    Examples:
+        >>> uv_to_pixel(torch.tensor([-0.75, 0.75]), 4)
+        tensor([0., 0.])
+    """
+    col = ((uv[..., 0] + 1.0) * size - 1.0) * 0.5
+    row = ((1.0 - uv[..., 1]) * size - 1.0) * 0.5
+    return torch.stack([col, row], dim=-1)
+
+
+def pixel_to_uv(px: torch.Tensor, size: int) -> torch.Tensor:
+    r"""Continuous pixel coordinates ``(col, row)`` to ``(u, v)``; the inverse of :func:`uv_to_pixel`."""
+    u = (2.0 * px[..., 0] + 1.0) / size - 1.0
+    v = 1.0 - (2.0 * px[..., 1] + 1.0) / size
+    return torch.stack([u, v], dim=-1)
+
+
+def mirror_ball_directions(
+    size: int, *, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32
+) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Directions of the pixel centres of an ``S x S`` mirror ball.
+
+    Returns:
+        ``(d, valid)``: ``(S, S, 3)`` unit directions (invalid pixels hold the clamped rim direction -Z)
+        and the ``(S, S)`` valid mask.
+
+    Examples:
+        >>> d, valid = mirror_ball_directions(32)
+        >>> d.shape, int(valid.sum())
+        (torch.Size([32, 32, 3]), 812)
+    """
+    d, valid = mirror_ball_to_direction(mirror_ball_uv(size, device=device, dtype=torch.float64))
+    return d.to(dtype), mirror_ball_valid(size, device=device)
+
+
+# ----------------------------------------------------------------------------------------------
+# exact solid angles
+
+
+def _quadrant_area(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Area of ``[0, a] x [0, b]`` inside the unit disk, for ``a, b >= 0`` (float64)."""
+
+    def g(s: torch.Tensor) -> torch.Tensor:  # integral of sqrt(1 - t^2) from 0 to s
+        return 0.5 * (s * torch.sqrt((1 - s * s).clamp(min=0)) + torch.asin(s.clamp(-1, 1)))
+
+    a1 = a.clamp(max=1.0)
+    bc = b.clamp(max=1.0)
+    s_star = torch.sqrt((1 - bc * bc).clamp(min=0))
+    inside = a1 <= s_star
+    partial = bc * s_star + g(a1) - g(s_star)
+    return torch.where(inside, a1 * bc, partial)
+
+
+def _signed_area(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    return torch.sign(x) * torch.sign(y) * _quadrant_area(x.abs(), y.abs())
+
+
+def _disk_area_in_pixels(size: int) -> torch.Tensor:
+    """Exact area (in uv units) of each pixel square intersected with the unit disk, ``(S, S)``."""
+    edges = torch.linspace(-1.0, 1.0, size + 1, dtype=torch.float64)
+    x0, x1 = edges[:-1][None, :], edges[1:][None, :]
+    y1, y0 = edges.flip(0)[:-1][:, None], edges.flip(0)[1:][:, None]  # rows go top (v=1) to bottom
+    return _signed_area(x1, y1) - _signed_area(x0, y1) - _signed_area(x1, y0) + _signed_area(x0, y0)
+
+
+def mirror_ball_pixel_index(uv: torch.Tensor, size: int) -> torch.Tensor:
+    r"""Flat index ``row * S + col`` of the valid pixel that owns each point ``(u, v)`` of the disk.
+
+    A point owned by a valid pixel square maps to that pixel; a point in an invalid rim square (or just
+    outside the disk) maps to the nearest valid pixel centre. This is the partition whose areas are
+    :func:`mirror_ball_solid_angles`, so scattering energy through it conserves energy exactly.
+
+    Args:
+        uv: ``(..., 2)`` coordinates.
+        size: the side ``S``.
+
+    Returns:
+        ``(...)`` int64 indices into the flattened ``S x S`` grid, always of a valid pixel.
+    """
+    check_tensor(uv, "uv", ["*", "2"], finite=True)
+    px = uv_to_pixel(uv.to(torch.float64), size)
+    col = px[..., 0].round().clamp(0, size - 1).long()
+    row = px[..., 1].round().clamp(0, size - 1).long()
+    valid = mirror_ball_valid(size, device=uv.device)
+    idx = row * size + col
+    own_ok = valid.flatten()[idx]
+    if bool(own_ok.all()):
+        return idx
+    # nearest valid centre in a 5x5 window around the containing pixel (always enough: see module doc)
+    bad = ~own_ok
+    pb = px[bad]
+    rb, cb = row[bad], col[bad]
+    offs = torch.arange(-2, 3, device=uv.device)
+    dr, dc = torch.meshgrid(offs, offs, indexing="ij")
+    rr = (rb[:, None] + dr.flatten()[None]).clamp(0, size - 1)
+    cc = (cb[:, None] + dc.flatten()[None]).clamp(0, size - 1)
+    dist = (cc - pb[:, :1]).square() + (rr - pb[:, 1:]).square()
+    dist = torch.where(valid[rr, cc], dist, torch.full_like(dist, math.inf))
+    k = dist.argmin(dim=1, keepdim=True)
+    idx = idx.clone()
+    idx[bad] = (rr.gather(1, k) * size + cc.gather(1, k)).squeeze(1)
+    return idx
+
+
+@lru_cache(maxsize=32)
+def _solid_angles_f64(size: int) -> torch.Tensor:
+    area = _disk_area_in_pixels(size)  # (S, S)
+    valid = mirror_ball_valid(size)
+    omega = torch.where(valid, area, torch.zeros_like(area)).flatten()
+    n = _RIM_SUPERSAMPLES
+    sub = (torch.arange(n, dtype=torch.float64) + 0.5) / n - 0.5  # offsets in pixel units
+    for i, j in (~valid & (area > 0)).nonzero().tolist():
+        dr, dc = torch.meshgrid(sub, sub, indexing="ij")
+        px = torch.stack([j + dc.flatten(), i + dr.flatten()], -1)
+        uv = pixel_to_uv(px, size)
+        inside = uv.square().sum(-1) <= 1.0
+        if not bool(inside.any()):
+            continue
+        owners = mirror_ball_pixel_index(uv[inside], size)
+        share = torch.bincount(owners, minlength=size * size).to(torch.float64)
+        omega += area[i, j] * share / share.sum()
+    return (4.0 * omega).reshape(size, size)
+
+
+def mirror_ball_solid_angles(
+    size: int, *, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32
+) -> torch.Tensor:
+    r"""Solid angle in steradians of every pixel of an ``S x S`` mirror ball, exact at the rim.
+
+    Returns:
+        ``(S, S)`` tensor; invalid pixels hold 0, interior pixels ``16 / S^2``, and the sum is ``4 pi``.
+
+    Examples:
+        >>> omega = mirror_ball_solid_angles(32, dtype=torch.float64)
+        >>> round(omega.sum().item(), 10) == round(4 * math.pi, 10)
+        True
+        >>> omega[16, 16].item() == 1 / 64
+        True
+    """
+    check_positive_int(size, "size")
+    return _solid_angles_f64(size).to(device=device, dtype=dtype)
+
+
+# ----------------------------------------------------------------------------------------------
+# layout helpers between images and the light list used by relighting
+
+
+def mirror_ball_to_lights(x: torch.Tensor) -> torch.Tensor:
+    r"""Reshape a mirror-ball image ``(B, C, S, S)`` to the light list ``(B, S*S, C)`` (row-major pixels).
+
+    Examples:
+        >>> mirror_ball_to_lights(torch.zeros(2, 3, 32, 32)).shape
+        torch.Size([2, 1024, 3])
+    """
+    check_tensor(x, "x", ["B", "C", "S", "S"], finite=False)
+    return x.flatten(2).transpose(1, 2)
+
+
+def lights_to_mirror_ball(lights: torch.Tensor) -> torch.Tensor:
+    r"""Reshape a light list ``(B, N, C)`` with ``N = S*S`` back to a mirror-ball image ``(B, C, S, S)``."""
+    check_tensor(lights, "lights", ["B", "N", "C"], finite=False)
+    s = math.isqrt(lights.shape[1])
+    if s * s != lights.shape[1]:
+        raise ShapeError(f"lights must have N = S*S lights, got N = {lights.shape[1]}")
+    return lights.transpose(1, 2).reshape(lights.shape[0], lights.shape[2], s, s)

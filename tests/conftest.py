@@ -1,0 +1,54 @@
+"""Shared fixtures: device and dtype parametrisation in Kornia's style, and per-dtype tolerances."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+import torch
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "ci", max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True
+)
+settings.register_profile("dev", max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+torch.set_num_threads(max(1, min(2, os.cpu_count() or 1)))
+
+#: Absolute/relative tolerances against a float64 reference, per dtype (Kornia's convention).
+TOL = {
+    torch.float16: dict(atol=1e-2, rtol=1e-2),
+    torch.bfloat16: dict(atol=3e-2, rtol=3e-2),
+    torch.float32: dict(atol=1e-5, rtol=1e-4),
+    torch.float64: dict(atol=1e-10, rtol=1e-8),
+}
+
+SHARED_DATA = Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data"))
+
+
+@pytest.fixture(params=["cpu"] + (["cuda"] if torch.cuda.is_available() else []))
+def device(request) -> torch.device:
+    return torch.device(request.param)
+
+
+@pytest.fixture(params=[torch.float32, torch.float64], ids=["float32", "float64"])
+def dtype(request) -> torch.dtype:
+    return request.param
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    """The read-only shared data folder; tests that need it skip with the reason when it is absent."""
+    if not (SHARED_DATA / "hdri").is_dir():
+        pytest.skip(f"shared data not found at {SHARED_DATA} (set KORNIA_ILUM_SHARED_DATA)")
+    return SHARED_DATA
+
+
+def assert_close_dtype(actual: torch.Tensor, expected: torch.Tensor, dtype: torch.dtype, scale: float = 1.0) -> None:
+    """Compare a low-precision result with a float64 reference using the tolerance of ``dtype``."""
+    tol = TOL[dtype]
+    torch.testing.assert_close(
+        actual.to(torch.float64), expected.to(torch.float64), atol=tol["atol"] * scale, rtol=tol["rtol"] * scale
+    )
