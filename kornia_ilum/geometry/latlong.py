@@ -82,7 +82,7 @@ def latlong_directions(
     Examples:
         >>> d = latlong_directions(4)
         >>> d[0, 4]  # top row, just right of the centre column: mostly up
-        tensor([ 0.0747,  0.9239, -0.3754])
+        tensor([ 0.1464,  0.9239, -0.3536])
     """
     phi, el = latlong_angles(height, device=device, dtype=torch.float64)
     return latlong_to_direction(phi, el).to(dtype)

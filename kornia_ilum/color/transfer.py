@@ -1,0 +1,183 @@
+r"""Colour transfer functions: sRGB (IEC 61966-2-1), gamma 2.2, and 8-bit quantisation.
+
+The sRGB pair is Kornia's (:func:`kornia.color.linear_rgb_to_rgb` and
+:func:`kornia.color.rgb_to_linear_rgb`, which use the exact IEC 61966-2-1 piecewise curve). The
+wrappers here only add kornia_ilum's argument checks (named arguments, NaN/Inf) so that every
+public entry point fails the same way.
+"""
+
+from __future__ import annotations
+
+import torch
+from kornia.color import linear_rgb_to_rgb, rgb_to_linear_rgb
+from torch import nn
+
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import ValueCheckError
+
+__all__ = [
+    "linear_to_srgb",
+    "srgb_to_linear",
+    "gamma_encode",
+    "gamma_decode",
+    "quantize",
+    "LinearToSrgb",
+    "SrgbToLinear",
+    "GammaEncode",
+    "Quantize",
+]
+
+#: Below this linear value :func:`gamma_encode` is the chord through the origin, so its slope is finite.
+GAMMA_KNEE = 1e-5
+
+
+def linear_to_srgb(image: torch.Tensor) -> torch.Tensor:
+    r"""Encode linear RGB with the exact sRGB transfer function (IEC 61966-2-1).
+
+    ``12.92 x`` for ``x <= 0.0031308``, else ``1.055 x^(1/2.4) - 0.055``. Values above 1 are encoded
+    by the same curve (no clipping); clip first for display.
+
+    Args:
+        image: linear RGB of shape :math:`(*, 3, H, W)`.
+
+    Returns:
+        sRGB-encoded image of the same shape.
+
+    Examples:
+        >>> linear_to_srgb(torch.full((3, 1, 1), 0.5)).flatten()
+        tensor([0.7354, 0.7354, 0.7354])
+    """
+    check_tensor(image, "image", ["*", "3", "H", "W"])
+    return linear_rgb_to_rgb(image)
+
+
+def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
+    r"""Decode sRGB to linear RGB (IEC 61966-2-1), the inverse of :func:`linear_to_srgb`.
+
+    Args:
+        image: sRGB image of shape :math:`(*, 3, H, W)`, normally in ``[0, 1]``.
+
+    Returns:
+        linear RGB of the same shape.
+
+    Examples:
+        >>> srgb_to_linear(torch.full((3, 1, 1), 0.5)).flatten()
+        tensor([0.2140, 0.2140, 0.2140])
+    """
+    check_tensor(image, "image", ["*", "3", "H", "W"])
+    return rgb_to_linear_rgb(image)
+
+
+def gamma_encode(x: torch.Tensor, gamma: float = 2.2) -> torch.Tensor:
+    r"""``x^(1/gamma)`` with a finite gradient at 0.
+
+    Exact for ``x >= GAMMA_KNEE`` (1e-5); below it the curve is the chord ``x * knee^(1/gamma - 1)``
+    through the origin, continuous at the knee, with slope ``knee^(1/gamma - 1)`` (about 530 for 2.2)
+    instead of infinity. Negative values map to their chord value (negative), never NaN.
+
+    Args:
+        x: linear values of any shape.
+        gamma: the display gamma, > 0.
+
+    Returns:
+        encoded values of the same shape and dtype.
+
+    Examples:
+        >>> gamma_encode(torch.tensor([0.0, 0.25, 1.0]))
+        tensor([0.0000, 0.5325, 1.0000])
+    """
+    check_tensor(x, "x", None, nonempty=False)
+    if not gamma > 0:
+        raise ValueCheckError(f"gamma must be positive, got {gamma}")
+    inv = 1.0 / gamma
+    knee = GAMMA_KNEE
+    curve = x.clamp(min=knee).pow(inv)
+    chord = x * (knee ** (inv - 1.0))
+    return torch.where(x >= knee, curve, chord)
+
+
+def gamma_decode(x: torch.Tensor, gamma: float = 2.2) -> torch.Tensor:
+    r"""``x^gamma`` for ``x >= 0``; the inverse of :func:`gamma_encode` on ``[knee^(1/gamma), inf)``.
+
+    Examples:
+        >>> gamma_decode(torch.tensor([0.5]))
+        tensor([0.2176])
+    """
+    check_tensor(x, "x", None, nonempty=False)
+    if not gamma > 0:
+        raise ValueCheckError(f"gamma must be positive, got {gamma}")
+    knee_out = GAMMA_KNEE ** (1.0 / gamma)
+    curve = x.clamp(min=knee_out).pow(gamma)
+    chord = x / (GAMMA_KNEE ** (1.0 / gamma - 1.0))
+    return torch.where(x >= knee_out, curve, chord)
+
+
+class _RoundSTE(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, x: torch.Tensor) -> torch.Tensor:  # noqa: D102
+        return torch.round(x)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> torch.Tensor:  # noqa: D102
+        return grad
+
+
+def quantize(x: torch.Tensor, bits: int = 8, straight_through: bool = False) -> torch.Tensor:
+    r"""Clip to ``[0, 1]`` and round to ``2^bits - 1`` levels, as a camera writes an 8-bit file.
+
+    Args:
+        x: encoded (for example sRGB) values of any shape.
+        bits: bit depth, 1 to 16.
+        straight_through: pass the gradient of the rounding through unchanged (the clip still zeroes
+            the gradient outside ``[0, 1]``); otherwise the rounding has zero gradient.
+
+    Returns:
+        quantised values in ``[0, 1]``, same dtype (use float32 or wider for 16 bits).
+
+    Examples:
+        >>> quantize(torch.tensor([-0.2, 0.5, 0.999, 3.0]))
+        tensor([0.0000, 0.5020, 1.0000, 1.0000])
+    """
+    check_tensor(x, "x", None, nonempty=False)
+    check_positive_int(bits, "bits", allowed=range(1, 17))
+    levels = float(2**bits - 1)
+    y = x.clamp(0.0, 1.0) * levels
+    y = _RoundSTE.apply(y) if straight_through else torch.round(y)
+    return y / levels
+
+
+class LinearToSrgb(nn.Module):
+    """Module twin of :func:`linear_to_srgb`."""
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        return linear_to_srgb(image)
+
+
+class SrgbToLinear(nn.Module):
+    """Module twin of :func:`srgb_to_linear`."""
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        return srgb_to_linear(image)
+
+
+class GammaEncode(nn.Module):
+    """Module twin of :func:`gamma_encode`."""
+
+    def __init__(self, gamma: float = 2.2) -> None:
+        super().__init__()
+        self.gamma = gamma
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return gamma_encode(x, self.gamma)
+
+
+class Quantize(nn.Module):
+    """Module twin of :func:`quantize`."""
+
+    def __init__(self, bits: int = 8, straight_through: bool = False) -> None:
+        super().__init__()
+        self.bits = bits
+        self.straight_through = straight_through
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return quantize(x, self.bits, self.straight_through)

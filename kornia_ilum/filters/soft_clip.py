@@ -1,0 +1,91 @@
+r"""Soft clip: a smooth, monotone, differentiable ``min(x, 1)`` (SPEC.md, ``L_rec``)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.errors import NonFiniteError, ValueCheckError
+
+__all__ = ["soft_clip", "SoftClip"]
+
+
+def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
+    r"""Smooth, monotone ``min(x, 1)`` that maps 0 to 0 and saturates at 1.
+
+    .. math::
+
+        f(x) = \frac{x - \operatorname{softplus}(\beta (x - 1))/\beta + c}{1 + c},
+        \qquad c = \operatorname{softplus}(-\beta)/\beta
+
+    This is the softplus-smoothed minimum, evaluated above the knee in the equivalent form
+    ``1 - softplus(-beta (x - 1)) / beta`` so that no term grows with ``x`` (no cancellation for large
+    inputs, no overflow in float16), shifted so that
+    ``f(0) = 0`` and scaled so that ``f(+inf) = 1``. It is infinitely differentiable, strictly
+    increasing (``f'(x) = (1 - sigmoid(beta (x - 1))) / (1 + c) > 0``), equals ``x`` up to
+    ``e^{-beta (1 - x)} / beta`` below the knee, and ``f(1) = 1 - ln 2 / beta``.
+
+    Half-precision inputs are computed in float32 and cast back. ``+inf`` (for example ``1e6`` cast to
+    float16) maps to 1 with gradient 0.
+
+    Args:
+        x: tensor of any shape, typically linear HDR sphere renders.
+        sharpness: :math:`\beta > 0`, the knee's sharpness. Larger is closer to a hard clip.
+
+    Returns:
+        tensor of the shape and dtype of ``x``, in ``[f(min x), 1]``.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Raises:
+        NonFiniteError: ``x`` holds NaN.
+        ValueCheckError: ``sharpness`` is not positive.
+
+    Examples:
+        >>> soft_clip(torch.tensor([0.0, 0.5, 1.0, 1e6]))
+        tensor([0.0000, 0.5000, 0.9653, 1.0000])
+    """
+    check_tensor(x, "x", None, finite=False, nonempty=False)
+    if not (isinstance(sharpness, (int, float)) and sharpness > 0 and math.isfinite(sharpness)):
+        raise ValueCheckError(f"sharpness must be a finite positive number, got {sharpness!r}")
+    if checks_active() and not torch.compiler.is_compiling() and bool(torch.isnan(x).any()):
+        raise NonFiniteError("x must not hold NaN")
+    work = x.float() if x.dtype in (torch.float16, torch.bfloat16) else x
+    beta = float(sharpness)
+    softplus = nn.functional.softplus
+    c = softplus(torch.tensor(-beta, dtype=work.dtype, device=work.device)) / beta
+    t = work - 1.0
+    # Two exact forms of min(x, 1) - softplus(-beta |t|) / beta, each evaluated only where it is stable:
+    # below the knee x - softplus(beta t) / beta, above it 1 - softplus(-beta t) / beta. Clamping inside
+    # each branch keeps the unselected one finite, so the gradient through torch.where stays finite too.
+    below = work - softplus(beta * t.clamp(max=0.0)) / beta
+    above = 1.0 - softplus(-beta * t.clamp(min=0.0)) / beta
+    y = (torch.where(t <= 0, below, above) + c) / (1.0 + c)
+    return y.to(x.dtype)
+
+
+class SoftClip(nn.Module):
+    r"""Module twin of :func:`soft_clip`.
+
+    Args:
+        sharpness: :math:`\beta`, see :func:`soft_clip`.
+
+    Examples:
+        >>> SoftClip(sharpness=5.0)(torch.tensor([0.5, 1.0, 2.0]))
+        tensor([0.4984, 0.8615, 0.9987])
+    """
+
+    def __init__(self, sharpness: float = 20.0) -> None:
+        super().__init__()
+        self.sharpness = sharpness
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return soft_clip(x, self.sharpness)
+
+    def extra_repr(self) -> str:
+        return f"sharpness={self.sharpness}"
