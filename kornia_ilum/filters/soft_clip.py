@@ -77,7 +77,7 @@ class SoftClip(nn.Module):
 
     Examples:
         >>> SoftClip(sharpness=5.0)(torch.tensor([0.5, 1.0, 2.0]))
-        tensor([0.4984, 0.8615, 0.9987])
+        tensor([0.4849, 0.8616, 0.9987])
     """
 
     def __init__(self, sharpness: float = 20.0) -> None:
