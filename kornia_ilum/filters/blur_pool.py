@@ -1,0 +1,54 @@
+r"""Blur-pool, the network's anti-aliased downsampling (Zhang 2019, "Making convolutional networks
+shift-invariant again").
+
+The maths is Kornia's :func:`kornia.filters.blur_pool2d` / :class:`kornia.filters.BlurPool2D`
+(normalised Pascal kernel as a non-persistent buffer, zero padding, input dtype kept). The thin wrappers
+here exist for one reason: Kornia lets a wrong-rank input fall through to ``conv2d``, which raises a bare
+``RuntimeError``; kornia_ilum's entry points raise a typed :class:`~kornia.core.exceptions.ShapeError`
+that names the argument and the expected shape instead.
+"""
+
+from __future__ import annotations
+
+import kornia.filters
+import torch
+
+from kornia_ilum.core.check import check_tensor
+
+__all__ = ["blur_pool2d", "BlurPool2D"]
+
+
+def blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2) -> torch.Tensor:
+    r"""Blur with a normalised ``kernel_size`` Pascal kernel, then subsample every ``stride`` pixels.
+
+    Args:
+        input: feature map.
+        kernel_size: side of the square binomial kernel.
+        stride: subsampling step.
+
+    Returns:
+        the pooled map, same dtype and device.
+
+    Shape:
+        - Input: :math:`(B, C, H, W)`
+        - Output: :math:`(B, C, \lceil H / s \rceil, \lceil W / s \rceil)`
+
+    Examples:
+        >>> blur_pool2d(torch.ones(1, 2, 8, 8)).shape
+        torch.Size([1, 2, 4, 4])
+    """
+    check_tensor(input, "input", ["B", "C", "H", "W"], finite=False)
+    return kornia.filters.blur_pool2d(input, kernel_size, stride)
+
+
+class BlurPool2D(kornia.filters.BlurPool2D):
+    r"""Module twin of :func:`blur_pool2d` (Kornia's module plus the typed shape check).
+
+    Examples:
+        >>> BlurPool2D(3, stride=2)(torch.ones(1, 2, 8, 8)).shape
+        torch.Size([1, 2, 4, 4])
+    """
+
+    def forward(self, input: torch.Tensor) -> torch.Tensor:
+        check_tensor(input, "input", ["B", "C", "H", "W"], finite=False)
+        return super().forward(input)
