@@ -21,6 +21,20 @@ from kornia_ilum.geometry.mirror_ball import (
     pixel_to_uv,
     uv_to_pixel,
 )
+from kornia_ilum.geometry.resample import (
+    LatLongToMirrorBall,
+    MirrorBallToLatLong,
+    ResizeMirrorBall,
+    latlong_to_mirror_ball,
+    mirror_ball_to_latlong,
+    resize_mirror_ball,
+)
+from kornia_ilum.geometry.transform import (
+    FlipLightingHorizontal,
+    RotateLighting,
+    flip_lighting_horizontal,
+    rotate_lighting,
+)
 
 __all__ = [
     "angles_to_latlong_pixel",
@@ -40,4 +54,14 @@ __all__ = [
     "mirror_ball_valid",
     "pixel_to_uv",
     "uv_to_pixel",
+    "latlong_to_mirror_ball",
+    "mirror_ball_to_latlong",
+    "resize_mirror_ball",
+    "LatLongToMirrorBall",
+    "MirrorBallToLatLong",
+    "ResizeMirrorBall",
+    "rotate_lighting",
+    "flip_lighting_horizontal",
+    "RotateLighting",
+    "FlipLightingHorizontal",
 ]
