@@ -8,6 +8,7 @@ message names the argument and the expected shape. It honours Kornia's global sw
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -94,10 +95,14 @@ def check_tensor(
         raise EmptyTensorError(f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)")
     if torch.compiler.is_compiling():
         return
-    if finite and x.is_floating_point() and not bool(torch.isfinite(x).all()):
+    if not (finite or nonnegative) or not x.is_floating_point():
+        return
+    lo, hi = torch.aminmax(x.detach())  # one pass over the data; NaN propagates into both
+    lo, hi = float(lo), float(hi)
+    if finite and not (math.isfinite(lo) and math.isfinite(hi)):
         raise NonFiniteError(f"{name} must be finite, but it holds NaN or Inf")
-    if nonnegative and bool((x < 0).any()):
-        raise ValueCheckError(f"{name} must be non-negative (lighting is never negative), got min {x.min().item():g}")
+    if nonnegative and lo < 0:
+        raise ValueCheckError(f"{name} must be non-negative (lighting is never negative), got min {lo:g}")
 
 
 def check_same_device(*named: tuple[str, torch.Tensor]) -> None:

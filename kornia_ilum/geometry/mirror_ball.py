@@ -7,13 +7,15 @@ Convention:
     ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)``. The centre is +Z, the rim is -Z. A pixel is
     valid iff its centre has ``r <= 1``; invalid pixels hold 0.
 
-    The map is equal-area: ``dOmega = 4 du dv``, so a pixel fully inside the disk spans ``16 / S^2`` sr.
-    Rim pixels get their exact share: the disk is partitioned among the valid pixels by nearest valid
-    pixel centre (inside a valid pixel that is the pixel itself), the part of the disk in each pixel
-    square is integrated analytically, and only the split of an *invalid* pixel's sliver between its
-    valid neighbours is supersampled. The solid angles therefore sum to ``4 pi`` to float precision at
-    every size, and :func:`mirror_ball_pixel_index` assigns every direction to the pixel whose solid angle
-    covers it, which is what energy-conserving resampling needs.
+    The map is equal-area: ``dOmega = 4 du dv``, so a pixel fully inside the disk spans exactly
+    ``16 / S^2`` sr. The disk is partitioned among the valid pixels: a point in a valid pixel's square
+    belongs to that pixel; a point in an *invalid* pixel's square (the thin sliver of disk beyond the
+    valid pixels) belongs to the nearest *rim pixel*, a valid pixel whose square crosses the unit circle.
+    Fully inside pixels therefore never receive slivers. The disk area in each square is integrated
+    analytically, and only the split of each sliver between rim pixels is supersampled (ties split
+    equally, so the result keeps the grid's symmetries). The solid angles sum to ``4 pi`` to float
+    precision at every size, and :func:`mirror_ball_pixel_index` assigns every direction to the pixel
+    whose solid angle covers it, which is what energy-conserving resampling needs.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ __all__ = [
     "lights_to_mirror_ball",
 ]
 
-_RIM_SUPERSAMPLES = 64  # per axis, only for splitting invalid rim slivers between valid neighbours
+_RIM_SUPERSAMPLES = 32  # per axis, only for splitting invalid rim slivers between valid neighbours
 
 
 def mirror_ball_uv(
@@ -203,12 +205,39 @@ def _disk_area_in_pixels(size: int) -> torch.Tensor:
     return _signed_area(x1, y1) - _signed_area(x0, y1) - _signed_area(x1, y0) + _signed_area(x0, y0)
 
 
+def _rim_pixels(size: int, device: torch.device | str | None = None) -> torch.Tensor:
+    """``(S, S)`` mask of the valid pixels whose square crosses the unit circle (the owners of slivers)."""
+    edges = torch.linspace(-1.0, 1.0, size + 1, dtype=torch.float64, device=device)
+    far = torch.maximum(edges[:-1].abs(), edges[1:].abs())
+    fully_inside = far[None, :].square() + far.flip(0)[:, None].square() <= 1.0
+    return mirror_ball_valid(size, device=device) & ~fully_inside
+
+
+def _sliver_candidates(px: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Rim-pixel candidates in the 5x5 window of each point and their squared distances (inf if not rim).
+
+    The window always holds the owner: a sliver point lies within one pixel diagonal of the circle, and
+    the rim pixels along the circle are at most two pixels away from it.
+    """
+    row = px[..., 1].round().clamp(0, size - 1).long()
+    col = px[..., 0].round().clamp(0, size - 1).long()
+    offs = torch.arange(-2, 3, device=px.device)
+    dr, dc = torch.meshgrid(offs, offs, indexing="ij")
+    rr = (row[..., None] + dr.flatten()).clamp(0, size - 1)
+    cc = (col[..., None] + dc.flatten()).clamp(0, size - 1)
+    dist = (cc - px[..., :1]).square() + (rr - px[..., 1:]).square()
+    dist = torch.where(_rim_pixels(size, device=px.device)[rr, cc], dist, torch.full_like(dist, math.inf))
+    return rr * size + cc, dist
+
+
 def mirror_ball_pixel_index(uv: torch.Tensor, size: int) -> torch.Tensor:
     r"""Flat index ``row * S + col`` of the valid pixel that owns each point ``(u, v)`` of the disk.
 
-    A point owned by a valid pixel square maps to that pixel; a point in an invalid rim square (or just
-    outside the disk) maps to the nearest valid pixel centre. This is the partition whose areas are
-    :func:`mirror_ball_solid_angles`, so scattering energy through it conserves energy exactly.
+    A point in a valid pixel's square maps to that pixel; a point in an invalid rim square (or just
+    outside the disk) maps to the nearest rim pixel (a valid pixel whose square crosses the circle).
+    This is the partition whose areas are :func:`mirror_ball_solid_angles`, so scattering energy through
+    it conserves energy exactly. On the measure-zero lines where two rim pixels are equally near, the
+    first in row-major order wins.
 
     Args:
         uv: ``(..., 2)`` coordinates.
@@ -216,29 +245,23 @@ def mirror_ball_pixel_index(uv: torch.Tensor, size: int) -> torch.Tensor:
 
     Returns:
         ``(...)`` int64 indices into the flattened ``S x S`` grid, always of a valid pixel.
+
+    Examples:
+        >>> mirror_ball_pixel_index(torch.tensor([[0.1, 0.1], [0.95, 0.9]]), 4)  # the 2nd is in an invalid corner
+        tensor([6, 7])
     """
     check_tensor(uv, "uv", ["*", "2"], finite=True)
     px = uv_to_pixel(uv.to(torch.float64), size)
     col = px[..., 0].round().clamp(0, size - 1).long()
     row = px[..., 1].round().clamp(0, size - 1).long()
-    valid = mirror_ball_valid(size, device=uv.device)
     idx = row * size + col
-    own_ok = valid.flatten()[idx]
+    own_ok = mirror_ball_valid(size, device=uv.device).flatten()[idx]
     if bool(own_ok.all()):
         return idx
-    # nearest valid centre in a 5x5 window around the containing pixel (always enough: see module doc)
     bad = ~own_ok
-    pb = px[bad]
-    rb, cb = row[bad], col[bad]
-    offs = torch.arange(-2, 3, device=uv.device)
-    dr, dc = torch.meshgrid(offs, offs, indexing="ij")
-    rr = (rb[:, None] + dr.flatten()[None]).clamp(0, size - 1)
-    cc = (cb[:, None] + dc.flatten()[None]).clamp(0, size - 1)
-    dist = (cc - pb[:, :1]).square() + (rr - pb[:, 1:]).square()
-    dist = torch.where(valid[rr, cc], dist, torch.full_like(dist, math.inf))
-    k = dist.argmin(dim=1, keepdim=True)
+    cand, dist = _sliver_candidates(px[bad], size)
     idx = idx.clone()
-    idx[bad] = (rr.gather(1, k) * size + cc.gather(1, k)).squeeze(1)
+    idx[bad] = cand.gather(-1, dist.argmin(dim=-1, keepdim=True)).squeeze(-1)
     return idx
 
 
@@ -247,21 +270,27 @@ def _solid_angles_f64(size: int) -> torch.Tensor:
     area = _disk_area_in_pixels(size)  # (S, S)
     valid = mirror_ball_valid(size)
     omega = torch.where(valid, area, torch.zeros_like(area)).flatten()
-    n = _RIM_SUPERSAMPLES
-    sub = (torch.arange(n, dtype=torch.float64) + 0.5) / n - 0.5  # offsets in pixel units
-    for i, j in (~valid & (area > 0)).nonzero().tolist():
+    slivers = (~valid & (area > 0)).nonzero()  # (K, 2) rows, cols
+    if len(slivers):
+        n = _RIM_SUPERSAMPLES
+        sub = (torch.arange(n, dtype=torch.float64) + 0.5) / n - 0.5  # offsets in pixel units
         dr, dc = torch.meshgrid(sub, sub, indexing="ij")
-        px = torch.stack([j + dc.flatten(), i + dr.flatten()], -1)
-        uv = pixel_to_uv(px, size)
-        inside = uv.square().sum(-1) <= 1.0
-        if not bool(inside.any()):
-            continue
-        owners = mirror_ball_pixel_index(uv[inside], size)
-        share = torch.bincount(owners, minlength=size * size).to(torch.float64)
-        omega += area[i, j] * share / share.sum()
+        px = torch.stack(
+            [slivers[:, 1, None] + dc.flatten(), slivers[:, 0, None] + dr.flatten()], dim=-1
+        )  # (K, n*n, 2)
+        inside = pixel_to_uv(px, size).square().sum(-1) <= 1.0
+        cand, dist = _sliver_candidates(px, size)  # (K, n*n, 25)
+        # each sample's share goes to its nearest rim pixel; exact ties split equally (keeps symmetry)
+        ties = (dist <= dist.min(dim=-1, keepdim=True).values + 1e-9) & inside[..., None]
+        weight = ties.to(torch.float64) / ties.sum(-1, keepdim=True).clamp(min=1)
+        per_sliver = weight.sum((1, 2))  # samples inside the disk, per sliver (0 for a corner that only touches)
+        scale = torch.where(per_sliver > 0, area[slivers[:, 0], slivers[:, 1]] / per_sliver.clamp(min=1.0), 0.0)
+        weight = weight * scale[:, None, None]
+        omega.index_add_(0, cand.flatten(), weight.flatten())
     return (4.0 * omega).reshape(size, size)
 
 
+@torch.compiler.disable
 def mirror_ball_solid_angles(
     size: int, *, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32
 ) -> torch.Tensor:

@@ -1,0 +1,216 @@
+r"""Rigid transforms of lighting: rotation and the horizontal flip that matches a flipped photo (SPEC.md).
+
+Convention:
+    Frame of SPEC.md (+X right, +Y up, +Z toward the camera); a direction ``d`` means light arriving
+    *from* ``d``. Lighting is an ``S x S`` mirror ball (``layout="mirror_ball"``) or an ``H x 2H``
+    lat-long map (``layout="latlong"``), linear HDR, never negative.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from kornia_ilum.core.check import check_same_device, check_tensor, checks_active
+from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.geometry.resample import (
+    _PER_CALL,
+    Layout,
+    _check_layout,
+    _check_lighting,
+    _overlaps,
+    _solid_angles_flat,
+    _splat,
+)
+
+__all__ = ["rotate_lighting", "flip_lighting_horizontal", "RotateLighting", "FlipLightingHorizontal"]
+
+
+def _check_rotation(rotation: torch.Tensor, batch: int | None = None) -> None:
+    """``(3, 3)`` or ``(B, 3, 3)``, finite, orthonormal with determinant +1."""
+    check_tensor(rotation, "rotation", ["*", "3", "3"])
+    if not checks_active():
+        return
+    if rotation.dim() not in (2, 3) or (
+        batch is not None and rotation.dim() == 3 and rotation.shape[0] != batch
+    ):
+        want = "(3, 3) or (B, 3, 3)" if batch is None else f"(3, 3) or ({batch}, 3, 3)"
+        raise ShapeError(f"rotation must have shape {want}, got {tuple(rotation.shape)}")
+    if torch.compiler.is_compiling():
+        return
+    r = rotation.detach().to(torch.float64)
+    tol = max(1e-5, 10.0 * torch.finfo(rotation.dtype).eps)
+    err = (r @ r.transpose(-1, -2) - torch.eye(3, dtype=torch.float64, device=r.device)).abs().amax().item()
+    if err > tol:
+        raise ValueCheckError(
+            f"rotation must be orthonormal (R R^T = I within {tol:g}), got max error {err:.3g}"
+        )
+    det = torch.linalg.det(r).min().item()
+    if det < 0:
+        raise ValueCheckError(
+            f"rotation must be a proper rotation with det +1, got det {det:.3g} (a reflection; for the "
+            "mirror image of a photo use flip_lighting_horizontal)"
+        )
+
+
+@torch.compiler.disable
+def _rotation_tables(
+    grid: tuple[str, int], rotation: torch.Tensor, dtype: torch.dtype, device: torch.device
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Per-rotation ``(s, t, weight)`` tables ``(B_R, M)`` for ``resample._splat``."""
+    rot = rotation.detach().to(device="cpu", dtype=torch.float64).reshape(-1, 3, 3)
+    om = _solid_angles_flat(*grid)
+    tables = [_overlaps(grid, grid, r, merge=False, quality=_PER_CALL) for r in rot]
+    s, t, a = (torch.stack(p) for p in zip(*tables, strict=True))
+    return s.to(device), t.to(device), (a / om[t]).to(device=device, dtype=dtype)
+
+
+def rotate_lighting(
+    lighting: torch.Tensor, rotation: torch.Tensor, layout: Layout = "mirror_ball"
+) -> torch.Tensor:
+    r"""Rotate lighting: light that arrived from direction ``d`` arrives from ``R d`` afterwards.
+
+    That is ``L'(d) = L(R^T d)``. The resampling is the energy-conserving area method of
+    :mod:`kornia_ilum.geometry.resample` on the same grid, with the source sub-cells rotated by ``R``
+    (and the target sub-cells by ``R^T``): ``sum(L * Omega)`` per channel is conserved to float
+    precision, and a sun stays a sun (its energy moves to the pixels around ``R d``, it is neither
+    missed nor multiplied as it would be by point sampling). Resampling on the same grid blurs slightly
+    (each pixel spreads over up to four). Measured on a smooth 32 x 32 mirror ball: a constant map stays
+    constant to 1.3 %, and rotating by ``R`` and back returns the map to 1.2 % on average (4 % in the
+    worst pixel away from -Z, where the long rim pixels average over some 30 degrees).
+
+    The tables are built per call on the CPU in float64 (about 0.1 M entries per 32 x 32 ball, 17 M for
+    a 512 x 1024 map, so rotate mirror balls, not large maps, inside a training loop). The result is
+    differentiable in ``lighting``, not in ``rotation``.
+
+    Args:
+        lighting: linear HDR lighting, non-negative.
+        rotation: a proper rotation ``(3, 3)`` shared by the batch or ``(B, 3, 3)`` one per map.
+        layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Returns:
+        the rotated lighting, same shape, dtype and device (mirror balls hold 0 at invalid pixels).
+
+    Shape:
+        - lighting: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
+        - rotation: :math:`(3, 3)` or :math:`(B, 3, 3)`
+        - Output: as ``lighting``
+
+    Convention:
+        SPEC.md frame. ``R`` acts on the directions light arrives from: with ``R`` the rotation by
+        +90 degrees about +Y (``R (0, 0, -1) = (-1, 0, 0)``), light from straight ahead (-Z) arrives from
+        the left (-X) afterwards. Half precision is computed in float32 and cast back.
+
+    Raises:
+        ShapeError: wrong shapes.
+        ValueCheckError: negative lighting, unknown layout, or ``rotation`` not orthonormal with det +1.
+        NonFiniteError: NaN or Inf in an argument.
+
+    Examples:
+        >>> ball = torch.zeros(1, 1, 8, 8)
+        >>> ball[0, 0, 3, 6] = 1.0
+        >>> turn = torch.tensor([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # 90 deg about +Y
+        >>> out = rotate_lighting(ball, turn)
+        >>> from kornia_ilum.geometry import mirror_ball_solid_angles
+        >>> omega = mirror_ball_solid_angles(8)
+        >>> round((out * omega).sum().item(), 6) == round((ball * omega).sum().item(), 6)
+        True
+    """
+    _check_layout(layout)
+    _check_lighting(lighting, "lighting", layout)
+    _check_rotation(rotation, lighting.shape[0])
+    check_same_device(("lighting", lighting), ("rotation", rotation))
+    work = lighting.float() if lighting.dtype in (torch.float16, torch.bfloat16) else lighting
+    grid = (layout, lighting.shape[-2])
+    s, t, w = _rotation_tables(grid, rotation, work.dtype, work.device)
+    out = _splat(work.flatten(2), s, t, w, lighting.shape[-2] * lighting.shape[-1])
+    return out.reshape(lighting.shape).to(lighting.dtype)
+
+
+def flip_lighting_horizontal(lighting: torch.Tensor, layout: Layout = "mirror_ball") -> torch.Tensor:
+    r"""The lighting of a horizontally flipped photo: ``L'(x, y, z) = L(-x, y, z)``.
+
+    Flipping a portrait left-right mirrors the scene in the camera frame (``x -> -x``). Both layouts are
+    symmetric under ``x -> -x`` (mirror ball: ``u -> -u``; lat-long: ``phi -> -phi``), so this is exactly
+    a column flip, with no resampling. It is a reflection (det -1), so no rotation can do it.
+
+    Args:
+        lighting: linear HDR lighting, non-negative.
+        layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Returns:
+        the flipped lighting, same shape, dtype and device.
+
+    Shape:
+        - lighting: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
+        - Output: as ``lighting``
+
+    Convention:
+        SPEC.md frame and grids.
+
+    Raises:
+        ShapeError: wrong shape for ``layout``.
+        ValueCheckError: negative lighting or an unknown layout.
+        NonFiniteError: NaN or Inf in ``lighting``.
+
+    Examples:
+        >>> env = torch.zeros(1, 1, 2, 4)
+        >>> env[0, 0, 0, 0] = 1.0  # upper left: light from the left (-X)
+        >>> flip_lighting_horizontal(env, "latlong")[0, 0]
+        tensor([[0., 0., 0., 1.],
+                [0., 0., 0., 0.]])
+    """
+    _check_layout(layout)
+    _check_lighting(lighting, "lighting", layout)
+    return lighting.flip(-1)
+
+
+class RotateLighting(nn.Module):
+    r"""Module twin of :func:`rotate_lighting`; the rotation is a (non-persistent) buffer.
+
+    Args:
+        rotation: a proper rotation ``(3, 3)`` or ``(B, 3, 3)``.
+        layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Examples:
+        >>> RotateLighting(torch.eye(3))(torch.rand(2, 3, 8, 8)).shape
+        torch.Size([2, 3, 8, 8])
+    """
+
+    rotation: torch.Tensor
+
+    def __init__(self, rotation: torch.Tensor, layout: Layout = "mirror_ball") -> None:
+        super().__init__()
+        _check_layout(layout)
+        _check_rotation(rotation)
+        self.layout = layout
+        self.register_buffer("rotation", rotation, persistent=False)
+
+    def forward(self, lighting: torch.Tensor) -> torch.Tensor:
+        return rotate_lighting(lighting, self.rotation, self.layout)
+
+    def extra_repr(self) -> str:
+        return f"layout={self.layout!r}"
+
+
+class FlipLightingHorizontal(nn.Module):
+    r"""Module twin of :func:`flip_lighting_horizontal`.
+
+    Args:
+        layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Examples:
+        >>> FlipLightingHorizontal("latlong")(torch.rand(1, 3, 4, 8)).shape
+        torch.Size([1, 3, 4, 8])
+    """
+
+    def __init__(self, layout: Layout = "mirror_ball") -> None:
+        super().__init__()
+        _check_layout(layout)
+        self.layout = layout
+
+    def forward(self, lighting: torch.Tensor) -> torch.Tensor:
+        return flip_lighting_horizontal(lighting, self.layout)
+
+    def extra_repr(self) -> str:
+        return f"layout={self.layout!r}"

@@ -1,0 +1,31 @@
+"""Lighting errors: the sphere-render loss ``L_rec``, relative radiance, and the three-sphere protocol."""
+
+from kornia_ilum.metrics.lighting import (
+    MultiscaleReconstructionLoss,
+    ReconstructionLoss,
+    RelativeRadiance,
+    multiscale_reconstruction_loss,
+    reconstruction_loss,
+    relative_radiance,
+)
+from kornia_ilum.metrics.protocol import (
+    METRICS,
+    ThreeSphereMetrics,
+    TonemapStylelight,
+    three_sphere_metrics,
+    tonemap_stylelight,
+)
+
+__all__ = [
+    "METRICS",
+    "MultiscaleReconstructionLoss",
+    "ReconstructionLoss",
+    "RelativeRadiance",
+    "ThreeSphereMetrics",
+    "TonemapStylelight",
+    "multiscale_reconstruction_loss",
+    "reconstruction_loss",
+    "relative_radiance",
+    "three_sphere_metrics",
+    "tonemap_stylelight",
+]
