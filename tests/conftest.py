@@ -25,7 +25,15 @@ TOL = {
     torch.float64: dict(atol=1e-10, rtol=1e-8),
 }
 
-SHARED_DATA = Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data"))
+def _find_shared_data() -> Path:
+    """``$KORNIA_ILUM_SHARED_DATA``, else ``../shared/data`` beside the checkout, else the workplace's copy."""
+    if "KORNIA_ILUM_SHARED_DATA" in os.environ:
+        return Path(os.environ["KORNIA_ILUM_SHARED_DATA"])
+    candidates = [Path(__file__).resolve().parents[2] / "shared" / "data", Path("/work/shared/data")]
+    return next((c for c in candidates if (c / "hdri").is_dir()), candidates[0])
+
+
+SHARED_DATA = _find_shared_data()
 
 
 @pytest.fixture(params=["cpu"] + (["cuda"] if torch.cuda.is_available() else []))
