@@ -1,0 +1,1 @@
+"""Synthesis: lighting environments, LDR-to-HDR promotion, and (later) the virtual light stage."""
