@@ -6,10 +6,13 @@ from kornia_ilum.core.errors import (
     EmptyTensorError,
     HDRIOError,
     IlumError,
+    MissingWeightsError,
+    NoFaceError,
     NonFiniteError,
     ShapeError,
     TypeCheckError,
     ValueCheckError,
+    WeightsChecksumError,
 )
 
 __all__ = [
@@ -21,8 +24,11 @@ __all__ = [
     "EmptyTensorError",
     "HDRIOError",
     "IlumError",
+    "MissingWeightsError",
+    "NoFaceError",
     "NonFiniteError",
     "ShapeError",
     "TypeCheckError",
     "ValueCheckError",
+    "WeightsChecksumError",
 ]

@@ -18,6 +18,9 @@ __all__ = [
     "EmptyTensorError",
     "IlumError",
     "HDRIOError",
+    "MissingWeightsError",
+    "WeightsChecksumError",
+    "NoFaceError",
 ]
 
 
@@ -37,4 +40,29 @@ class HDRIOError(IlumError, OSError):
     """An image file is missing, unreadable, corrupt, or cannot be written as asked.
 
     The message always names the path.
+    """
+
+
+class MissingWeightsError(IlumError):
+    """An estimator's pretrained weights are not available.
+
+    Either the estimator ships no trained weights yet (``pretrained=False`` gives the untrained model), or
+    one of its weight files is missing from the weights folder. The message names the estimator, and the
+    file and folder where one is missing.
+    """
+
+
+class WeightsChecksumError(IlumError):
+    """A weight file's SHA-256 digest differs from the one its estimator declares.
+
+    The file is corrupt, truncated, or from another release; it is never loaded. The message names the
+    file and both digests.
+    """
+
+
+class NoFaceError(IlumError):
+    """No face was found in an image where the estimate needs one.
+
+    The message names the image and the detector, and says how to proceed (another detector, a crop with
+    ``detector="none"``, or ``fallback="full_image"``).
     """

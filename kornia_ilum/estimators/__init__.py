@@ -1,0 +1,39 @@
+"""Lighting estimators: one contract (``forward(crops) -> LightingEstimate``) and a registry by name.
+
+Estimators come from entry points of the group ``kornia_ilum.estimators`` (the built-in ``ours`` and
+plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estimator`.
+"""
+
+from kornia_ilum.estimators.base import (
+    EstimatorInfo,
+    LightingEstimate,
+    LightingEstimator,
+    WeightFile,
+    check_crops,
+)
+from kornia_ilum.estimators.ours import OursEstimator
+from kornia_ilum.estimators.registry import (
+    DEFAULT_ESTIMATOR,
+    ENTRY_POINT_GROUP,
+    create_estimator,
+    estimator_info,
+    estimator_registry,
+    list_estimators,
+    register_estimator,
+)
+
+__all__ = [
+    "LightingEstimate",
+    "LightingEstimator",
+    "EstimatorInfo",
+    "WeightFile",
+    "check_crops",
+    "OursEstimator",
+    "DEFAULT_ESTIMATOR",
+    "ENTRY_POINT_GROUP",
+    "create_estimator",
+    "estimator_info",
+    "estimator_registry",
+    "list_estimators",
+    "register_estimator",
+]

@@ -1,0 +1,517 @@
+r"""The estimator contract: one ``forward(crops) -> LightingEstimate`` for every lighting estimator.
+
+A lighting estimator is an :class:`torch.nn.Module` that maps face crops to HDR lighting. All of them
+share one call signature and one typed result (as pytorch3d's light types do), so call sites never branch
+on the method:
+
+- :class:`LightingEstimate`: the result, a mirror ball in the units of the photograph, with the methods
+  that use it (lat-long, sphere renders, ``.exr``/``.hdr`` files, a preview PNG).
+- :class:`EstimatorInfo` and :class:`WeightFile`: the metadata of an estimator (description, paper, input
+  size, weight files with their SHA-256), as timm's pretrained configs.
+- :class:`LightingEstimator`: the base class. :meth:`LightingEstimator.forward` checks the crops and
+  calls :meth:`LightingEstimator.predict`, which subclasses implement. Pretrained weights load only
+  through :meth:`LightingEstimator.from_pretrained`, which checks each file's SHA-256 and reads it with
+  :func:`safetensors.torch.load_file` (never by unpickling); a constructor never touches weight files.
+
+Convention:
+    Crops are ``(B, 3, S, S)`` sRGB-encoded in ``[0, 1]`` (SPEC.md, Images) with ``S`` the estimator's
+    ``info.input_size`` (256 for the paper's crops). Lighting is a linear mirror ball in radiance, in the
+    units of the input image (SPEC.md, "Mirror ball" and "Units of lighting"), 0 outside the ball.
+    ``log_mirror_ball``, where an estimator has it, is ``log(1 + L)`` (natural log) for every estimator,
+    so ``mirror_ball == expm1(log_mirror_ball)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar, Self
+
+import safetensors.torch
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from kornia_ilum.color import linear_to_srgb
+from kornia_ilum.core.check import check_positive_int, check_tensor, checks_active
+from kornia_ilum.core.errors import (
+    MissingWeightsError,
+    NonFiniteError,
+    ShapeError,
+    TypeCheckError,
+    ValueCheckError,
+    WeightsChecksumError,
+)
+from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
+from kornia_ilum.io import write_hdr, write_ldr
+from kornia_ilum.render import SPHERE_SIZES, render_spheres
+
+__all__ = [
+    "LightingEstimate",
+    "WeightFile",
+    "EstimatorInfo",
+    "LightingEstimator",
+    "check_crops",
+    "PREVIEW_BRDFS",
+    "CROP_RANGE_SLACK",
+]
+
+#: The spheres of :meth:`LightingEstimate.preview`, left to right.
+PREVIEW_BRDFS: tuple[str, ...] = ("diffuse", "matte_silver", "mirror")
+#: Crop values may exceed ``[0, 1]`` by this much (round-off of antialiased resampling) without an error.
+CROP_RANGE_SLACK = 1e-3
+
+_HDR_SUFFIXES = (".exr", ".hdr")
+_LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
+_PREVIEW_PERCENTILE = 0.99  # of the diffuse sphere's linear values ...
+_PREVIEW_TARGET = 0.9  # ... mapped to this linear display value before the sRGB encoding
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+
+
+def _check_index(index: int, batch: int) -> int:
+    if isinstance(index, bool) or not isinstance(index, int):
+        raise TypeCheckError(f"index must be an int, got {type(index).__name__}")
+    if not -batch <= index < batch:
+        raise ValueCheckError(
+            f"index must be in [{-batch}, {batch}) for an estimate of {batch} lightings, got {index}"
+        )
+    return index % batch
+
+
+def _check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
+    if path.suffix.lower() not in allowed:
+        raise ValueCheckError(
+            f"cannot write {what} to {path}: the file name must end in {' or '.join(allowed)}, "
+            f"got {path.suffix!r}"
+        )
+
+
+@dataclass(eq=False)
+class LightingEstimate:
+    r"""Lighting estimated from face crops: HDR mirror balls plus what an estimator or the API adds.
+
+    Args:
+        mirror_ball: linear HDR lighting in radiance, in the units of the input image, 0 outside the ball.
+        valid: the pixels on the ball (:func:`~kornia_ilum.geometry.mirror_ball_valid`).
+        log_mirror_ball: ``log(1 + mirror_ball)`` (natural log), 0 outside the ball, where the estimator
+            predicts log-HDR.
+        sh: order-2 real SH coefficients of the lighting (SPEC.md order), where the estimator has them.
+        boxes: face boxes ``x0, y0, x1, y1`` in input-image pixels, filled by
+            :func:`kornia_ilum.estimate_lighting`.
+        image_index: which input image each lighting belongs to, filled by
+            :func:`kornia_ilum.estimate_lighting`.
+
+    Shape:
+        - mirror_ball, log_mirror_ball: :math:`(B, 3, S, S)`, ``S = 32`` for every estimator so far
+        - valid: :math:`(S, S)` bool
+        - sh: :math:`(B, 9, 3)`; boxes: :math:`(B, 4)`; image_index: :math:`(B,)` int64
+
+    Raises:
+        ShapeError, TypeCheckError: on construction, when a field has the wrong shape or dtype.
+
+    Convention:
+        SPEC.md, "Mirror ball" (frame, equal-area mapping) and "Units of lighting". ``len(estimate)`` is
+        ``B``; ``index`` arguments select one lighting of the batch. Estimates compare by identity
+        (``eq=False``: tensors have no single truth value) and print their fields' shapes, not values.
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> valid = mirror_ball_valid(32)
+        >>> est = LightingEstimate(mirror_ball=torch.ones(2, 3, 32, 32) * valid, valid=valid)
+        >>> len(est), tuple(est.to_latlong(16).shape)
+        (2, (2, 3, 16, 32))
+        >>> est  # doctest: +NORMALIZE_WHITESPACE
+        LightingEstimate(mirror_ball=<(2, 3, 32, 32) float32 cpu>, valid=<(32, 32) bool cpu>,
+                         log_mirror_ball=None, sh=None, boxes=None, image_index=None)
+        >>> round(est.render_spheres(16)["diffuse"][0, 0, 8, 8].item(), 3)  # albedo 0.8 under L = 1
+        0.8
+    """
+
+    mirror_ball: Tensor
+    valid: Tensor
+    log_mirror_ball: Tensor | None = None
+    sh: Tensor | None = None
+    boxes: Tensor | None = None
+    image_index: Tensor | None = None
+
+    def __post_init__(self) -> None:
+        check_tensor(self.mirror_ball, "mirror_ball", ["B", "3", "S", "S"], finite=False)
+        batch, _, height, width = self.mirror_ball.shape
+        if height != width:
+            raise ShapeError(f"mirror_ball must be square (B, 3, S, S), got {tuple(self.mirror_ball.shape)}")
+        check_tensor(self.valid, "valid", [str(height), str(width)], floating=False, finite=False)
+        if self.valid.dtype != torch.bool:
+            raise TypeCheckError(f"valid must be a bool tensor, got dtype {self.valid.dtype}")
+        if self.log_mirror_ball is not None:
+            check_tensor(
+                self.log_mirror_ball,
+                "log_mirror_ball",
+                [str(batch), "3", str(height), str(width)],
+                finite=False,
+            )
+        if self.sh is not None:
+            check_tensor(self.sh, "sh", [str(batch), "9", "3"], finite=False)
+        if self.boxes is not None:
+            check_tensor(self.boxes, "boxes", [str(batch), "4"], finite=False)
+        if self.image_index is not None:
+            check_tensor(self.image_index, "image_index", [str(batch)], floating=False, finite=False)
+
+    def __len__(self) -> int:
+        return self.mirror_ball.shape[0]
+
+    def __repr__(self) -> str:
+        def describe(t: Tensor | None) -> str:
+            return (
+                "None"
+                if t is None
+                else f"<{tuple(t.shape)} {str(t.dtype).removeprefix('torch.')} {t.device}>"
+            )
+
+        names = ("mirror_ball", "valid", "log_mirror_ball", "sh", "boxes", "image_index")
+        return f"LightingEstimate({', '.join(f'{n}={describe(getattr(self, n))}' for n in names)})"
+
+    def to_latlong(self, height: int = 64) -> Tensor:
+        r"""The lighting as ``H x 2H`` lat-long maps (:func:`~kornia_ilum.geometry.mirror_ball_to_latlong`).
+
+        Args:
+            height: the maps' height ``H``.
+
+        Returns:
+            linear lat-long maps :math:`(B, 3, H, 2H)`, dtype and device of ``mirror_ball``.
+        """
+        return mirror_ball_to_latlong(self.mirror_ball, height)
+
+    def render_spheres(self, size: int = 32) -> dict[str, Tensor]:
+        r"""The three reference spheres lit by the estimate (:func:`~kornia_ilum.render.render_spheres`).
+
+        Args:
+            size: side of the sphere renders, one of :data:`~kornia_ilum.render.SPHERE_SIZES`.
+
+        Returns:
+            ``{"diffuse", "matte_silver", "mirror"}`` -> linear renders :math:`(B, 3, size, size)`.
+        """
+        return render_spheres(self.mirror_ball, size)
+
+    def save(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        index: int = 0,
+        latlong_height: int | None = None,
+        half: bool = False,
+    ) -> Path:
+        r"""Write one lighting as a linear HDR file, atomically (:func:`~kornia_ilum.io.write_hdr`).
+
+        Args:
+            path: destination; ``.exr`` (OpenEXR, ZIP-compressed) or ``.hdr`` (Radiance RGBE).
+            index: which lighting of the batch.
+            latlong_height: write an ``H x 2H`` lat-long map of this height instead of the mirror ball.
+            half: ``.exr`` only: store half floats.
+
+        Returns:
+            ``path`` as a :class:`~pathlib.Path`.
+
+        Raises:
+            ValueCheckError: the suffix is neither ``.exr`` nor ``.hdr`` (the message names the path),
+                ``index`` is out of range, or ``half=True`` for ``.hdr``.
+            HDRIOError: the folder is missing or the write fails; nothing is left at ``path`` then (an
+                existing file there stays as it was).
+
+        Convention:
+            The file holds the estimate in the units of the input photograph (SPEC.md, "Units of
+            lighting"). The mirror ball is ``S x S`` with 0 outside the ball (SPEC.md, "Mirror ball");
+            the lat-long map follows SPEC.md, "Lat-long" (centre column = forward, -Z).
+        """
+        path = Path(os.fspath(path))
+        _check_suffix(path, _HDR_SUFFIXES, "HDR lighting")
+        i = _check_index(index, len(self))
+        if latlong_height is None:
+            image = self.mirror_ball[i]
+        else:
+            image = mirror_ball_to_latlong(self.mirror_ball[i : i + 1], latlong_height)[0]
+        write_hdr(path, image.detach(), half=half)
+        return path
+
+    def preview(self, path: str | os.PathLike[str], *, index: int = 0, size: int = 128) -> Path:
+        r"""Write the three reference spheres side by side as an 8-bit PNG (or JPEG), atomically.
+
+        Left to right: diffuse, matte silver, mirror (SPEC.md, "Reference spheres"), each ``size x size``
+        on black. One exposure for all three maps the 99th percentile of the diffuse sphere's linear values
+        to 0.9; values are then clipped to ``[0, 1]`` and sRGB-encoded. Spheres are rendered at the
+        nearest supported render size (:data:`~kornia_ilum.render.SPHERE_SIZES`, at most 64) and resized
+        bilinearly to ``size`` when it is not one of them; rendering runs in float32.
+
+        Args:
+            path: destination, ``.png`` (or ``.jpg``/``.jpeg``).
+            index: which lighting of the batch.
+            size: side of each sphere in pixels.
+
+        Returns:
+            ``path`` as a :class:`~pathlib.Path`; the image is ``3 * size`` wide and ``size`` high.
+
+        Raises:
+            ValueCheckError: a suffix other than ``.png``, ``.jpg``, ``.jpeg``, or ``index`` out of range.
+            HDRIOError: the folder is missing or the write fails; nothing is left at ``path`` then.
+        """
+        path = Path(os.fspath(path))
+        _check_suffix(path, _LDR_SUFFIXES, "a preview")
+        check_positive_int(size, "size")
+        i = _check_index(index, len(self))
+        render_size = next((s for s in SPHERE_SIZES if s >= size), SPHERE_SIZES[-1])
+        lighting = self.mirror_ball[i : i + 1].detach().to(torch.float32)
+        spheres = render_spheres(lighting, render_size, PREVIEW_BRDFS)
+        disk = mirror_ball_valid(size, device=lighting.device)
+        panels = []
+        for name in PREVIEW_BRDFS:
+            sphere = spheres[name]
+            if render_size != size:
+                sphere = F.interpolate(
+                    sphere,
+                    size=(size, size),
+                    mode="bilinear",
+                    align_corners=False,
+                    antialias=size < render_size,
+                )
+            panels.append(sphere[0].clamp(min=0.0) * disk)
+        diffuse = panels[0][:, disk]
+        level = (
+            torch.quantile(diffuse.flatten(), _PREVIEW_PERCENTILE)
+            if diffuse.numel()
+            else diffuse.new_zeros(())
+        )
+        exposure = _PREVIEW_TARGET / level if float(level) > 0 else torch.ones_like(level)
+        image = torch.cat(panels, dim=-1) * exposure
+        write_ldr(path, linear_to_srgb(image.clamp(0.0, 1.0)).clamp(0.0, 1.0))
+        return path
+
+
+@dataclass(frozen=True)
+class WeightFile:
+    r"""One pretrained weight file of an estimator: a ``.safetensors`` file and its SHA-256.
+
+    Args:
+        name: the file name inside the weights folder (no folders in it).
+        sha256: the file's SHA-256 digest, 64 lowercase hex digits.
+
+    Raises:
+        ValueCheckError: ``name`` holds a path separator or is empty, or ``sha256`` is not 64 hex digits.
+
+    Examples:
+        >>> WeightFile("ours.safetensors", "0" * 64).name
+        'ours.safetensors'
+    """
+
+    name: str
+    sha256: str
+
+    def __post_init__(self) -> None:
+        if not self.name or Path(self.name).name != self.name or self.name in (".", ".."):
+            raise ValueCheckError(f"WeightFile.name must be a plain file name, got {self.name!r}")
+        if not _SHA256.fullmatch(self.sha256):
+            raise ValueCheckError(f"WeightFile.sha256 must be 64 lowercase hex digits, got {self.sha256!r}")
+
+
+@dataclass(frozen=True)
+class EstimatorInfo:
+    r"""Metadata of an estimator, readable without building it (timm's pretrained config, reduced).
+
+    Args:
+        name: the registry name.
+        description: one line on what the estimator does.
+        paper: the citation of the method, or why there is none.
+        input_size: side of the square sRGB face crops that ``forward`` takes.
+        weights: the pretrained weight files, loaded by :meth:`LightingEstimator.from_pretrained`.
+        install_hint: how to install the estimator or obtain its weights (shown in error messages).
+        needs_weights: ``False`` for estimators without trained parameters (such as ``uniform``):
+            ``pretrained=True`` then builds them as they are. ``True`` (the default) with ``weights=()``
+            means trained weights are not shipped yet.
+
+    Examples:
+        >>> info = EstimatorInfo("toy", "a toy", "none", needs_weights=False)
+        >>> info.pretrained_available
+        True
+    """
+
+    name: str
+    description: str
+    paper: str
+    input_size: int = 256
+    weights: tuple[WeightFile, ...] = ()
+    install_hint: str = ""
+    needs_weights: bool = True
+
+    @property
+    def pretrained_available(self) -> bool:
+        """Whether ``create_estimator(name, pretrained=True)`` can work: weights shipped or none needed."""
+        return bool(self.weights) or not self.needs_weights
+
+
+def check_crops(crops: Tensor, size: int = 256) -> None:
+    r"""Check estimator input: ``(B, 3, size, size)`` floating sRGB values in ``[0, 1]``.
+
+    Values may exceed the range by :data:`CROP_RANGE_SLACK` (resampling round-off). The value checks
+    (NaN/Inf, range) follow :func:`~kornia_ilum.core.check_tensor`: they honour Kornia's global switch and
+    are skipped while :func:`torch.compile` traces.
+
+    Args:
+        crops: the face crops.
+        size: the side the estimator takes.
+
+    Raises:
+        TypeCheckError: ``crops`` is no tensor or not floating point (for ``uint8`` images divide by 255).
+        ShapeError: the shape is not ``(B, 3, size, size)``.
+        EmptyTensorError: ``B == 0``.
+        NonFiniteError: NaN or Inf.
+        ValueCheckError: values outside ``[0, 1]``.
+
+    Examples:
+        >>> check_crops(torch.rand(2, 3, 256, 256))
+        >>> check_crops(torch.rand(2, 3, 128, 128))
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ShapeError: crops must have shape (B, 3, 256, 256), got (2, 3, 128, 128)
+    """
+    if isinstance(crops, Tensor) and not crops.is_floating_point() and checks_active():
+        raise TypeCheckError(
+            f"crops must be a floating-point tensor of sRGB values in [0, 1], got dtype {crops.dtype}; "
+            "convert 8-bit images with image.float() / 255"
+        )
+    check_tensor(crops, "crops", ["B", "3", str(size), str(size)], finite=False)
+    if not checks_active() or torch.compiler.is_compiling():
+        return
+    lo, hi = (float(v) for v in torch.aminmax(crops.detach()))  # one pass; NaN propagates into both
+    if lo != lo or hi != hi or abs(lo) == float("inf") or abs(hi) == float("inf"):
+        raise NonFiniteError("crops must be finite, but they hold NaN or Inf")
+    if lo < -CROP_RANGE_SLACK or hi > 1.0 + CROP_RANGE_SLACK:
+        raise ValueCheckError(
+            f"crops must be sRGB-encoded values in [0, 1], got min {lo:g} and max {hi:g}; "
+            "divide 8-bit images by 255"
+        )
+
+
+def _sha256(path: Path) -> str:
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+class LightingEstimator(nn.Module):
+    r"""Base class of lighting estimators: ``forward(crops) -> LightingEstimate``.
+
+    Subclasses set the class attribute :attr:`info` (:class:`EstimatorInfo`) and implement
+    :meth:`predict`; :meth:`forward` checks the crops (:func:`check_crops`) and calls it. They register
+    under the entry-point group ``kornia_ilum.estimators`` (see :mod:`kornia_ilum.estimators.registry`).
+
+    Pretrained weights load only through :meth:`from_pretrained`; ``__init__`` builds an untrained
+    (or, for estimators without trained parameters, the only) model and never reads files.
+
+    Convention:
+        Crops are ``(B, 3, S, S)`` sRGB in ``[0, 1]``, ``S = info.input_size``; the result's lighting is
+        in the units of the input image (SPEC.md, "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> class Grey(LightingEstimator):
+        ...     info = EstimatorInfo("grey", "constant grey", "none: an example", needs_weights=False)
+        ...     def predict(self, crops):
+        ...         valid = mirror_ball_valid(32, device=crops.device)
+        ...         return LightingEstimate(crops.new_ones(len(crops), 3, 32, 32) * valid, valid)
+        >>> est = Grey.from_pretrained()(torch.rand(2, 3, 256, 256))
+        >>> len(est), est.mirror_ball.amax().item()
+        (2, 1.0)
+    """
+
+    info: ClassVar[EstimatorInfo]
+
+    def forward(self, crops: Tensor) -> LightingEstimate:
+        r"""Estimate lighting from face crops.
+
+        Args:
+            crops: sRGB face crops in ``[0, 1]``, the square of side ``info.input_size`` around each face
+                (1.25 x the face box, LeGendre et al. 2020).
+
+        Returns:
+            a :class:`LightingEstimate` with ``mirror_ball`` :math:`(B, 3, 32, 32)` and ``valid``, plus
+            ``log_mirror_ball`` / ``sh`` where the estimator has them.
+
+        Raises:
+            TypeCheckError, ShapeError, EmptyTensorError, NonFiniteError, ValueCheckError: see
+                :func:`check_crops`.
+        """
+        check_crops(crops, self.info.input_size)
+        return self.predict(crops)
+
+    def predict(self, crops: Tensor) -> LightingEstimate:
+        """The estimate for checked crops; subclasses implement it (call the module, not this)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement predict(crops)")
+
+    @classmethod
+    def default_weights_dir(cls) -> Path:
+        """The folder searched for weight files: ``weights/`` beside the module that defines the class."""
+        return Path(inspect.getfile(cls)).resolve().parent / "weights"
+
+    @classmethod
+    def from_pretrained(cls, weights_dir: str | os.PathLike[str] | None = None, **kw: Any) -> Self:
+        r"""Build ``cls(**kw)`` and load its weight files, each checked against its SHA-256 first.
+
+        Files are read with :func:`safetensors.torch.load_file` (no pickle, no code execution) onto the
+        CPU, merged, and loaded with ``load_state_dict(strict=True)``. The model is returned in ``eval()``
+        mode. Estimators with ``info.needs_weights == False`` are built as they are.
+
+        Args:
+            weights_dir: folder holding the files named in ``info.weights``; by default
+                :meth:`default_weights_dir` (the package data of the estimator's module).
+            **kw: constructor arguments.
+
+        Returns:
+            the estimator with its pretrained weights.
+
+        Raises:
+            MissingWeightsError: the estimator ships no trained weights yet, or a file is missing (the
+                message names the file and folder).
+            WeightsChecksumError: a file's SHA-256 differs from the declared one (the message names the
+                file and both digests); nothing is loaded.
+        """
+        info = cls.info
+        if not info.weights:
+            if not info.needs_weights:
+                return cls(**kw).eval()
+            raise MissingWeightsError(_no_weights_message(info))
+        folder = Path(os.fspath(weights_dir)) if weights_dir is not None else cls.default_weights_dir()
+        state: dict[str, Tensor] = {}
+        for weight in info.weights:
+            path = folder / weight.name
+            if not path.is_file():
+                hint = f"; {info.install_hint}" if info.install_hint else ""
+                raise MissingWeightsError(
+                    f"weight file {weight.name!r} of estimator '{info.name}' not found in {folder}{hint}"
+                )
+            digest = _sha256(path)
+            if digest != weight.sha256:
+                raise WeightsChecksumError(
+                    f"{path}: SHA-256 is {digest}, but estimator '{info.name}' expects {weight.sha256}; "
+                    "the file is corrupt, truncated or from another release, and was not loaded"
+                )
+            tensors = safetensors.torch.load_file(path, device="cpu")
+            clash = sorted(state.keys() & tensors.keys())
+            if clash:
+                raise ValueCheckError(
+                    f"{path}: tensors {clash[:5]} also appear in an earlier weight file of '{info.name}'"
+                )
+            state.update(tensors)
+        model = cls(**kw)
+        model.load_state_dict(state, strict=True)
+        return model.eval()
+
+
+def _no_weights_message(info: EstimatorInfo) -> str:
+    from kornia_ilum.estimators.registry import _pretrained_names  # the registry imports this module
+
+    ready = ", ".join(_pretrained_names()) or "none installed (pip install ./plugins/uniform)"
+    return (
+        f"'{info.name}' is registered but ships no trained weights yet; "
+        f"pass pretrained=False for an untrained model or pick one of: {ready}"
+    )

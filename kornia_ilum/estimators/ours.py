@@ -1,0 +1,154 @@
+r"""``ours``: the lighting network of LeGendre et al. 2020, "Learning Illumination from Diverse Portraits".
+
+An encoder-decoder from a 256 x 256 sRGB face crop to a 32 x 32 log-HDR mirror ball (SPEC.md). It ships
+no trained weights yet (the training issue adds them): ``create_estimator("ours")`` raises
+:class:`~kornia_ilum.core.errors.MissingWeightsError`, ``create_estimator("ours", pretrained=False)`` gives
+the untrained network.
+
+Architecture (9,219,779 parameters at the default ``latent_dim=1024``, the paper's network size of
+about 9.2 M). From the paper's description:
+
+- input: the sRGB crop, shifted to ``[-0.5, 0.5]``;
+- encoder: five 3 x 3 convolutions of depths 16, 32, 64, 128, 256, each followed by blur-pooling
+  (Zhang 2019, "Making convolutional networks shift-invariant again";
+  :class:`kornia_ilum.filters.BlurPool2D`), 256 -> 8 pixels; then one 8 x 8 convolution of depth 256
+  and a fully-connected layer to the 1024-d bottleneck (a latent code of the log-HDR lighting);
+- decoder: three 3 x 3 convolutions of depths 64, 32, 16, each followed by bilinear 2x upsampling,
+  4 -> 32 pixels, and a final 3 x 3 convolution to the 3-channel 32 x 32 log-HDR mirror ball.
+
+Our choices, where the paper says nothing: LeakyReLU (slope 0.2) after every convolution and after the
+latent-to-feature layer; no normalisation layers; "same" zero padding for the 3 x 3 convolutions and a
+valid 8 x 8 convolution (8 x 8 -> 1 x 1); blur-pool kernel 3 (binomial ``[1, 2, 1]``, Kornia's default);
+the bottleneck is linear and a second fully-connected layer maps it to the decoder's 4 x 4 x 256 input;
+PyTorch's default initialisation. The 9.2 M count depends on these: the two fully-connected layers and
+the 8 x 8 convolution hold 94 % of the parameters.
+
+Output (SPEC.md units): the head predicts ``y = log L`` (natural log of linear radiance) per pixel. The
+estimate holds ``mirror_ball = exp(y)`` and ``log_mirror_ball = softplus(y) = log(1 + L)``, both 0 outside
+the ball, so ``mirror_ball == expm1(log_mirror_ball)`` and the log form is non-negative, finite and
+well-conditioned for losses in log space.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from kornia_ilum.core.check import check_positive_int
+from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.filters import BlurPool2D
+from kornia_ilum.geometry import mirror_ball_valid
+
+__all__ = ["OursEstimator", "ENCODER_DEPTHS", "DECODER_DEPTHS", "LIGHTING_SIZE"]
+
+#: Depths of the five encoder convolutions (each followed by blur-pooling).
+ENCODER_DEPTHS: tuple[int, ...] = (16, 32, 64, 128, 256)
+#: Depths of the three decoder convolutions (each followed by 2x bilinear upsampling).
+DECODER_DEPTHS: tuple[int, ...] = (64, 32, 16)
+#: Side of the predicted mirror ball.
+LIGHTING_SIZE = 32
+
+_INPUT_SIZE = 256
+_SLOPE = 0.2
+_BOTTLENECK_SIDE = LIGHTING_SIZE >> len(DECODER_DEPTHS)  # 4
+_BOTTLENECK_DEPTH = ENCODER_DEPTHS[-1]  # 256
+_ENCODED_SIDE = _INPUT_SIZE >> len(ENCODER_DEPTHS)  # 8
+
+PAPER = (
+    "C. LeGendre, W.-C. Ma, R. Pandey, S. Fanello, C. Rhemann, J. Dourgarian, J. Busch, P. Debevec: "
+    '"Learning Illumination from Diverse Portraits", SIGGRAPH Asia 2020 Technical Communications, '
+    "doi:10.1145/3410700.3425432"
+)
+
+
+class OursEstimator(LightingEstimator):
+    r"""LeGendre et al. 2020's lighting network: face crop -> 32 x 32 log-HDR mirror ball.
+
+    See the module docstring for the architecture (what follows the paper, what is our choice).
+
+    Args:
+        latent_dim: size of the fully-connected bottleneck (1024 in the paper).
+
+    Returns:
+        (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
+        ``log_mirror_ball`` (``log(1 + L)``) and ``valid``; ``sh`` is ``None``.
+
+    Shape:
+        - Input: :math:`(B, 3, 256, 256)`, sRGB in ``[0, 1]``
+        - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`; ``valid``: :math:`(32, 32)`
+
+    Convention:
+        SPEC.md, "Mirror ball" and "Units of lighting": linear radiance in the units of the input image,
+        0 outside the ball. The outputs have the dtype of the module's parameters, also under
+        :func:`torch.autocast` (the log-to-linear step runs in float32 outside autocast, then is cast);
+        any memory format (``channels_last``) is accepted, the outputs are contiguous. Crops are cast to
+        the parameters' dtype.
+
+    Examples:
+        >>> net = OursEstimator()
+        >>> sum(p.numel() for p in net.parameters())
+        9219779
+        >>> est = net(torch.rand(2, 3, 256, 256))
+        >>> tuple(est.mirror_ball.shape), est.sh is None
+        ((2, 3, 32, 32), True)
+        >>> torch.allclose(est.mirror_ball, torch.expm1(est.log_mirror_ball), rtol=1e-5)
+        True
+    """
+
+    info = EstimatorInfo(
+        name="ours",
+        description="LeGendre et al. 2020's encoder-decoder (blur-pool encoder, 1024-d bottleneck): "
+        "256 x 256 face crop -> 32 x 32 log-HDR mirror ball",
+        paper=PAPER,
+        input_size=_INPUT_SIZE,
+        weights=(),
+        install_hint="trained weights are not released yet; pass pretrained=False for the untrained network",
+    )
+
+    def __init__(self, latent_dim: int = 1024) -> None:
+        super().__init__()
+        check_positive_int(latent_dim, "latent_dim")
+        self.latent_dim = latent_dim
+        layers: list[nn.Module] = []
+        depth_in = 3
+        for depth in ENCODER_DEPTHS:
+            layers += [
+                nn.Conv2d(depth_in, depth, 3, padding=1),
+                nn.LeakyReLU(_SLOPE),
+                BlurPool2D(3, stride=2),
+            ]
+            depth_in = depth
+        layers += [nn.Conv2d(depth_in, _BOTTLENECK_DEPTH, _ENCODED_SIDE), nn.LeakyReLU(_SLOPE), nn.Flatten(1)]
+        self.encoder = nn.Sequential(*layers)
+        self.to_latent = nn.Linear(_BOTTLENECK_DEPTH, latent_dim)
+        self.from_latent = nn.Sequential(
+            nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.LeakyReLU(_SLOPE)
+        )
+        layers = []
+        depth_in = _BOTTLENECK_DEPTH
+        for depth in DECODER_DEPTHS:
+            layers += [
+                nn.Conv2d(depth_in, depth, 3, padding=1),
+                nn.LeakyReLU(_SLOPE),
+                nn.Upsample(scale_factor=2, mode="bilinear", align_corners=False),
+            ]
+            depth_in = depth
+        self.decoder = nn.Sequential(*layers)
+        self.head = nn.Conv2d(depth_in, 3, 3, padding=1)
+        self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
+
+    def predict(self, crops: Tensor) -> LightingEstimate:
+        dtype = self.head.weight.dtype
+        latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
+        features = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
+        log_radiance = self.head(self.decoder(features))
+        with torch.autocast(log_radiance.device.type, enabled=False):
+            y = log_radiance.float()
+            mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)
+            log_mirror_ball = torch.where(self.valid, F.softplus(y), 0.0)
+        return LightingEstimate(
+            mirror_ball=mirror_ball.to(dtype).contiguous(),
+            valid=self.valid,
+            log_mirror_ball=log_mirror_ball.to(dtype).contiguous(),
+        )
