@@ -7,6 +7,20 @@ The conventions (frame, mirror-ball and lat-long mappings, units, reference sphe
 
 __version__ = "0.1.0.dev0"
 
-from kornia_ilum import color, core, filters, geometry, io, metrics, render, sh
+from kornia_ilum import color, core, detection, estimators, filters, geometry, io, metrics, render, sh
+from kornia_ilum.api import estimate_lighting
 
-__all__ = ["__version__", "color", "core", "filters", "geometry", "io", "metrics", "render", "sh"]
+__all__ = [
+    "__version__",
+    "estimate_lighting",
+    "color",
+    "core",
+    "detection",
+    "estimators",
+    "filters",
+    "geometry",
+    "io",
+    "metrics",
+    "render",
+    "sh",
+]

@@ -15,7 +15,8 @@ settings.register_profile(
 settings.register_profile("dev", max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-torch.set_num_threads(max(1, min(2, os.cpu_count() or 1)))
+# One torch thread per xdist worker (the workers already use the cores); up to 2 in a plain run.
+torch.set_num_threads(1 if "PYTEST_XDIST_WORKER" in os.environ else max(1, min(2, os.cpu_count() or 1)))
 
 #: Absolute/relative tolerances against a float64 reference, per dtype (Kornia's convention).
 TOL = {

@@ -1,0 +1,103 @@
+"""End-to-end benchmark: face detection and lighting estimation per 640x480 image, as ratios to a baseline.
+
+Run: ``python benchmarks/bench_e2e.py [--threads 2] [--repeats 10] [--yunet PATH]``
+
+The image is scikit-image's astronaut (512 x 512), resized to 480 x 480 (antialiased) and centred on a
+black 640 x 480 canvas: one face, about 90 x 90 pixels. Each row is the median over ``--repeats`` runs (after
+2 warm-up runs) of one step on that image, on the CPU, in float32:
+
+- ``detect <name>``: :meth:`FaceDetector.detect` on the image (``opencv``, ``yunet``);
+- ``crop``: :func:`square_crop_boxes` + :func:`crop_faces` of the face to 256 x 256;
+- ``estimate <name>``: the estimator on the one crop, under :func:`torch.inference_mode` (``uniform``, the
+  default; ``ours``, untrained: ``pretrained=False``, same cost as trained);
+- ``estimate_lighting <detector> + <estimator>``: the whole call, from the image tensor to the
+  :class:`LightingEstimate` (detection, crop, estimator; models built beforehand, as the API caches them).
+
+The baseline is ``detect opencv``, measured in the same run; every row prints ``x<ratio>`` = its time
+divided by the baseline's. This is a benchmark, not a test: it asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import skimage.data
+import torch
+import torch.nn.functional as F
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_ops import median_ms  # noqa: E402  (the shared timing helper)
+
+from kornia_ilum import estimate_lighting  # noqa: E402
+from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes  # noqa: E402
+from kornia_ilum.estimators import create_estimator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_YUNET = Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", ROOT / ".." / "shared" / "data")) / "weights" / "yunet_final.pth"
+
+
+def test_image() -> torch.Tensor:
+    """The astronaut, resized to 480 x 480 and centred on a black 640 x 480 canvas: ``(1, 3, 480, 640)``."""
+    astronaut = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1)[None].float() / 255
+    face = F.interpolate(astronaut, size=(480, 480), mode="bilinear", antialias=True, align_corners=False)
+    return F.pad(face.clamp(0, 1), (80, 80, 0, 0))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--repeats", type=int, default=10, help="timed runs per row (default 10)")
+    parser.add_argument("--yunet", type=Path, default=DEFAULT_YUNET, help="local yunet_final.pth")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    try:
+        import cv2
+
+        cv2.setNumThreads(args.threads)
+    except ImportError:  # pragma: no cover - OpenCV is a dependency
+        pass
+
+    image = test_image()
+    detectors = {"opencv": create_detector("opencv")}
+    if args.yunet.is_file():
+        detectors["yunet"] = create_detector("yunet", weights_path=args.yunet)
+    else:
+        print(f"(yunet skipped: no weights at {args.yunet})")
+    estimators = {"uniform": create_estimator("uniform"), "ours": create_estimator("ours", pretrained=False).eval()}
+    reps = args.repeats
+    print(f"torch {torch.__version__}, {args.threads} threads, image {tuple(image.shape)}, median of {reps} runs")
+
+    rows: list[tuple[str, float]] = []
+    for name, det in detectors.items():
+        faces = det.detect(image)[0]
+        assert faces.shape[0] == 1, f"{name} found {faces.shape[0]} faces"
+        rows.append((f"detect {name}", median_ms(lambda det=det: det.detect(image), reps)))
+    box = detectors["opencv"].detect(image)[0][:1, :4]
+    rows.append(("crop (square 1.25x, 256x256, antialiased)", median_ms(lambda: crop_faces(image, square_crop_boxes(box)), reps)))
+    crops = crop_faces(image, square_crop_boxes(box))
+
+    def run(est):
+        with torch.inference_mode():
+            return est(crops)
+
+    for name, est in estimators.items():
+        rows.append((f"estimate {name}" + (" (untrained)" if name == "ours" else ""), median_ms(lambda est=est: run(est), reps)))
+    for dname, det in detectors.items():
+        for ename, est in estimators.items():
+            rows.append((
+                f"estimate_lighting {dname} + {ename}",
+                median_ms(lambda det=det, est=est: estimate_lighting(image, estimator=est, detector=det), reps),
+            ))
+
+    base = rows[0][1]
+    print(f"baseline: {rows[0][0]} = {base:.2f} ms")
+    for name, ms in rows:
+        print(f"  {name:<44s} {ms:9.2f} ms   x{ms / base:6.2f} of baseline")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,301 @@
+r"""End to end: a portrait in, HDR lighting out, in one call.
+
+:func:`estimate_lighting` takes a photograph (tensor, NumPy array or file), finds the faces with a
+detector from :mod:`kornia_ilum.detection`, crops each face as the paper does (a square centred on the
+face box, side 1.25 x max(w, h), zero padding outside the image, resized to the estimator's input size
+with antialiasing) and runs a lighting estimator from :mod:`kornia_ilum.estimators` once on the batch of
+all crops. The result is a :class:`~kornia_ilum.estimators.LightingEstimate` that can be saved as
+``.exr``/``.hdr``, converted to lat-long, rendered on the reference spheres or previewed as a PNG.
+
+This is a pipeline, not a differentiable op, so it has no :class:`torch.nn.Module` twin: the estimators
+themselves are the modules.
+
+Reference: C. LeGendre, W.-C. Ma, R. Pandey, S. Fanello, C. Rhemann, J. Dourgarian, J. Busch,
+P. Debevec, "Learning Illumination from Diverse Portraits", SIGGRAPH Asia 2020 Technical Communications.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from typing import Any, Literal
+
+import numpy as np
+import torch
+
+from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.errors import NoFaceError, ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, create_detector, crop_faces, square_crop_boxes
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, create_estimator
+from kornia_ilum.io import read_ldr
+
+__all__ = ["estimate_lighting", "full_image_box"]
+
+_FACES = ("largest", "all")
+_FALLBACKS = (None, "full_image")
+_ACCEPTED = (
+    "a (3, H, W) or (B, 3, H, W) float torch.Tensor in [0, 1], a NumPy array (H, W), (H, W, 1), (H, W, 3) "
+    "or (H, W, 4) of uint8, uint16 or float in [0, 1], or a path (str or os.PathLike)"
+)
+
+
+@functools.lru_cache(maxsize=8)
+def _named_estimator(name: str, device: torch.device) -> LightingEstimator:
+    """Build a registered estimator once per (name, device) in this process, in eval mode."""
+    return create_estimator(name, pretrained=True).to(device).eval()
+
+
+@functools.lru_cache(maxsize=8)
+def _named_detector(name: str, device: torch.device) -> FaceDetector:
+    """Build a registered detector once per (name, device) in this process, in eval mode."""
+    return create_detector(name).to(device).eval()
+
+
+def _numpy_to_tensor(array: np.ndarray, bgr: bool) -> torch.Tensor:
+    """``(H, W[, C])`` uint8 / uint16 / float array -> ``(3, H, W)`` float32 in [0, 1] (range checked later)."""
+    if array.ndim == 2:
+        array = array[..., None]
+    if array.ndim != 3 or array.shape[2] not in (1, 3, 4):
+        raise ShapeError(
+            f"image (NumPy array) must have shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got {array.shape}"
+        )
+    if array.dtype == np.uint8 or array.dtype == np.uint16:
+        pixels = array.astype(np.float32) / np.float32(np.iinfo(array.dtype).max)
+    elif array.dtype in (np.float16, np.float32, np.float64):
+        pixels = array.astype(np.float32)
+    else:
+        raise TypeCheckError(f"image (NumPy array) must be uint8, uint16 or float in [0, 1], got dtype {array.dtype}")
+    if pixels.shape[2] == 1:
+        pixels = np.repeat(pixels, 3, axis=2)
+    pixels = pixels[..., :3]  # RGBA / BGRA: alpha dropped, not composited (as kornia_ilum.io.read_ldr does)
+    if bgr:
+        pixels = pixels[..., ::-1]
+    return torch.from_numpy(np.ascontiguousarray(pixels.transpose(2, 0, 1)))
+
+
+def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
+    """Any accepted input -> ``(B, 3, H, W)`` float tensor in [0, 1], and a name for messages."""
+    if isinstance(image, (str, os.PathLike)):
+        if bgr:
+            raise ValueCheckError("bgr=True applies to NumPy arrays only; files are read as RGB")
+        return read_ldr(image)[None], f"image {os.fspath(image)!r}"
+    if isinstance(image, np.ndarray):
+        batch, what = _numpy_to_tensor(image, bgr)[None], "image"
+    elif isinstance(image, torch.Tensor):
+        if bgr:
+            raise ValueCheckError("bgr=True applies to NumPy arrays only; tensors are RGB (flip them yourself)")
+        check_tensor(image, "image", ["*", "3", "H", "W"])
+        if image.dim() > 4:
+            raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
+        batch, what = (image[None] if image.dim() == 3 else image), "image"
+    else:
+        raise TypeCheckError(f"image must be {_ACCEPTED}; got {type(image).__name__}")
+    check_tensor(batch, "image", ["B", "3", "H", "W"])  # empty / NaN / Inf -> typed errors
+    if checks_active():
+        lo, hi = (float(v) for v in torch.aminmax(batch.detach()))
+        if lo < 0.0 or hi > 1.0:
+            raise ValueCheckError(
+                f"image must be sRGB-encoded in [0, 1], got values in [{lo:g}, {hi:g}] "
+                "(divide 8-bit data by 255, or pass the uint8 NumPy array as it is)"
+            )
+    return batch, what
+
+
+def full_image_box(height: int, width: int) -> torch.Tensor:
+    r"""The largest centred square of an image, as an ``xyxy`` box: the crop of the paper's no-face variant.
+
+    Args:
+        height: image height in pixels.
+        width: image width in pixels.
+
+    Returns:
+        ``(1, 4)`` float32 box ``(x0, y0, x1, y1)`` in pixels (pixel edges: the full image is
+        ``(0, 0, W, H)``), of side ``min(H, W)``, centred.
+
+    Examples:
+        >>> full_image_box(480, 640)
+        tensor([[ 80.,   0., 560., 480.]])
+    """
+    side = min(height, width)
+    x0, y0 = (width - side) / 2.0, (height - side) / 2.0
+    return torch.tensor([[x0, y0, x0 + side, y0 + side]], dtype=torch.float32)
+
+
+def _module_device(module: torch.nn.Module) -> torch.device | None:
+    for t in module.parameters():
+        return t.device
+    for t in module.buffers():
+        return t.device
+    return None
+
+
+def _module_dtype(module: torch.nn.Module) -> torch.dtype:
+    for t in list(module.parameters()) + list(module.buffers()):
+        if t.is_floating_point():
+            return t.dtype
+    return torch.float32
+
+
+def _resolve_estimator(estimator: str | LightingEstimator | None, device: torch.device) -> LightingEstimator:
+    if estimator is None:
+        estimator = DEFAULT_ESTIMATOR
+    if isinstance(estimator, str):
+        return _named_estimator(estimator, device)
+    if isinstance(estimator, LightingEstimator):
+        on = _module_device(estimator)
+        if on is not None and (on.type != device.type or None not in (on.index, device.index) and on.index != device.index):
+            raise ValueCheckError(
+                f"estimator is on {on} but the image is processed on {device}; move the estimator "
+                f"(estimator.to({str(device)!r})) or pass device={str(on)!r}"
+            )
+        return estimator
+    raise TypeCheckError(
+        f"estimator must be None (the default, {DEFAULT_ESTIMATOR!r}), a registered name (str) or a "
+        f"LightingEstimator instance, got {type(estimator).__name__}"
+    )
+
+
+def _resolve_detector(detector: str | FaceDetector, device: torch.device) -> FaceDetector:
+    if isinstance(detector, str):
+        return _named_detector(detector, device)
+    if isinstance(detector, FaceDetector):
+        return detector
+    raise TypeCheckError(
+        f"detector must be a registered name (str) or a FaceDetector instance, got {type(detector).__name__}"
+    )
+
+
+def _pick(detections: torch.Tensor, faces: str) -> torch.Tensor:
+    """``(N, 5)`` detections sorted by score -> the ``(K, 4)`` boxes kept (largest area, or all)."""
+    boxes = detections[:, :4].to(torch.float32)
+    if faces == "all" or boxes.shape[0] <= 1:
+        return boxes
+    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+    return boxes[int(torch.argmax(area))][None]
+
+
+def estimate_lighting(
+    image: torch.Tensor | np.ndarray | str | os.PathLike[str],
+    estimator: str | LightingEstimator | None = None,
+    detector: str | FaceDetector = DEFAULT_DETECTOR,
+    faces: Literal["largest", "all"] = "largest",
+    fallback: Literal["full_image"] | None = None,
+    bgr: bool = False,
+    device: str | torch.device | None = None,
+) -> LightingEstimate:
+    r"""Estimate HDR lighting from portrait photograph(s): detect the faces, crop them, run an estimator.
+
+    Args:
+        image: the photograph(s), one of:
+
+            - a ``(3, H, W)`` or ``(B, 3, H, W)`` float tensor, sRGB-encoded in ``[0, 1]``;
+            - a NumPy array ``(H, W, 3)`` as loaded by most libraries: ``uint8`` (divided by 255),
+              ``uint16`` (divided by 65535) or float in ``[0, 1]``; ``(H, W)`` or ``(H, W, 1)`` grey is
+              replicated to RGB; ``(H, W, 4)`` RGBA drops its alpha (not composited);
+            - a path (``str`` or :class:`os.PathLike`) to an 8/16-bit image that
+              :func:`kornia_ilum.io.read_ldr` reads (PNG, JPEG, TIFF, ...; EXIF orientation applied).
+        estimator: ``None`` for the default (:data:`kornia_ilum.estimators.DEFAULT_ESTIMATOR`), a
+            registered name (see :func:`kornia_ilum.estimators.list_estimators`), created with
+            ``pretrained=True`` once per (name, device) in the process and then reused, or a
+            :class:`~kornia_ilum.estimators.LightingEstimator` instance (used as given, on its device;
+            it is switched to eval mode for the call and restored afterwards).
+        detector: a registered detector name (``"opencv"``, ``"yunet"``, ``"none"``, see
+            :func:`kornia_ilum.detection.list_detectors`; created once per name) or a
+            :class:`~kornia_ilum.detection.FaceDetector` instance.
+        faces: ``"largest"`` keeps the largest face box of each image; ``"all"`` keeps every face, in
+            the detector's order (most confident first).
+        fallback: ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` when an image has no
+            face; ``"full_image"`` uses the largest centred square of that image as the crop instead
+            (the paper's no-face variant, see :func:`full_image_box`).
+        bgr: the NumPy array's channels are in B, G, R order, as :func:`cv2.imread` returns them.
+            Applies to NumPy arrays only.
+        device: where detection cropping and estimation run. Default: the tensor's device, the CPU for
+            arrays and paths.
+
+    Returns:
+        A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``
+        entries), in image order, then face order. Besides the estimator's outputs it holds
+        ``boxes`` ``(B', 4)``: the face boxes ``(x0, y0, x1, y1)`` in the input image's pixels (for the
+        full-image fallback, the square that was used), and ``image_index`` ``(B',)`` int64: the input
+        image each entry belongs to.
+
+    Raises:
+        TypeCheckError: ``image`` is of no accepted type or dtype (the message lists the accepted
+            ones), or ``estimator`` / ``detector`` is of a wrong type.
+        ShapeError: ``image`` has a wrong shape; :class:`~kornia_ilum.core.errors.EmptyTensorError`
+            if it is empty.
+        NonFiniteError: ``image`` holds NaN or Inf.
+        ValueCheckError: a float ``image`` has values outside ``[0, 1]``; ``faces``, ``fallback`` or
+            ``bgr`` has an invalid value; an estimator instance is on another device.
+        ValueError: ``estimator`` or ``detector`` is an unknown name (the message lists the valid ones).
+        HDRIOError: the image file is missing or unreadable (the message names the path).
+        NoFaceError: no face in an image and ``fallback=None``; the message names the image and the
+            detector, and suggests ``detector="yunet"`` or ``fallback="full_image"``.
+        MissingWeightsError: the named estimator is registered but ships no trained weights yet.
+
+    Shape:
+        - Input: :math:`(3, H, W)`, :math:`(B, 3, H, W)`, or an array :math:`(H, W[, C])`.
+        - Output: ``mirror_ball`` :math:`(B', 3, 32, 32)`, ``boxes`` :math:`(B', 4)`,
+          ``image_index`` :math:`(B',)`, with :math:`B'` the number of faces kept.
+
+    Convention:
+        Input sRGB-encoded in ``[0, 1]`` (SPEC.md, Images). The lighting is linear HDR in the units of
+        the input photograph, as a 32 x 32 equal-area mirror ball in the camera frame (+X right, +Y up,
+        +Z toward the camera; SPEC.md, Mirror ball and Units of lighting).
+
+    Note:
+        The crops are cast to the estimator's floating dtype (float32 for estimators without
+        parameters) and the estimator runs under :func:`torch.inference_mode`, so the result carries no
+        autograd graph: call the estimator module on :func:`~kornia_ilum.detection.crop_faces` output
+        directly to differentiate through it.
+
+    Examples:
+        >>> import skimage.data
+        >>> light = estimate_lighting(skimage.data.astronaut())    # (512, 512, 3) uint8 RGB array
+        >>> light.mirror_ball.shape, light.image_index.tolist()
+        (torch.Size([1, 3, 32, 32]), [0])
+        >>> (light.mirror_ball >= 0).all().item()
+        True
+    """
+    if faces not in _FACES:
+        raise ValueCheckError(f"faces must be one of {_FACES}, got {faces!r}")
+    if fallback not in _FALLBACKS:
+        raise ValueCheckError(f"fallback must be None or 'full_image', got {fallback!r}")
+    if not isinstance(bgr, bool):
+        raise TypeCheckError(f"bgr must be a bool, got {type(bgr).__name__}")
+    batch, what = _as_batch(image, bgr)
+    dev = torch.device(device) if device is not None else batch.device
+    batch = batch.to(dev)
+    est = _resolve_estimator(estimator, dev)
+    det = _resolve_detector(detector, dev)
+    size = est.info.input_size
+    height, width = batch.shape[-2:]
+
+    crop_boxes, boxes, index = [], [], []
+    for i, found in enumerate(det.detect(batch)):
+        if found.shape[0] > 0:
+            kept = _pick(found, faces).to(dev)
+            crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
+        elif fallback == "full_image":
+            kept = full_image_box(height, width).to(dev)
+            crop_boxes.append(kept)
+        else:
+            where = what if batch.shape[0] == 1 else f"{what} {i} of the batch of {batch.shape[0]}"
+            name = detector if isinstance(detector, str) else type(detector).__name__
+            hints = ["detector='yunet' (a stronger detector)"] if name != "yunet" else []
+            hints += ["detector='none' if the image already is a face crop", "fallback='full_image' to estimate from the whole image"]
+            raise NoFaceError(f"no face found in {where} by detector {name!r}; try " + ", or ".join(hints))
+        boxes.append(kept)
+        index.append(torch.full((kept.shape[0],), i, dtype=torch.int64, device=dev))
+    index_all = torch.cat(index)
+    crops = crop_faces(batch, torch.cat(crop_boxes), size=size, index=index_all)
+
+    was_training = est.training
+    est.eval()
+    try:
+        with torch.inference_mode():
+            result = est(crops.to(_module_dtype(est)))
+    finally:
+        est.train(was_training)
+    return dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)

@@ -1,0 +1,323 @@
+"""The ``kornia-ilum`` command line (also ``python -m kornia_ilum``).
+
+Subcommands:
+
+- ``kornia-ilum estimate [IMAGE ...]``: estimate the lighting of portraits and write it as ``.exr`` or
+  ``.hdr`` (and a preview PNG of the three reference spheres); with no image, the astronaut portrait that
+  ships with scikit-image (:func:`skimage.data.astronaut`).
+- ``kornia-ilum list``: the registered estimators and face detectors, with their metadata.
+
+Errors print one line, ``kornia-ilum: error: ...``, on stderr, never a traceback (set
+``KORNIA_ILUM_DEBUG=1`` to get one), and exit with status 2 for usage errors (bad options) or 1 for
+runtime errors (missing or unreadable image, no face, missing weights).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import string
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+PROG = "kornia-ilum"
+_SAMPLE = "astronaut"
+
+_ESTIMATE_HELP = """\
+Estimate HDR lighting from portrait photographs: detect the faces, crop them as the paper does, run the
+estimator, and write the lighting as an .exr or .hdr file (a 32x32 equal-area mirror ball, linear, in the
+units of the photograph; or a lat-long map with --latlong), plus an optional preview PNG of the diffuse,
+matte silver and mirror reference spheres. Prints one line per written file, and the timing.
+
+output names (-o OUT and --preview PNG):
+  OUT is a file name, a directory, or a pattern with the placeholders
+    {stem}   the image file's name without its extension ('astronaut' for the built-in sample)
+    {face}   the face's index in its image (0 = the first face the detector returns)
+  - a directory (one that exists, or a name ending in '/') means DIR/{stem}.EXT;
+  - with several images, OUT must be a directory or contain {stem};
+  - with --faces all, '_face{face}' is added before the extension when OUT has no {face};
+  - a name without extension gets .exr (or --format's); --format must agree with OUT's extension.
+  Missing parent folders are created. Default OUT: {stem}.exr in the current folder. --preview PNG
+  follows the same rules with the extension .png. Images are processed in order; the first error
+  stops the run (files already written stay).
+
+examples:
+  kornia-ilum estimate -o astronaut.exr --preview astronaut.png        # the built-in sample
+  kornia-ilum estimate photo.jpg --latlong 64 -o light.hdr             # lat-long 64x128 Radiance HDR
+  kornia-ilum estimate *.jpg -o out/ --preview out/ --faces all        # out/<stem>_face<i>.exr + .png
+  kornia-ilum estimate group.png -o 'light_{stem}_{face}.exr' --faces all --detector yunet
+"""
+
+
+class _UsageError(Exception):
+    """A bad command line (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with every usage error as one line ``kornia-ilum: error: ...`` (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``kornia-ilum`` (used by :func:`main` and the docs)."""
+    from kornia_ilum import __version__
+
+    parser = _Parser(
+        prog=PROG,
+        description="HDR lighting from one LDR portrait (LeGendre et al. 2020, 'Learning Illumination from "
+        "Diverse Portraits').",
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    est = sub.add_parser(
+        "estimate",
+        help="estimate the lighting of portraits, write .exr/.hdr and previews",
+        description=_ESTIMATE_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    est.add_argument(
+        "images", nargs="*", metavar="IMAGE",
+        help="8/16-bit portrait photographs (PNG, JPEG, TIFF, ...); none: the scikit-image astronaut",
+    )
+    est.add_argument("-o", "--output", metavar="OUT", help="output file, directory or pattern (see below)")
+    est.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default; "
+                     "see 'kornia-ilum list')")
+    est.add_argument("--detector", metavar="NAME", default="opencv", help="face detector (default: opencv)")
+    est.add_argument("--faces", choices=("largest", "all"), default="largest",
+                     help="the largest face of each image, or all of them (default: largest)")
+    est.add_argument("--fallback", choices=("full_image",), default=None,
+                     help="when an image has no face, use its largest centred square instead of failing")
+    est.add_argument("--preview", metavar="PNG", help="also write a preview PNG of the three reference spheres")
+    est.add_argument("--preview-size", type=_positive_int, metavar="N", default=128,
+                     help="side of each sphere in the preview, which is 3N x N pixels (default: 128)")
+    est.add_argument("--format", choices=("exr", "hdr"), default=None,
+                     help="file format of the lighting (default: OUT's extension, else exr)")
+    est.add_argument("--latlong", type=_positive_int, metavar="H", default=None,
+                     help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
+    est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
+    est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
+
+    sub.add_parser("list", help="list the estimators and face detectors",
+                   description="List the registered lighting estimators and face detectors, with their metadata.")
+
+    from kornia_ilum.synth.cli import add_synth_environments_parser
+
+    add_synth_environments_parser(sub)
+    return parser
+
+
+# --------------------------------------------------------------------------------------------- outputs
+def _check_pattern(pattern: str, option: str) -> set[str]:
+    """Placeholders used in ``pattern``; unknown ones or bad braces are usage errors."""
+    try:
+        fields = {f for _, f, _, _ in string.Formatter().parse(pattern) if f is not None}
+    except ValueError as e:
+        raise _UsageError(f"{option} {pattern!r}: {e} (write '{{{{' and '}}}}' for literal braces)") from None
+    unknown = fields - {"stem", "face"}
+    if unknown:
+        raise _UsageError(
+            f"{option} {pattern!r} has unknown placeholder(s) {', '.join(sorted(unknown))}; use {{stem}} and {{face}}"
+        )
+    return fields
+
+
+class _Namer:
+    """Turns -o / --preview into one file name per (image stem, face index), following the --help rules."""
+
+    def __init__(self, pattern: str | None, option: str, exts: tuple[str, ...], *, several: bool,
+                 faces_all: bool, forced_ext: str | None = None) -> None:
+        if pattern is None:
+            pattern = "{stem}"
+        is_dir = pattern.endswith(("/", os.sep)) or Path(pattern).is_dir()
+        fields = _check_pattern(pattern, option)
+        if is_dir:
+            if fields:
+                raise _UsageError(f"{option} {pattern!r} is a directory and cannot hold placeholders")
+            pattern = str(Path(pattern) / "{stem}")
+            fields = {"stem"}
+        elif several and "stem" not in fields:
+            raise _UsageError(f"with several images, {option} must be a directory or contain {{stem}}, got {pattern!r}")
+        suffix = Path(pattern).suffix.lower()
+        if suffix:
+            if suffix not in exts:
+                raise _UsageError(f"{option} must end in {' or '.join(exts)} (or be a directory), got {pattern!r}")
+            if forced_ext is not None and suffix != forced_ext:
+                raise _UsageError(f"{option} {pattern!r} does not match --format {forced_ext[1:]}")
+            stem_part, ext = pattern[: -len(suffix)], pattern[-len(suffix):]
+        else:
+            stem_part, ext = pattern, forced_ext or exts[0]
+        if faces_all and "face" not in fields:
+            stem_part += "_face{face}"
+        self.pattern = stem_part + ext
+        self.ext = ext.lower()
+
+    def __call__(self, stem: str, face: int) -> Path:
+        return Path(self.pattern.format(stem=stem, face=face))
+
+
+# ------------------------------------------------------------------------------------------- commands
+def _cmd_list() -> int:
+    from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
+    from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
+
+    print(f"Estimators (default: {DEFAULT_ESTIMATOR}):")
+    for name in list_estimators():
+        try:
+            info = estimator_info(name)
+        except Exception as e:  # a broken plugin: show it, do not stop the listing
+            print(f"  {name}\n      cannot be loaded: {e}")
+            continue
+        print(f"  {name}\n      {info.description}")
+        print(f"      paper: {info.paper}")
+        print(f"      input: {info.input_size}x{info.input_size} face crops, sRGB in [0, 1]")
+        for w in info.weights:
+            print(f"      weights: {w.name} sha256 {w.sha256}")
+        if not info.weights:
+            print("      weights: no weights" + (" (no trained weights yet)" if info.needs_weights else " (needs none)"))
+        if info.install_hint:
+            print(f"      install: {info.install_hint}")
+    print(f"Detectors (default: {DEFAULT_DETECTOR}):")
+    for name in list_detectors():
+        print(f"  {name}\n      {describe_detector(name)}")
+    return 0
+
+
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    import skimage.data
+    import torch
+
+    from kornia_ilum import api
+    from kornia_ilum.core.errors import HDRIOError
+    from kornia_ilum.detection import list_detectors
+    from kornia_ilum.estimators import DEFAULT_ESTIMATOR, list_estimators
+    from kornia_ilum.io import read_ldr
+
+    several = len(args.images) > 1
+    faces_all = args.faces == "all"
+    forced = f".{args.format}" if args.format else None
+    out = _Namer(args.output, "-o", (".exr", ".hdr"), several=several, faces_all=faces_all, forced_ext=forced)
+    if args.half and out.ext != ".exr":
+        raise _UsageError("--half applies to .exr files only")
+    preview = (
+        _Namer(args.preview, "--preview", (".png",), several=several, faces_all=faces_all)
+        if args.preview is not None else None
+    )
+    estimator = args.estimator or DEFAULT_ESTIMATOR
+    if estimator not in list_estimators():
+        raise _UsageError(f"unknown estimator {estimator!r}; choose one of: {', '.join(list_estimators())}")
+    if args.detector not in list_detectors():
+        raise _UsageError(f"unknown detector {args.detector!r}; choose one of: {', '.join(list_detectors())}")
+    try:
+        device = torch.device(args.device)
+    except RuntimeError as e:
+        raise _UsageError(f"--device {args.device!r}: {e}") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise _UsageError(f"--device {args.device!r}: CUDA is not available in this PyTorch build or machine")
+    stems = [Path(p).stem for p in args.images] or [_SAMPLE]
+    if several and len(set(stems)) < len(stems):
+        dup = next(s for s in stems if stems.count(s) > 1)
+        raise _UsageError(f"several images are named {dup!r} (their outputs would collide); run them separately")
+    for p in args.images:  # fail before any work when a path is wrong
+        if not Path(p).is_file():
+            raise HDRIOError(f"cannot read {p}: " + ("it is a directory" if Path(p).is_dir() else "no such file"))
+
+    t0 = time.perf_counter()
+    api._named_estimator(estimator, device)  # built once (and checked: missing weights fail here)
+    api._named_detector(args.detector, device)
+    print(f"loaded estimator {estimator!r} and detector {args.detector!r} in {_ms(t0)}")
+
+    written: set[Path] = set()
+    for path, stem in zip(args.images or [None], stems):
+        t0 = time.perf_counter()
+        image = skimage.data.astronaut() if path is None else read_ldr(path)
+        t1 = time.perf_counter()
+        light = api.estimate_lighting(
+            image, estimator=estimator, detector=args.detector, faces=args.faces, fallback=args.fallback,
+            device=device,
+        )
+        t2 = time.perf_counter()
+        for face in range(len(light)):
+            files = [(out(stem, face), "lighting")] + ([(preview(stem, face), "preview")] if preview else [])
+            for target, kind in files:
+                if target in written:
+                    raise RuntimeError(f"{target} would be written twice in this run; add {{stem}} or {{face}} to the name")
+                written.add(target)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                box = ", ".join(f"{v:.0f}" for v in light.boxes[face].tolist())
+                if kind == "lighting":
+                    light.save(target, index=face, latlong_height=args.latlong, half=args.half)
+                    what = f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
+                    print(f"wrote {target} ({what}, face {face} of {stem}, box [{box}])")
+                else:
+                    light.preview(target, index=face, size=args.preview_size)
+                    n = args.preview_size
+                    print(f"wrote {target} (preview {3 * n}x{n}: diffuse, matte silver, mirror spheres)")
+        print(
+            f"{stem}: {len(light)} face{'s' if len(light) != 1 else ''}, read {1e3 * (t1 - t0):.0f} ms, "
+            f"estimate_lighting {1e3 * (t2 - t1):.0f} ms (detector {args.detector}, estimator {estimator}), "
+            f"total {_ms(t0)}"
+        )
+    return 0
+
+
+def _ms(t0: float) -> str:
+    return f"{1e3 * (time.perf_counter() - t0):.0f} ms"
+
+
+# ----------------------------------------------------------------------------------------------- main
+def _error(message: str, status: int) -> int:
+    print(f"{PROG}: error: {' '.join(str(message).split())}", file=sys.stderr)
+    return status
+
+
+def _warn(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG001
+    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``kornia-ilum`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
+
+    Examples:
+        >>> main(["estimate", "--faces", "many"])
+        2
+    """
+    parser = build_parser()
+    debug = bool(os.environ.get("KORNIA_ILUM_DEBUG"))
+    with warnings.catch_warnings():
+        warnings.showwarning = _warn
+        try:
+            args = parser.parse_args(argv)
+            if args.command == "synth":
+                return args.func(args)
+            return _cmd_list() if args.command == "list" else _cmd_estimate(args)
+        except SystemExit as e:  # --help / --version
+            return e.code if isinstance(e.code, int) else 0
+        except _UsageError as e:
+            return _error(str(e), 2)
+        except KeyboardInterrupt:
+            return _error("interrupted", 130)
+        except Exception as e:  # every runtime failure: one line, no traceback
+            if debug:
+                raise
+            from kornia_ilum.core.errors import BaseError
+
+            known = isinstance(e, (BaseError, OSError, RuntimeError, ValueError))
+            return _error(str(e) if known else f"{type(e).__name__}: {e}", 1)

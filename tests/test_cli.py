@@ -1,0 +1,162 @@
+"""Tests of the ``kornia-ilum`` command line: estimate (outputs, naming), list, and one-line errors."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import skimage.data
+import torch
+
+from kornia_ilum.api import estimate_lighting
+from kornia_ilum.cli import main
+from kornia_ilum.io import read_hdr, read_ldr, write_ldr
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _png(path: Path, array: np.ndarray) -> str:
+    write_ldr(path, torch.from_numpy(array).permute(2, 0, 1).float() / 255)
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def astronaut() -> np.ndarray:
+    return skimage.data.astronaut()
+
+
+@pytest.fixture
+def group(astronaut, tmp_path) -> str:
+    """A PNG with the astronaut's face pasted three times."""
+    canvas = np.full((300, 700, 3), 128, np.uint8)
+    for x, y in ((20, 40), (270, 120), (520, 60)):
+        canvas[y : y + 160, x : x + 150] = astronaut[40:200, 150:300]
+    return _png(tmp_path / "group.png", canvas)
+
+
+def _error_line(capsys) -> str:
+    """The run's stderr, which must be one ``kornia-ilum: error: ...`` line and no traceback."""
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("kornia-ilum: error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+class TestEstimate:
+    def test_sample(self, tmp_path, capsys, astronaut):
+        exr, png = tmp_path / "astronaut.exr", tmp_path / "astronaut.png"
+        assert main(["estimate", "-o", str(exr), "--preview", str(png), "--preview-size", "32"]) == 0
+        out = capsys.readouterr().out
+        assert f"wrote {exr} (mirror ball 32x32, face 0 of astronaut" in out
+        assert f"wrote {png} (preview 96x32" in out
+        assert "astronaut: 1 face, " in out and " ms" in out
+        torch.testing.assert_close(read_hdr(exr), estimate_lighting(astronaut).mirror_ball[0])
+        assert read_ldr(png).shape == (3, 32, 96)
+
+    def test_default_output(self, tmp_path, monkeypatch, capsys):
+        monkeypatch.chdir(tmp_path)
+        assert main(["estimate"]) == 0
+        assert (tmp_path / "astronaut.exr").is_file()
+        assert "wrote astronaut.exr" in capsys.readouterr().out
+
+    def test_latlong_hdr(self, tmp_path):
+        assert main(["estimate", "-o", str(tmp_path / "light.hdr"), "--latlong", "16"]) == 0
+        assert read_hdr(tmp_path / "light.hdr").shape == (3, 16, 32)
+        assert main(["estimate", "-o", str(tmp_path / "light"), "--format", "hdr"]) == 0
+        assert read_hdr(tmp_path / "light.hdr").shape == (3, 32, 32)
+        assert main(["estimate", "-o", str(tmp_path / "half.exr"), "--half"]) == 0
+        assert read_hdr(tmp_path / "half.exr").shape == (3, 32, 32)
+
+    def test_several_images_and_faces(self, tmp_path, astronaut, group, capsys):
+        single = _png(tmp_path / "astro.png", astronaut)
+        out = tmp_path / "out"
+        assert main(["estimate", single, group, "-o", f"{out}/", "--faces", "all"]) == 0
+        names = sorted(p.name for p in out.iterdir())
+        assert names == ["astro_face0.exr", "group_face0.exr", "group_face1.exr", "group_face2.exr"]
+        assert "group: 3 faces" in capsys.readouterr().out
+        pattern = str(tmp_path / "p" / "{stem}-{face}.exr")  # missing folders are created
+        assert main(["estimate", group, "-o", pattern, "--faces", "all"]) == 0
+        assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["group-0.exr", "group-1.exr", "group-2.exr"]
+        assert main(["estimate", single, group, "-o", str(tmp_path / "{stem}.exr")]) == 0  # largest face each
+        assert (tmp_path / "astro.exr").is_file() and (tmp_path / "group.exr").is_file()
+
+    def test_fallback(self, tmp_path, capsys):
+        flat = _png(tmp_path / "flat.png", np.full((64, 96, 3), 100, np.uint8))
+        assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr")]) == 1
+        line = _error_line(capsys)
+        assert "no face found in image" in line and "fallback='full_image'" in line
+        assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr"), "--fallback", "full_image"]) == 0
+        assert "box [16, 0, 80, 64]" in capsys.readouterr().out
+
+
+class TestList:
+    def test_list(self, capsys):
+        assert main(["list"]) == 0
+        out = capsys.readouterr().out
+        for word in ("uniform", "ours", "opencv", "yunet", "none", "paper:", "input: 256x256", "no weights"):
+            assert word in out, word
+        assert out.index("Estimators") < out.index("Detectors")
+
+
+class TestErrors:
+    def test_missing_path(self, capsys, tmp_path):
+        assert main(["estimate", str(tmp_path / "nope.jpg")]) == 1
+        assert _error_line(capsys) == f"kornia-ilum: error: cannot read {tmp_path / 'nope.jpg'}: no such file"
+        assert not list(tmp_path.iterdir())
+
+    def test_unreadable(self, capsys, tmp_path):
+        (tmp_path / "bad.png").write_text("not an image")
+        assert main(["estimate", str(tmp_path / "bad.png"), "-o", str(tmp_path / "x.exr")]) == 1
+        assert "cannot read" in _error_line(capsys)
+
+    def test_no_weights(self, capsys, tmp_path):
+        assert main(["estimate", "--estimator", "ours", "-o", str(tmp_path / "x.exr")]) == 1
+        assert "'ours' is registered but ships no trained weights yet" in _error_line(capsys)
+
+    @pytest.mark.parametrize(
+        "argv, message",
+        [
+            (["estimate", "--faces", "many"], "argument --faces: invalid choice: 'many'"),
+            (["estimate", "--latlong", "0"], "argument --latlong: must be a positive integer"),
+            (["estimate", "--format", "png"], "argument --format: invalid choice"),
+            (["estimate", "-o", "x.png"], "-o must end in .exr or .hdr"),
+            (["estimate", "-o", "x.exr", "--format", "hdr"], "does not match --format hdr"),
+            (["estimate", "-o", "{name}.exr"], "unknown placeholder(s) name"),
+            (["estimate", "--preview", "p.jpg"], "--preview must end in .png"),
+            (["estimate", "--estimator", "nope"], "unknown estimator 'nope'; choose one of: "),
+            (["estimate", "--detector", "haar"], "unknown detector 'haar'; choose one of: none, opencv, yunet"),
+            (["estimate", "-o", "x.hdr", "--half"], "--half applies to .exr files only"),
+            (["estimate", "a.png", "b.png", "-o", "x.exr"], "with several images, -o must be a directory or contain {stem}"),
+            (["estimate", "a/x.png", "b/x.png", "-o", "out/"], "several images are named 'x'"),
+            (["nothing"], "argument COMMAND: invalid choice: 'nothing'"),
+            ([], "the following arguments are required: COMMAND"),
+        ],
+    )
+    def test_usage(self, capsys, argv, message):
+        assert main(argv) == 2
+        assert message in _error_line(capsys)
+
+    def test_help(self, capsys):
+        assert main(["estimate", "--help"]) == 0
+        out = capsys.readouterr().out
+        assert "{stem}" in out and "{face}" in out and "--latlong H" in out
+
+    def test_subprocess(self, tmp_path):
+        env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+        run = subprocess.run(
+            [sys.executable, "-m", "kornia_ilum", "estimate", "missing.jpg"],
+            cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120,
+        )
+        assert run.returncode == 1
+        assert run.stderr == "kornia-ilum: error: cannot read missing.jpg: no such file\n"
+        assert run.stdout == ""
+        script = Path(sys.executable).with_name("kornia-ilum")  # the console script of pyproject.toml
+        run = subprocess.run([str(script), "estimate", "--faces", "x"], capture_output=True, text=True, env=env, timeout=120)
+        assert run.returncode == 2
+        assert run.stderr.startswith("kornia-ilum: error: argument --faces: invalid choice") and "Traceback" not in run.stderr
