@@ -1,0 +1,419 @@
+r"""Face detectors: one interface, :meth:`FaceDetector.detect`, for OpenCV's Haar cascade, Kornia's YuNet
+and ``"none"`` (the input already is a face crop).
+
+Every detector takes sRGB images in ``[0, 1]`` and returns, per image, an ``(N, 5)`` float32 tensor of
+face boxes ``(x0, y0, x1, y1, score)`` sorted by score, most confident first. Detection is not
+differentiable; it runs under :func:`torch.no_grad`.
+
+Convention:
+    Boxes are in continuous pixel coordinates of the input image: ``(0, 0)`` is its top-left corner,
+    ``(W, H)`` its bottom-right corner (see :mod:`kornia_ilum.detection.crop`). A box may reach slightly
+    beyond the image (YuNet regresses boxes, it does not clip them); :func:`~kornia_ilum.detection.crop_faces`
+    pads with zeros there.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import ClassVar
+
+import cv2
+import numpy as np
+import torch
+from torch import nn
+
+from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.errors import MissingWeightsError, ShapeError, ValueCheckError, WeightsChecksumError
+from kornia_ilum.detection.crop import CROP_SCALE
+
+__all__ = [
+    "FaceDetector",
+    "OpenCVFaceDetector",
+    "YuNetFaceDetector",
+    "NoFaceDetector",
+    "YUNET_WEIGHTS_ENV",
+    "YUNET_SHA256",
+]
+
+#: Environment variable naming a local ``yunet_final.pth`` (used when no ``weights_path`` is given).
+YUNET_WEIGHTS_ENV = "KORNIA_ILUM_YUNET_WEIGHTS"
+#: SHA-256 of Kornia's ``yunet_final.pth`` (https://huggingface.co/kornia/yunet, 2 MB).
+YUNET_SHA256 = "ee0a3035c5cbfc9484a31332223c9fd9c0ddcdb7c46b6a19e558ed393b6f2c67"
+
+
+class FaceDetector(nn.Module):
+    r"""Base class of the face detectors.
+
+    Subclasses set the class attributes and implement :meth:`_detect`; :meth:`detect` does the input
+    checks, :func:`torch.no_grad`, and returns every result as float32 on the input's device, sorted by
+    score. It is an :class:`~torch.nn.Module` so that a detector with a network (YuNet) moves between
+    devices and switches to eval mode like any model (``.to("cuda")``, ``.eval()``, ``state_dict``), and
+    all detectors can be held, swapped and called (``detector(image)``) the same way.
+
+    Attributes:
+        name: the registry name.
+        description: one line for ``kornia-ilum list``.
+        crop_scale: side of the crop square relative to ``max(w, h)`` of a returned box (passed to
+            :func:`~kornia_ilum.detection.square_crop_boxes`): the paper's 1.25 for face detectors, 1 for
+            ``"none"``, whose box already is the crop.
+
+    Examples:
+        A detector that takes the central half of every image:
+
+        >>> class Centre(FaceDetector):
+        ...     name, description = "centre", "the central half of each image"
+        ...     def _detect(self, image):
+        ...         h, w = image.shape[-2:]
+        ...         return [torch.tensor([[w / 4, h / 4, 3 * w / 4, 3 * h / 4, 1.0]])] * image.shape[0]
+        >>> Centre().detect(torch.rand(2, 3, 40, 80))
+        [tensor([[20., 10., 60., 30.,  1.]]), tensor([[20., 10., 60., 30.,  1.]])]
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    crop_scale: ClassVar[float] = CROP_SCALE
+
+    def detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        r"""Find the faces in each image.
+
+        Args:
+            image: sRGB-encoded RGB images in ``[0, 1]``, ``(B, 3, H, W)`` or one ``(3, H, W)``. Any
+                floating dtype; any device (a detector with a network runs on its own device and returns
+                the boxes on the image's).
+
+        Returns:
+            one ``(N_i, 5)`` float32 tensor per image, on the image's device: ``(x0, y0, x1, y1, score)``
+            in input pixels, sorted by score, most confident first; ``N_i = 0`` where no face is found.
+
+        Shape:
+            - Input: :math:`(B, 3, H, W)` or :math:`(3, H, W)`
+            - Output: a list of :math:`B` tensors :math:`(N_i, 5)`
+
+        Raises:
+            ShapeError: ``image`` is not ``(3, H, W)`` or ``(B, 3, H, W)``.
+            TypeCheckError: ``image`` is not a floating-point tensor (divide ``uint8`` images by 255).
+            EmptyTensorError: ``image`` is empty.
+            NonFiniteError: ``image`` holds NaN or Inf.
+            ValueCheckError: ``image`` has values outside ``[0, 1]``.
+
+        Convention:
+            Input sRGB-encoded in ``[0, 1]`` (SPEC.md, Images). Boxes in continuous pixel coordinates,
+            ``(0, 0)`` at the image's top-left corner.
+        """
+        if isinstance(image, torch.Tensor) and image.dim() not in (3, 4):
+            raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
+        check_tensor(image, "image", ["*", "3", "H", "W"])
+        if checks_active() and not torch.compiler.is_compiling():
+            lo, hi = torch.aminmax(image.detach())
+            if lo < 0 or hi > 1:
+                raise ValueCheckError(
+                    f"image must be sRGB in [0, 1], got values in [{float(lo):g}, {float(hi):g}]"
+                    + ("; divide 8-bit images by 255" if hi > 1.5 else "")
+                )
+        batch = image if image.dim() == 4 else image[None]
+        with torch.no_grad():
+            found = self._detect(batch)
+        out = []
+        for dets in found:
+            dets = dets.to(device=image.device, dtype=torch.float32).reshape(-1, 5)
+            out.append(dets[dets[:, 4].argsort(descending=True, stable=True)])
+        return out
+
+    def forward(self, image: torch.Tensor) -> list[torch.Tensor]:
+        """Same as :meth:`detect`."""
+        return self.detect(image)
+
+    def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        """Detect in a checked ``(B, 3, H, W)`` batch; return ``B`` tensors ``(N_i, 5)`` in any order."""
+        raise NotImplementedError
+
+
+# ---------------------------------------------------------------------------------------------- OpenCV
+def _last_stage_threshold(path: Path) -> float | None:
+    """The last stage's ``stageThreshold`` of an OpenCV cascade XML (new format), or ``None``."""
+    try:
+        stages = ET.parse(path).getroot().findall("./cascade/stages/_")
+        return float(stages[-1].findtext("stageThreshold"))
+    except (ET.ParseError, IndexError, TypeError, ValueError, OSError):
+        return None
+
+
+class OpenCVFaceDetector(FaceDetector):
+    r"""Viola-Jones face detection with a Haar cascade that ships with OpenCV 4.x (CPU, offline).
+
+    The RGB image is quantised to 8 bits (``round(255 x)``), converted to grey
+    (:func:`cv2.cvtColor`, ``COLOR_RGB2GRAY``: ``0.299 R + 0.587 G + 0.114 B`` on the sRGB values, as the
+    cascades were trained) and scanned by :meth:`cv2.CascadeClassifier.detectMultiScale3`.
+
+    Defaults, measured on scikit-image's astronaut (at 0.5x, 0.75x, 1x, 1.25x, 2x and mirrored) and on
+    18 synthetic group images (72 faces: the astronaut's face pasted 4 times at scales 0.6-1.3 on grey,
+    noise and ``coffee`` backgrounds), plus 19 face-free scikit-image photographs (``coffee``, ``chelsea``,
+    ``coins``, ``rocket``, ``moon``, ...): ``haarcascade_frontalface_alt2`` with ``scale_factor=1.1`` and
+    ``min_neighbors=5`` found every face (72/72, and exactly one on every astronaut) with no false
+    positive. ``haarcascade_frontalface_default`` fired on ``coins`` (6 boxes) and found the astronaut
+    twice at ``scale_factor=1.05``; ``alt`` was as good as ``alt2`` only without equalisation. Histogram
+    equalisation (``equalize=True``) lost faces on the group images with ``alt`` and ``alt2`` and added
+    false positives with ``default``, so it is off by default.
+
+    Score:
+        ``sigmoid(2 (w - t))``, where ``w`` is the face's ``levelWeights`` from ``detectMultiScale3`` (the
+        boosted sum of the cascade's last stage, the largest over the grouped windows) and ``t`` that
+        stage's ``stageThreshold`` from the cascade file. A boosted sum estimates half the log-odds
+        (Friedman, Hastie & Tibshirani, "Additive logistic regression", Ann. Statist. 2000), so this maps
+        the margin over the acceptance threshold to ``(0.5, 1)``: monotone, comparable within a cascade,
+        not a calibrated probability. The astronaut scores 0.997. Without a readable threshold (an
+        old-format cascade file), every score is 1.
+
+    Args:
+        cascade: a file name in :data:`cv2.data.haarcascades`, or a path to a cascade XML.
+        scale_factor: the image pyramid's step (``> 1``); smaller finds more faces, slower.
+        min_neighbors: overlapping detections needed to keep a face; larger rejects more false positives.
+        min_face: smallest face side as a fraction of the image's shorter side (never below the cascade's
+            window). 0.05 is 24 pixels at 480 lines; smaller faces make blurry 256 x 256 crops anyway.
+        equalize: histogram-equalise the grey image first.
+
+    Raises:
+        FileNotFoundError: the cascade file does not exist.
+        ValueCheckError: OpenCV cannot load the cascade file, or a parameter is out of range.
+
+    Examples:
+        >>> import skimage.data
+        >>> image = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1) / 255
+        >>> faces = OpenCVFaceDetector().detect(image)[0]
+        >>> faces.shape, faces[0, :4].tolist()
+        (torch.Size([1, 5]), [177.0, 66.0, 274.0, 163.0])
+    """
+
+    name: ClassVar[str] = "opencv"
+    description: ClassVar[str] = (
+        "OpenCV 4.x Haar cascade (haarcascade_frontalface_alt2, Viola-Jones); frontal faces, CPU, no download"
+    )
+
+    def __init__(
+        self,
+        cascade: str | os.PathLike[str] = "haarcascade_frontalface_alt2.xml",
+        scale_factor: float = 1.1,
+        min_neighbors: int = 5,
+        min_face: float = 0.05,
+        equalize: bool = False,
+    ) -> None:
+        super().__init__()
+        if not (isinstance(scale_factor, (int, float)) and scale_factor > 1 and math.isfinite(scale_factor)):
+            raise ValueCheckError(f"scale_factor must be a finite number > 1, got {scale_factor!r}")
+        if isinstance(min_neighbors, bool) or not isinstance(min_neighbors, int) or min_neighbors < 0:
+            raise ValueCheckError(f"min_neighbors must be a non-negative int, got {min_neighbors!r}")
+        if not (isinstance(min_face, (int, float)) and 0 <= min_face <= 1):
+            raise ValueCheckError(f"min_face must be a fraction in [0, 1], got {min_face!r}")
+        path = Path(cascade)
+        if not path.is_file():
+            path = Path(cv2.data.haarcascades) / cascade
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"cascade {str(cascade)!r} not found (looked for it as a path and in {path.parent})"
+            )
+        try:
+            classifier = cv2.CascadeClassifier(str(path))
+        except (cv2.error, SystemError) as e:  # an XML file that is no cascade
+            raise ValueCheckError(f"OpenCV could not load the cascade {str(path)!r}: {e}") from None
+        if classifier.empty():
+            raise ValueCheckError(f"OpenCV could not load the cascade {str(path)!r}")
+        self.cascade_path = path
+        self.scale_factor = float(scale_factor)
+        self.min_neighbors = min_neighbors
+        self.min_face = float(min_face)
+        self.equalize = bool(equalize)
+        self._classifier = classifier
+        self._window = int(max(classifier.getOriginalWindowSize()))
+        self._threshold = _last_stage_threshold(path)
+
+    def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        rgb8 = (image.float() * 255).round_().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
+        out = []
+        for rgb in rgb8:
+            grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+            if self.equalize:
+                grey = cv2.equalizeHist(grey)
+            side = max(self._window, round(self.min_face * min(grey.shape)))
+            rects, _, weights = self._classifier.detectMultiScale3(
+                grey,
+                scaleFactor=self.scale_factor,
+                minNeighbors=self.min_neighbors,
+                minSize=(side, side),
+                outputRejectLevels=True,
+            )
+            rects = np.asarray(rects, dtype=np.float32).reshape(-1, 4)
+            weights = np.asarray(weights, dtype=np.float64).reshape(-1)
+            if self._threshold is not None and weights.shape[0] == rects.shape[0]:
+                score = 1.0 / (1.0 + np.exp(-2.0 * (weights - self._threshold)))
+            else:
+                score = np.ones(rects.shape[0])
+            xyxy = np.concatenate([rects[:, :2], rects[:, :2] + rects[:, 2:]], axis=1)
+            out.append(torch.from_numpy(np.concatenate([xyxy, score[:, None].astype(np.float32)], axis=1)))
+        return out
+
+    def extra_repr(self) -> str:
+        return (
+            f"cascade={self.cascade_path.name!r}, scale_factor={self.scale_factor}, "
+            f"min_neighbors={self.min_neighbors}, min_face={self.min_face}, equalize={self.equalize}"
+        )
+
+
+# ----------------------------------------------------------------------------------------------- YuNet
+def _yunet_weight_candidates(weights_path: str | os.PathLike[str] | None) -> list[tuple[str, Path]]:
+    """Where the YuNet weights are looked for, in order: the argument, the environment, the hub cache."""
+    if weights_path is not None:
+        return [("weights_path", Path(weights_path).expanduser())]
+    places = []
+    if os.environ.get(YUNET_WEIGHTS_ENV):
+        places.append((f"${YUNET_WEIGHTS_ENV}", Path(os.environ[YUNET_WEIGHTS_ENV]).expanduser()))
+    places.append(("the torch hub cache", Path(torch.hub.get_dir()) / "checkpoints" / "yunet_final.pth"))
+    return places
+
+
+class YuNetFaceDetector(FaceDetector):
+    r"""Kornia's YuNet face detector (Wu, Peng & Yu, "YuNet: A Tiny Millisecond-level Face Detector",
+    Machine Intelligence Research 2023), with weights from a local file only.
+
+    The network is :class:`kornia.models.yunet.YuNet` built with ``pretrained=False``; its state dict is
+    loaded from a local ``yunet_final.pth`` with ``torch.load(weights_only=True)`` after checking the
+    file's SHA-256. Nothing is ever downloaded (unlike :class:`kornia.contrib.FaceDetector`, whose
+    constructor downloads). The weights are looked for, in order, at ``weights_path``, at the path in the
+    environment variable ``KORNIA_ILUM_YUNET_WEIGHTS``, and in the torch hub cache
+    (``torch.hub.get_dir()/checkpoints/yunet_final.pth``, where Kornia's own download puts them).
+
+    As Kornia documents, YuNet takes BGR in ``[0, 255]``: the image is scaled by 255 and flipped to BGR.
+    Decoding, score (``sqrt(cls x iou)``), confidence filtering and NMS are Kornia's:
+    :meth:`kornia.contrib.FaceDetector.postprocess`, called on this object, which carries the attributes
+    it reads.
+
+    ``confidence_threshold=0.9`` is the default of OpenCV's ``FaceDetectorYN`` demo for the same network
+    (Kornia's 0.3 keeps too much): measured, every face of the astronaut images and of 17 of the 18
+    synthetic group images described in :class:`OpenCVFaceDetector` scored >= 0.94 (one on a noise
+    background, 0.77), while false positives on face-free scikit-image photographs stayed <= 0.78 except
+    a motorcycle headlight at 0.92 (``stereo_motorcycle``).
+
+    Args:
+        weights_path: a local ``yunet_final.pth``; ``None`` looks in the environment and the hub cache.
+        sha256: the file's expected SHA-256 (Kornia's file by default); ``None`` skips the check.
+        confidence_threshold: minimum score of a face.
+        nms_threshold: IoU above which NMS drops the weaker of two boxes (Kornia's 0.3).
+        top_k: candidates kept before NMS (Kornia's 5000).
+        keep_top_k: faces kept after NMS (Kornia's 750).
+
+    Raises:
+        MissingWeightsError: no weight file was found; the message lists every place looked at.
+        WeightsChecksumError: the file's SHA-256 differs from ``sha256``.
+        ValueCheckError: a threshold is out of range.
+
+    Examples:
+        ``YuNetFaceDetector("path/to/yunet_final.pth").detect(image)``; a missing file is reported, never
+        fetched:
+
+        >>> YuNetFaceDetector(weights_path="no/such/yunet_final.pth")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia_ilum.core.errors.MissingWeightsError: YuNet weights (yunet_final.pth) not found; looked at ...
+    """
+
+    name: ClassVar[str] = "yunet"
+    description: ClassVar[str] = (
+        "Kornia's YuNet CNN (Wu et al. 2023); more poses and smaller faces; local weights yunet_final.pth "
+        f"(weights_path=, ${YUNET_WEIGHTS_ENV} or the torch hub cache), never downloaded"
+    )
+
+    def __init__(
+        self,
+        weights_path: str | os.PathLike[str] | None = None,
+        sha256: str | None = YUNET_SHA256,
+        confidence_threshold: float = 0.9,
+        nms_threshold: float = 0.3,
+        top_k: int = 5000,
+        keep_top_k: int = 750,
+    ) -> None:
+        super().__init__()
+        from kornia.geometry.bbox import nms
+        from kornia.models.yunet import YuNet
+
+        for name, value in (("confidence_threshold", confidence_threshold), ("nms_threshold", nms_threshold)):
+            if not (isinstance(value, (int, float)) and 0 <= value <= 1):
+                raise ValueCheckError(f"{name} must be in [0, 1], got {value!r}")
+        places = _yunet_weight_candidates(weights_path)
+        path = next((p for _, p in places if p.is_file()), None)
+        if path is None:
+            looked = "; ".join(f"{where}: {p}" for where, p in places)
+            raise MissingWeightsError(
+                f"YuNet weights (yunet_final.pth) not found; looked at {looked}. They are never downloaded "
+                f"implicitly: pass weights_path=... or set ${YUNET_WEIGHTS_ENV} to a local copy of "
+                "https://huggingface.co/kornia/yunet/resolve/main/yunet_final.pth"
+            )
+        if sha256 is not None:
+            with path.open("rb") as f:
+                digest = hashlib.file_digest(f, "sha256").hexdigest()
+            if digest != sha256.lower():
+                raise WeightsChecksumError(
+                    f"YuNet weights {str(path)!r} have SHA-256 {digest}, expected {sha256}; "
+                    "pass sha256=None to load another version on purpose"
+                )
+        self.weights_path = path
+        self.model = YuNet("test", pretrained=False)
+        self.model.load_state_dict(torch.load(path, map_location="cpu", weights_only=True), strict=True)
+        self.model.eval()
+        # The attributes kornia.contrib.FaceDetector.postprocess reads (Kornia's values for its weights).
+        self.min_sizes = [[10, 16, 24], [32, 48], [64, 96], [128, 192, 256]]
+        self.steps = [8, 16, 32, 64]
+        self.variance = [0.1, 0.2]
+        self.clip = False
+        self.confidence_threshold = float(confidence_threshold)
+        self.nms_threshold = float(nms_threshold)
+        self.top_k = int(top_k)
+        self.keep_top_k = int(keep_top_k)
+        self.nms = nms
+
+    def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        from kornia.contrib import FaceDetector as KorniaFaceDetector
+
+        weight = next(self.model.parameters())
+        bgr = image.flip(-3).to(device=weight.device, dtype=weight.dtype) * 255.0
+        found = KorniaFaceDetector.postprocess(self, self.model(bgr), bgr.shape[-2], bgr.shape[-1])
+        out = []
+        for dets in found:
+            dets = dets[:, [0, 1, 2, 3, 14]]
+            keep = (dets[:, 2] > dets[:, 0]) & (dets[:, 3] > dets[:, 1]) & dets.isfinite().all(dim=1)
+            out.append(dets[keep])
+        return out
+
+    def train(self, mode: bool = True) -> YuNetFaceDetector:
+        """Detection always runs the network in eval mode (batch norm with its running statistics)."""
+        super().train(mode)
+        self.model.eval()
+        return self
+
+    def extra_repr(self) -> str:
+        return f"weights_path={str(self.weights_path)!r}, confidence_threshold={self.confidence_threshold}"
+
+
+# ------------------------------------------------------------------------------------------------ none
+class NoFaceDetector(FaceDetector):
+    r"""No detection: the input already is a face crop; each image gives one box covering all of it.
+
+    The box is ``(0, 0, W, H)`` with score 1, and :attr:`crop_scale` is 1, so the crop square is the
+    centred ``max(W, H)`` square: the image itself when it is square, zero-padded on its short side
+    otherwise.
+
+    Examples:
+        >>> NoFaceDetector().detect(torch.rand(3, 480, 640))
+        [tensor([[  0.,   0., 640., 480.,   1.]])]
+    """
+
+    name: ClassVar[str] = "none"
+    description: ClassVar[str] = "no detection: each input already is a face crop (one box, the whole image)"
+    crop_scale: ClassVar[float] = 1.0
+
+    def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        height, width = image.shape[-2:]
+        box = torch.tensor([[0.0, 0.0, float(width), float(height), 1.0]])
+        return [box.clone() for _ in range(image.shape[0])]
