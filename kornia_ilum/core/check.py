@@ -95,7 +95,7 @@ def check_tensor(
         raise EmptyTensorError(f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)")
     if torch.compiler.is_compiling():
         return
-    if not (finite or nonnegative) or not x.is_floating_point():
+    if not (finite or nonnegative) or not x.is_floating_point() or x.numel() == 0:
         return
     lo, hi = torch.aminmax(x.detach())  # one pass over the data; NaN propagates into both
     lo, hi = float(lo), float(hi)

@@ -44,7 +44,7 @@ class HDRIOError(IlumError, OSError):
 
 
 class MissingWeightsError(IlumError):
-    """An estimator's pretrained weights are not available.
+    """An estimator's or a detector's pretrained weights are not available.
 
     Either the estimator ships no trained weights yet (``pretrained=False`` gives the untrained model), or
     one of its weight files is missing from the weights folder. The message names the estimator, and the
