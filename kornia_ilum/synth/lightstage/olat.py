@@ -1,0 +1,869 @@
+r"""One-light-at-a-time (OLAT) reflectance fields of synthetic subjects, rendered with Mitsuba 3.
+
+A reflectance field ``R`` holds, for every image pixel ``p`` and every light ``n`` of the ``S x S`` mirror-ball
+lighting basis (SPEC.md), the pixel's linear response to unit radiance arriving from the solid angle of
+mirror-ball pixel ``n``. Any lighting ``L`` (a mirror ball in radiance) then relights the subject exactly as the
+renderer would have: ``I[c, p] = sum_n R[c, p, n] L[n, c]`` (:func:`kornia_ilum.render.relight`). This is the
+virtual light stage of LeGendre et al. 2020 ("Learning Illumination from Diverse Portraits"), who relit
+photographed subjects the same way (Debevec et al. 2000, "Acquiring the reflectance field of a human face").
+
+How one OLAT image is rendered (:func:`render_olat`):
+
+- **Renderer.** Mitsuba 3 (an optional extra: ``pip install kornia_ilum[lightstage]``), variant
+  ``llvm_ad_rgb`` (vectorised, JIT-compiled) or ``scalar_rgb`` (fallback); see :func:`select_mitsuba_variant`.
+  A path tracer (``path``, or ``volpath`` when the subject has a cornea, see below) with ``max_depth = 4``:
+  cast shadows, specular reflection and two bounces of interreflection.
+- **Each light is exactly one mirror-ball pixel.** The emitter is an ``envmap`` whose lat-long bitmap holds,
+  at each texel, the fraction of that texel's (bilinear) footprint owned by light ``n`` under
+  :func:`~kornia_ilum.geometry.mirror_ball_pixel_index` (the energy-conserving partition of the sphere;
+  footprints supersampled 8 x 8 per texel). Mitsuba interpolates the bitmap bilinearly, so this construction
+  is exact in two ways: the bitmaps of all lights sum to 1 at every texel (the sum of the OLAT images *is*
+  the render under a uniform white environment), and the solid angle that light ``n`` emits from is
+  :func:`~kornia_ilum.geometry.mirror_ball_solid_angles` ``[n]`` to 0.35 % (supersampling error, measured at
+  ``S = 32``; each light's boundary is blurred by about one texel, 1.4 degrees at the default ``4 S`` rows).
+  The bitmap is rotated so that -Z (the rim of the mirror ball, where all rim pixels meet) sits at a pole of
+  the lat-long map, whose fine azimuthal resolution separates the thin rim wedges. Only the valid lights
+  (812 at ``S = 32``) are rendered; the bitmap changes through :func:`mitsuba.traverse` between renders, the
+  scene is built once.
+- **Frame and units.** The lighting frame is the *camera* frame of SPEC.md (+X right, +Y up, +Z toward the
+  camera). The camera stays at the origin looking along -Z, and the subject is turned and moved in front of
+  it (:class:`Camera`), so light directions never rotate with the view. The envmap holds radiance 1 in the
+  light's solid angle, so ``R`` is in SPEC units: a white Lambertian patch facing a light of radiance ``L``
+  over solid angle ``Omega`` reads ``L Omega cos / pi``.
+- **Background and matte.** Directly visible emitters are hidden, so background pixels are 0 and the field is
+  premultiplied by the pixel coverage (box pixel filter). The matte ``alpha`` is that coverage: the alpha
+  channel of the first OLAT render (every render uses the same seed, hence the same sub-pixel positions, so
+  ``alpha`` and the field agree exactly along the silhouette). Composite with ``I + (1 - alpha) B``.
+- **Noise.** Mitsuba's stratified ``multijitter`` sampler (4 times less noise than independent samples at
+  16 spp on the test sphere), with the same seed for every light: the Monte-Carlo noise is correlated across
+  lights, so a relit image looks like one render rather than a sum of independent noisy images. On a white
+  Lambertian sphere under a uniform environment (32 x 32 pixels, ``S = 8``, 16 spp) the sum of the OLATs
+  is within 1.1 % rms of the albedo per pixel, 0.1 % on average.
+
+Materials (:func:`material_bsdf`): ``diffuse`` is Lambertian; ``skin``, ``glossy`` and ``hair`` are Mitsuba's
+``principled`` BSDF (Disney, Burley 2012) with a GGX specular lobe of ``alpha = roughness`` and the material's
+``specular``; all of these are two-sided. ``cornea`` is a smooth clear coat: a one-sided Fresnel mirror
+(IOR from ``specular``: ``F0 = 0.08 specular``, ``eta = (1 + sqrt(F0)) / (1 - sqrt(F0))``, 1.376 for the real
+cornea's ``F0 = 0.025``) over a straight-through transmission of about ``1 - F(theta)``. The transmission is a
+*null* interface, so the ``volpath`` integrator traces shadow rays through it and the iris behind it is lit by
+next-event estimation (with a dielectric, shadow rays would stop at the cornea and the iris would be lit only
+by rare BSDF-sampled paths); the mirror lobe is sampled with probability 0.3 (not ``F0``), so catch-lights are
+not starved of samples. The mirror reflects on the outer side only, so the back of a closed lens adds no second
+glint; a closed lens attenuates the iris by ``(1 - F0)^2`` each way (two interfaces). The cornea's albedo is
+ignored (a clear cornea). Given vertex ``normals`` of a part are used for shading; otherwise Mitsuba computes
+smooth vertex normals.
+
+Cost (``benchmarks/bench_olat.py``, one thread of the project's shared 2-core CPU, a ``make_subject`` head of
+about 140 000 triangles): 0.45 s per light at 256 x 256 and 16 spp with ``llvm_ad_rgb`` on a quiet core, 0.55 to
+0.75 s under load, i.e. about 6 to 10 minutes per subject and view (812 lights); ``scalar_rgb`` is about 1.7
+times slower. Each render costs about 25 ms plus a time proportional to ``size^2 * spp``; the ``volpath``
+integrator that the cornea needs costs about 1.5 times ``path``. Threads scale with free cores.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_pixel_index, mirror_ball_valid
+from kornia_ilum.synth.background import camera_rotation
+
+if TYPE_CHECKING:  # the subjects module is only needed for the annotation
+    from kornia_ilum.synth.lightstage.subjects import Material, Subject
+
+__all__ = [
+    "MATERIAL_KINDS",
+    "MITSUBA_VARIANTS",
+    "VARIANT_ENV",
+    "Camera",
+    "ReflectanceField",
+    "camera_transform",
+    "material_bsdf",
+    "olat_envmap_basis",
+    "project_points",
+    "render_lighting",
+    "render_olat",
+    "select_mitsuba_variant",
+]
+
+#: Mitsuba variants tried in order by :func:`select_mitsuba_variant` when none is named.
+MITSUBA_VARIANTS: tuple[str, ...] = ("llvm_ad_rgb", "scalar_rgb")
+
+#: Environment variable that names the variant to use when ``variant=None`` (skips the probe).
+VARIANT_ENV = "KORNIA_ILUM_MITSUBA_VARIANT"
+
+MATERIAL_KINDS: tuple[str, ...] = ("skin", "diffuse", "glossy", "cornea", "hair")
+
+_CORNEA_MIRROR_PROBABILITY = 0.3  # how often a camera path picks the cornea's mirror lobe
+_SUPERSAMPLES = 8  # per texel axis, for the fraction of each envmap texel owned by each light
+
+# Envmap-local -> camera frame: local +Y (the lat-long's top pole) -> -Z, local -Z (its centre) -> -Y.
+_ENV_TO_WORLD = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+# ----------------------------------------------------------------------------------------------
+# camera
+
+
+@dataclass(frozen=True)
+class Camera:
+    r"""A perspective camera orbiting the subject; the lighting stays in this camera's frame.
+
+    Args:
+        fov_deg: horizontal field of view between the left and right image edges, in ``(0, 180)`` degrees.
+        distance: from the camera to the pivot (the centre of the bounding box of the subject's face
+            landmarks), in metres.
+        yaw_deg: orbit about the subject's +Y axis: positive moves the camera toward the subject's +X side (its
+            own left, the image's right in the frontal view), so the face turns toward the image's left.
+        pitch_deg: orbit elevation: positive raises the camera above the face, looking down at it.
+        size: the square image side in pixels.
+
+    Convention:
+        In the camera frame (SPEC.md), the camera is a pinhole at the origin looking along -Z, +X right, +Y up;
+        the subject is turned by the inverse of the orbit and its pivot placed at ``(0, 0, -distance)``. So
+        ``yaw_deg = 30`` is the same image as the frontal camera with the subject turned by -30 degrees about
+        +Y, under the same camera-frame lighting. ``R = camera_rotation(yaw_deg, -pitch_deg)`` of
+        :func:`kornia_ilum.synth.background.camera_rotation` maps camera axes to subject axes. The background
+        behind the subject is :func:`~kornia_ilum.synth.background.render_background` with the same ``fov_deg``
+        and no rotation (the environment is already in the camera frame).
+
+    Examples:
+        >>> Camera(fov_deg=30.0, distance=0.55, yaw_deg=0.0, pitch_deg=0.0)
+        Camera(fov_deg=30.0, distance=0.55, yaw_deg=0.0, pitch_deg=0.0, size=256)
+    """
+
+    fov_deg: float
+    distance: float
+    yaw_deg: float
+    pitch_deg: float
+    size: int = 256
+
+    def __post_init__(self) -> None:
+        for name in ("fov_deg", "distance", "yaw_deg", "pitch_deg"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeCheckError(f"Camera.{name} must be a number, got {type(value).__name__}")
+            if not math.isfinite(value):
+                raise ValueCheckError(f"Camera.{name} must be finite, got {value}")
+        if not 0.0 < self.fov_deg < 180.0:
+            raise ValueCheckError(f"Camera.fov_deg must be in (0, 180), got {self.fov_deg}")
+        if self.distance <= 0.0:
+            raise ValueCheckError(f"Camera.distance must be positive, got {self.distance}")
+        check_positive_int(self.size, "Camera.size")
+
+    def to_dict(self) -> dict[str, float | int]:
+        """The fields as a JSON-ready dict (the inverse is ``Camera(**d)``)."""
+        return {k: getattr(self, k) for k in ("fov_deg", "distance", "yaw_deg", "pitch_deg", "size")}
+
+
+def _pivot(subject: Any) -> np.ndarray:
+    lm = np.asarray(subject.face_landmarks, dtype=np.float64)
+    return 0.5 * (lm.min(axis=0) + lm.max(axis=0))
+
+
+def camera_transform(camera: Camera, pivot: np.ndarray | tuple[float, float, float]) -> np.ndarray:
+    r"""The ``4 x 4`` rigid transform from subject coordinates to the camera frame of :class:`Camera`.
+
+    Args:
+        camera: the camera.
+        pivot: the subject point that the camera orbits and looks at, ``(3,)`` metres.
+
+    Returns:
+        float64 ``(4, 4)`` matrix ``T`` with ``x_cam = T[:3, :3] @ x + T[:3, 3]``.
+
+    Examples:
+        >>> T = camera_transform(Camera(30.0, 2.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        >>> T[:3, 3].tolist()
+        [0.0, 0.0, -2.0]
+    """
+    rot = camera_rotation(camera.yaw_deg, -camera.pitch_deg).numpy().T  # subject -> camera axes
+    t = np.eye(4)
+    t[:3, :3] = rot
+    t[:3, 3] = -rot @ np.asarray(pivot, dtype=np.float64) - np.array([0.0, 0.0, camera.distance])
+    return t
+
+
+def project_points(points: np.ndarray | torch.Tensor, camera: Camera, transform: np.ndarray) -> torch.Tensor:
+    r"""Project subject points to continuous pixel coordinates of the camera's image.
+
+    Args:
+        points: ``(K, 3)`` points in subject coordinates (metres).
+        camera: the camera (its ``fov_deg`` and ``size``).
+        transform: the subject-to-camera transform of :func:`camera_transform`.
+
+    Returns:
+        float32 ``(K, 2)`` ``(x, y)`` with ``(0, 0)`` the top-left image corner and ``(size, size)`` the
+        bottom-right one (the box convention of :mod:`kornia_ilum.detection`); pixel ``(i, j)`` spans
+        ``[j, j + 1] x [i, i + 1]``.
+
+    Raises:
+        ValueCheckError: a point is not in front of the camera.
+
+    Examples:
+        >>> cam = Camera(90.0, 1.0, 0.0, 0.0, size=100)
+        >>> project_points(np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0]]), cam, camera_transform(cam, (0, 0, 0)))
+        tensor([[50., 50.],
+                [75., 25.]])
+    """
+    p = np.asarray(points.detach().cpu() if isinstance(points, torch.Tensor) else points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
+        raise ShapeError(f"points must have shape (K, 3) with K > 0, got {tuple(p.shape)}")
+    q = p @ transform[:3, :3].T + transform[:3, 3]
+    depth = -q[:, 2]
+    if not np.all(depth > 0):
+        raise ValueCheckError("points must lie in front of the camera (z < 0 in the camera frame)")
+    scale = 0.5 * camera.size / math.tan(math.radians(camera.fov_deg) / 2)
+    x = 0.5 * camera.size + scale * q[:, 0] / depth
+    y = 0.5 * camera.size - scale * q[:, 1] / depth
+    return torch.from_numpy(np.stack([x, y], axis=-1)).float()
+
+
+# ----------------------------------------------------------------------------------------------
+# result
+
+
+@dataclass
+class ReflectanceField:
+    r"""An OLAT reflectance field of one subject seen by one camera.
+
+    Attributes:
+        field: ``(3, P, N)`` bfloat16, channel-major, ``P = size * size`` pixels in row-major order and
+            ``N = lighting_size ** 2`` lights in the row-major order of the mirror-ball grid. The columns of
+            invalid mirror-ball pixels are zero. Linear, premultiplied by ``alpha``, in SPEC units: relight with
+            ``kornia_ilum.render.relight(field, lights)`` where ``lights`` is ``(B, N, 3)`` radiance.
+        alpha: ``(1, size, size)`` float32 matte in ``[0, 1]`` (pixel coverage).
+        face_box: ``(4,)`` float32 ``(x0, y0, x1, y1)`` box of the projected face landmarks, in continuous
+            pixel coordinates (:func:`project_points`).
+        camera: the camera.
+        subject_seed: the subject's seed.
+        meta: JSON-ready facts: renderer settings, timings, the subject's split and skin tone when known.
+        pixel_index: ``None`` for the dense layout above. In the *compact* layout of the cache
+            (:func:`kornia_ilum.synth.lightstage.cache.read_field` with ``dense=False``), int64 ``(P',)`` flat
+            indices of the stored pixels (the others are 0: background), and ``field`` is ``(3, P', N')``.
+        light_index: ``None``, or in the compact layout int64 ``(N',)`` indices of the stored lights (the valid
+            ones).
+
+    Examples:
+        >>> rf = ReflectanceField(torch.zeros(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
+        >>> rf.size, rf.lighting_size, rf.is_compact
+        (2, 4, False)
+    """
+
+    field: torch.Tensor
+    alpha: torch.Tensor
+    face_box: torch.Tensor
+    camera: Camera
+    subject_seed: int
+    meta: dict[str, Any] = dataclass_field(default_factory=dict)
+    pixel_index: torch.Tensor | None = None
+    light_index: torch.Tensor | None = None
+
+    @property
+    def size(self) -> int:
+        """The image side in pixels."""
+        return int(self.alpha.shape[-1])
+
+    @property
+    def lighting_size(self) -> int:
+        """The mirror-ball side ``S`` of the lighting basis."""
+        return int(self.meta.get("lighting_size", 0)) or math.isqrt(self.field.shape[-1])
+
+    @property
+    def is_compact(self) -> bool:
+        """Whether ``field`` holds only the ``pixel_index`` rows and ``light_index`` columns."""
+        return self.pixel_index is not None or self.light_index is not None
+
+    def to_dense(self) -> ReflectanceField:
+        """This field in the dense ``(3, size^2, S^2)`` layout (itself if it already is)."""
+        if not self.is_compact:
+            return self
+        p, n = self.size**2, self.lighting_size**2
+        rows = torch.arange(p) if self.pixel_index is None else self.pixel_index
+        cols = torch.arange(n) if self.light_index is None else self.light_index
+        wide = torch.zeros(3, self.field.shape[1], n, dtype=self.field.dtype)
+        wide[:, :, cols] = self.field
+        dense = torch.zeros(3, p, n, dtype=self.field.dtype)
+        dense[:, rows] = wide
+        return ReflectanceField(dense, self.alpha, self.face_box, self.camera, self.subject_seed, dict(self.meta))
+
+    def to_compact(self) -> ReflectanceField:
+        """Only the pixels with coverage or any response, and only the valid lights (lossless)."""
+        if self.is_compact:
+            return self
+        cols = torch.from_numpy(np.flatnonzero(mirror_ball_valid(self.lighting_size).flatten().numpy()))
+        keep = (self.alpha.flatten() > 0) | (self.field != 0).any(dim=2).any(dim=0)
+        rows = torch.nonzero(keep).flatten()
+        compact = self.field[:, rows][:, :, cols].contiguous()
+        return ReflectanceField(compact, self.alpha, self.face_box, self.camera, self.subject_seed, dict(self.meta),
+                                rows, cols)
+
+
+# ----------------------------------------------------------------------------------------------
+# Mitsuba set-up
+
+
+def _import_mitsuba() -> Any:
+    try:
+        import mitsuba as mi
+    except ImportError as exc:  # pragma: no cover - depends on the optional extra
+        raise ImportError(
+            "render_olat needs Mitsuba 3: pip install 'kornia_ilum[lightstage]' (or pip install 'mitsuba>=3.5')"
+        ) from exc
+    return mi
+
+
+_PROBE = """
+import mitsuba as mi, numpy as np
+mi.set_variant({variant!r})
+scene = mi.load_dict({{'type': 'scene', 'integrator': {{'type': 'path', 'max_depth': 3}},
+    'sensor': {{'type': 'perspective', 'film': {{'type': 'hdrfilm', 'width': 4, 'height': 4}}}},
+    'env': {{'type': 'envmap', 'bitmap': mi.Bitmap(np.ones((4, 8, 3), np.float32))}},
+    'ball': {{'type': 'sphere', 'center': [0, 0, -3]}}}})
+img = np.asarray(mi.render(scene, spp=2))
+assert np.isfinite(img).all() and img.max() > 0
+"""
+
+
+@functools.cache
+def _variant_works(variant: str) -> bool:
+    """Whether a tiny render succeeds in ``variant``, tried in a child process.
+
+    A child, because a JIT variant can abort the whole process (not raise) when its LLVM is unusable: Debian
+    12's LLVM 15 cannot compile Dr.Jit 1.x's kernels (``LLVM ERROR: Cannot select: fminimum``).
+    """
+    mi = _import_mitsuba()
+    if variant not in mi.variants():
+        return False
+    if variant.startswith("scalar"):
+        return True
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", _PROBE.format(variant=variant)], capture_output=True, timeout=300, check=False
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0
+
+
+def select_mitsuba_variant(variant: str | None = None) -> str:
+    r"""Activate a Mitsuba variant and return its name.
+
+    Args:
+        variant: a variant to use as is (``"llvm_ad_rgb"``, ``"scalar_rgb"``, ``"cuda_ad_rgb"``, ...). ``None``
+            takes the environment variable ``KORNIA_ILUM_MITSUBA_VARIANT`` if set, else the first of
+            :data:`MITSUBA_VARIANTS` that renders a tiny test scene in a child process (checked once per
+            process). ``llvm_ad_rgb`` needs an LLVM that Dr.Jit can use (LLVM >= 16; on Debian 12
+            ``apt-get install libllvm19``); otherwise ``scalar_rgb`` is used, which gives the same images.
+
+    Returns:
+        the active variant (Mitsuba's variant is process-global).
+
+    Raises:
+        ValueCheckError: the variant is not one that this Mitsuba build offers, or none works.
+
+    Examples:
+        >>> select_mitsuba_variant("scalar_rgb")
+        'scalar_rgb'
+    """
+    mi = _import_mitsuba()
+    if variant is None:
+        variant = os.environ.get(VARIANT_ENV) or None
+    if variant is None:
+        variant = next((v for v in MITSUBA_VARIANTS if _variant_works(v)), None)
+        if variant is None:
+            raise ValueCheckError(f"no Mitsuba variant of {MITSUBA_VARIANTS} works here; have {mi.variants()}")
+    if not isinstance(variant, str) or variant not in mi.variants():
+        raise ValueCheckError(f"variant must be one of {mi.variants()}, got {variant!r}")
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return variant
+
+
+def _rgb(value: tuple[float, float, float], name: str) -> dict[str, Any]:
+    rgb = [float(c) for c in value]
+    if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
+        raise ValueCheckError(f"{name} must be 3 linear RGB values in [0, 1], got {value}")
+    return {"type": "rgb", "value": rgb}
+
+
+def _fresnel_ior(f0: float) -> float:
+    """The IOR whose normal-incidence Fresnel reflectance is ``f0``."""
+    return (1.0 + math.sqrt(f0)) / (1.0 - math.sqrt(f0))
+
+
+def material_bsdf(material: Material) -> dict[str, Any]:
+    r"""The Mitsuba BSDF (a ``mitsuba.load_dict`` dict) of a subject :class:`Material`.
+
+    ``roughness`` is the GGX ``alpha``; Mitsuba's ``principled`` takes ``sqrt(alpha)``. See the module
+    docstring for the models.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> material_bsdf(SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5)))["bsdf"]["type"]
+        'diffuse'
+    """
+    kind = getattr(material, "kind", None)
+    if kind not in MATERIAL_KINDS:
+        raise ValueCheckError(f"material.kind must be one of {MATERIAL_KINDS}, got {kind!r}")
+    alpha = float(getattr(material, "roughness", 0.5))
+    specular = float(getattr(material, "specular", 0.5))
+    if not 0.0 <= alpha <= 1.0:
+        raise ValueCheckError(f"material.roughness must be in [0, 1], got {alpha}")
+    if not 0.0 <= specular <= 1.0:
+        raise ValueCheckError(f"material.specular must be in [0, 1], got {specular}")
+    if kind == "cornea":
+        f0 = 0.08 * max(specular, 1e-3)
+        w = _CORNEA_MIRROR_PROBABILITY
+        r_slab = f0 / (2.0 - f0)  # a thin slab reflects 2R / (1 + R): match F0 at normal incidence
+        return {
+            "type": "blendbsdf",
+            "weight": w,  # probability of the mirror lobe; each lobe's weight is divided by its probability
+            "transmission": {
+                # straight through with 1 - F(theta) (a null interface for shadow rays); its own reflection is
+                # zeroed, the mirror lobe below carries it
+                "type": "thindielectric",
+                "int_ior": _fresnel_ior(r_slab),
+                "ext_ior": 1.0,
+                "specular_reflectance": {"type": "uniform", "value": 0.0},
+                "specular_transmittance": {"type": "uniform", "value": 1.0 / (1.0 - w)},
+            },
+            "mirror": {
+                # k = 0: the Fresnel reflectance F(theta) of a dielectric of IOR eta. One-sided: it reflects only
+                # on the outer side, so the back of a closed lens (seen from inside it) adds no second glint
+                "type": "conductor",
+                "eta": _fresnel_ior(f0),
+                "k": 0.0,
+                "specular_reflectance": {"type": "uniform", "value": 1.0 / w},
+            },
+        }
+    albedo = _rgb(getattr(material, "albedo", None), "material.albedo")
+    if kind == "diffuse":
+        inner: dict[str, Any] = {"type": "diffuse", "reflectance": albedo}
+    else:  # skin, glossy, hair: a diffuse base under a GGX dielectric specular lobe
+        inner = {
+            "type": "principled",
+            "base_color": albedo,
+            "roughness": math.sqrt(max(alpha, 1e-4)),
+            "specular": specular,
+            "metallic": 0.0,
+        }
+    return {"type": "twosided", "bsdf": inner}
+
+
+def _mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
+                  bsdf: dict[str, Any]) -> Any:
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf)
+    mesh = mi.Mesh(name, vertex_count=len(vertices), face_count=len(faces), has_vertex_normals=True, props=props)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = type(params["vertex_positions"])(vertices.astype(np.float32).ravel())
+    params["faces"] = type(params["faces"])(faces.astype(np.uint32).ravel())
+    if normals is not None:
+        params["vertex_normals"] = type(params["vertex_normals"])(normals.astype(np.float32).ravel())
+    params.update()  # without given normals, Mitsuba computes smooth (area-weighted) vertex normals
+    return mesh
+
+
+def _check_subject(subject: Any) -> None:
+    parts = getattr(subject, "parts", None)
+    if not isinstance(parts, (list, tuple)) or not parts:
+        raise ValueCheckError("subject.parts must be a non-empty list of MeshPart")
+    for i, part in enumerate(parts):
+        v, f = np.asarray(part.vertices), np.asarray(part.faces)
+        name = f"subject.parts[{i}] ({getattr(part, 'name', '?')})"
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+            raise ShapeError(f"{name}.vertices must have shape (V, 3) with V > 0, got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise ShapeError(f"{name}.faces must have shape (F, 3) with F > 0, got {f.shape}")
+        if not np.issubdtype(f.dtype, np.integer):
+            raise TypeCheckError(f"{name}.faces must be integers, got {f.dtype}")
+        if not np.isfinite(v).all():
+            raise ValueCheckError(f"{name}.vertices must be finite")
+        if f.min() < 0 or f.max() >= len(v):
+            raise ValueCheckError(f"{name}.faces must index its {len(v)} vertices, got range [{f.min()}, {f.max()}]")
+        normals = getattr(part, "normals", None)
+        if normals is not None and (np.shape(normals) != v.shape or not np.isfinite(normals).all()):
+            raise ShapeError(f"{name}.normals must be None or finite with the shape of its vertices {v.shape}")
+    lm = np.asarray(getattr(subject, "face_landmarks", np.zeros((0, 3))))
+    if lm.ndim != 2 or lm.shape[1] != 3 or len(lm) == 0 or not np.isfinite(lm).all():
+        raise ShapeError(f"subject.face_landmarks must be finite with shape (K, 3), K > 0, got {lm.shape}")
+
+
+# ----------------------------------------------------------------------------------------------
+# the OLAT lighting basis as envmap bitmaps
+
+
+@functools.lru_cache(maxsize=8)
+def olat_envmap_basis(lighting_size: int, height: int) -> tuple[Any, np.ndarray]:
+    r"""The envmap bitmaps of all lights: which fraction of each lat-long texel each light owns.
+
+    Args:
+        lighting_size: the mirror-ball side ``S``.
+        height: lat-long rows ``H`` (``W = 2 H`` columns).
+
+    Returns:
+        ``(basis, valid_lights)``: a SciPy CSC matrix ``(H * W, S * S)`` whose column ``n`` is light ``n``'s
+        bitmap (row-major texels, rows sum to 1), and the int64 indices of the valid lights.
+
+    Convention:
+        Mitsuba's ``envmap`` (3.5 to 3.9) interpolates bilinearly between texel values placed at
+        ``theta = pi i / (H - 1)`` (row ``i``, from the top pole) and ``phi = 2 pi (k + 0.5) / W`` (column
+        ``k``), with the local direction ``(sin phi sin theta, cos theta, -cos phi sin theta)``; the emitter's
+        ``to_world`` maps local ``+Y`` to the camera frame's -Z. Texel ``v`` of light ``n`` holds
+        ``int hat_v 1_n dOmega / int hat_v dOmega`` (``hat_v`` the bilinear tent of texel ``v``, ``1_n`` the
+        indicator of the sphere region owned by light ``n``), integrated with ``8 x 8`` samples per texel cell.
+
+    Examples:
+        >>> basis, valid = olat_envmap_basis(4, 16)
+        >>> basis.shape, len(valid)
+        ((512, 16), 12)
+    """
+    import scipy.sparse as sp
+
+    check_positive_int(lighting_size, "lighting_size")
+    check_positive_int(height, "height")
+    if height < 3:
+        raise ValueCheckError(f"height must be at least 3, got {height}")
+    h, w, f = height, 2 * height, _SUPERSAMPLES
+    dth = math.pi / (h - 1)
+    a = (np.arange(f) + 0.5) / f
+    i, k, s = np.meshgrid(np.arange(h - 1), np.arange(w), np.arange(f * f), indexing="ij")
+    fa, fb = a[s // f], a[s % f]  # offsets within the cell along theta and phi
+    theta = (i + fa) * dth
+    phi = 2.0 * math.pi * (k + 0.5 + fb) / w
+    local = np.stack([np.sin(phi) * np.sin(theta), np.cos(theta), -np.cos(phi) * np.sin(theta)], axis=-1)
+    dirs = torch.from_numpy((local @ _ENV_TO_WORLD.T).reshape(-1, 3))
+    owner = mirror_ball_pixel_index(direction_to_mirror_ball(dirs), lighting_size).numpy()
+    weight = (np.sin(theta) * dth * (2.0 * math.pi / w) / (f * f)).ravel()
+    fa, fb, i, k = fa.ravel(), fb.ravel(), i.ravel(), k.ravel()
+    rows, vals = [], []
+    for di, dk, tent in ((0, 0, (1 - fa) * (1 - fb)), (0, 1, (1 - fa) * fb), (1, 0, fa * (1 - fb)), (1, 1, fa * fb)):
+        rows.append((i + di) * w + (k + dk) % w)
+        vals.append(weight * tent)
+    acc = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.tile(owner, 4))), shape=(h * w, lighting_size**2)
+    )
+    acc.sum_duplicates()
+    basis = (sp.diags(1.0 / np.asarray(acc.sum(axis=1)).ravel()) @ acc).tocsc()
+    valid = np.flatnonzero(mirror_ball_valid(lighting_size).flatten().numpy())
+    return basis, valid
+
+
+def _envmap_data(texels: np.ndarray, height: int, width: int, data_width: int) -> np.ndarray:
+    """Texel values ``(H * W, C)`` as Mitsuba's envmap ``data`` tensor ``(H, W', 3)``, with its periodic padding."""
+    img = texels.reshape(height, width, -1).astype(np.float32)
+    if data_width == width + 2:  # Mitsuba >= 3.6: columns [W - 1, 0 .. W - 1, 0]
+        img = np.concatenate([img[:, -1:], img, img[:, :1]], axis=1)
+    elif data_width == width + 1:  # Mitsuba 3.5: columns [0 .. W - 1, 0]
+        img = np.concatenate([img, img[:, :1]], axis=1)
+    elif data_width != width:
+        raise ValueCheckError(f"unexpected Mitsuba envmap data width {data_width} for a {width}-wide bitmap")
+    return np.ascontiguousarray(np.broadcast_to(img, img.shape[:2] + (3,)))
+
+
+# ----------------------------------------------------------------------------------------------
+# rendering
+
+
+def _build_scene(mi: Any, subject: Any, camera: Camera, transform: np.ndarray, spp: int, max_depth: int,
+                 height: int) -> tuple[Any, str]:
+    objects: dict[str, Any] = {}
+    has_cornea = False
+    for i, part in enumerate(subject.parts):
+        v = np.asarray(part.vertices, dtype=np.float64) @ transform[:3, :3].T + transform[:3, 3]
+        normals = getattr(part, "normals", None)
+        if normals is not None:
+            normals = np.asarray(normals, dtype=np.float64) @ transform[:3, :3].T
+        has_cornea |= part.material.kind == "cornea"
+        name = f"part{i:03d}_{getattr(part, 'name', 'mesh')}"
+        objects[name] = _mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, material_bsdf(part.material))
+    integrator = "volpath" if has_cornea else "path"
+    to_world = np.eye(4)
+    to_world[:3, :3] = _ENV_TO_WORLD
+    scene = mi.load_dict(
+        {
+            "type": "scene",
+            "integrator": {"type": integrator, "max_depth": max_depth, "hide_emitters": True},
+            "sensor": {
+                "type": "perspective",
+                "fov": float(camera.fov_deg),
+                "fov_axis": "x",
+                "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, -1], up=[0, 1, 0]),
+                "film": {
+                    "type": "hdrfilm",
+                    "width": camera.size,
+                    "height": camera.size,
+                    "pixel_format": "rgba",
+                    "rfilter": {"type": "box"},
+                },
+                "sampler": {"type": "multijitter", "sample_count": spp},
+            },
+            "env": {
+                "type": "envmap",
+                "bitmap": mi.Bitmap(np.ones((height, 2 * height, 3), np.float32)),
+                "to_world": mi.ScalarTransform4f(to_world.tolist()),
+            },
+            **objects,
+        }
+    )
+    return scene, integrator
+
+
+@dataclass
+class _Session:
+    """A built scene ready for renders under different envmap bitmaps."""
+
+    mi: Any
+    scene: Any
+    params: Any
+    variant: str
+    integrator: str
+    transform: np.ndarray
+    basis: Any
+    valid: np.ndarray
+    height: int
+    spp: int
+    seed: int
+
+    def set_texels(self, texels: np.ndarray) -> None:
+        """Set the envmap to texel radiances ``(H * W, C)`` (row-major texels of :func:`olat_envmap_basis`)."""
+        data = self.params["env.data"]
+        self.params["env.data"] = type(data)(_envmap_data(texels, self.height, 2 * self.height, data.shape[1]))
+        self.params.update()
+
+    def render(self, texels: np.ndarray) -> np.ndarray:
+        """Render under texel radiances ``(H * W, C)``; returns ``(size, size, 4)`` float32, RGB finite >= 0."""
+        self.set_texels(texels)
+        img = np.array(self.mi.render(self.scene, seed=self.seed), dtype=np.float32)
+        rgb = img[..., :3]
+        rgb[~np.isfinite(rgb)] = 0.0
+        np.maximum(rgb, 0.0, out=rgb)
+        img[..., 3] = np.clip(img[..., 3], 0.0, 1.0)
+        return img
+
+
+def _session(subject: Any, camera: Camera, lighting_size: int, spp: int, variant: str | None, max_depth: int,
+             seed: int, envmap_height: int | None, threads: int | None) -> _Session:
+    """Validate everything, then select the variant and build the scene."""
+    if not isinstance(camera, Camera):
+        raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
+    check_positive_int(lighting_size, "lighting_size")
+    check_positive_int(spp, "spp")
+    check_positive_int(max_depth, "max_depth")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueCheckError(f"seed must be a non-negative int, got {seed!r}")
+    height = 4 * lighting_size if envmap_height is None else envmap_height
+    check_positive_int(height, "envmap_height")
+    if threads is not None:
+        check_positive_int(threads, "threads")
+    _check_subject(subject)
+    for part in subject.parts:
+        material_bsdf(part.material)  # validates every material before any rendering
+    height = max(height, 3)
+    basis, valid = olat_envmap_basis(lighting_size, height)
+    variant = select_mitsuba_variant(variant)
+    mi = _import_mitsuba()
+    if threads is not None:
+        import drjit as dr
+
+        dr.set_thread_count(threads)
+    transform = camera_transform(camera, _pivot(subject))
+    scene, integrator = _build_scene(mi, subject, camera, transform, spp, max_depth, height)
+    spp = int(scene.sensors()[0].sampler().sample_count())  # multijitter rounds up to a product, e.g. 32 -> 35
+    return _Session(mi, scene, mi.traverse(scene), variant, integrator, transform, basis, valid, height, spp, seed)
+
+
+def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, seconds: float) -> dict[str, Any]:
+    meta: dict[str, Any] = {
+        "renderer": f"mitsuba {session.mi.__version__}",
+        "variant": session.variant,
+        "integrator": session.integrator,
+        "max_depth": max_depth,
+        "spp": session.spp,
+        "seed": session.seed,
+        "lighting_size": lighting_size,
+        "envmap_size": [session.height, 2 * session.height],
+        "render_seconds": round(seconds, 3),
+        "pivot": _pivot(subject).tolist(),
+        "subject_to_camera": session.transform.tolist(),
+    }
+    for key in ("split", "skin_tone"):
+        if hasattr(subject, key):
+            meta[key] = getattr(subject, key)
+    return meta
+
+
+def render_olat(
+    subject: Subject,
+    camera: Camera,
+    *,
+    lighting_size: int = 32,
+    spp: int = 16,
+    variant: str | None = None,
+    max_depth: int = 4,
+    seed: int = 0,
+    envmap_height: int | None = None,
+    threads: int | None = None,
+    lights: np.ndarray | list[int] | None = None,
+) -> ReflectanceField:
+    r"""Render the OLAT reflectance field of a subject seen by a camera (module docstring for the method).
+
+    Args:
+        subject: a :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (anything with ``parts`` of
+            ``MeshPart`` with ``vertices``, ``faces`` and ``material``, ``face_landmarks`` and ``seed``).
+        camera: the camera; its ``size`` is the image side.
+        lighting_size: the mirror-ball side ``S`` of the lighting basis (``N = S^2`` lights).
+        spp: samples per pixel of each OLAT render; the stratified sampler rounds it up to a product of two
+            near-equal integers (16 and 25 stay, 32 becomes 35); ``meta["spp"]`` holds the count used.
+        variant: the Mitsuba variant, or ``None`` for the first that works (:func:`select_mitsuba_variant`).
+        max_depth: Mitsuba's path depth: 2 is direct light only, 4 adds two bounces of interreflection.
+        seed: the sampler seed, the same for every light (module docstring, Noise).
+        envmap_height: lat-long rows of the light bitmaps; default ``4 S`` (1.4 degree texels at ``S = 32``).
+        threads: if given, sets Dr.Jit's thread count (process-global) before rendering.
+        lights: render only these light indices (the other columns stay 0); default all valid lights.
+            For benchmarks and tests.
+
+    Returns:
+        the :class:`ReflectanceField`; ``meta`` records the variant, integrator, settings, the rendered light
+        count, the wall time (``render_seconds``, of which ``setup_seconds`` before the first light), and the
+        subject's ``split`` and ``skin_tone`` when it has them.
+
+    Shape:
+        - field: :math:`(3, P, N)` bfloat16, :math:`P = size^2`, :math:`N = S^2`
+        - alpha: :math:`(1, size, size)` float32
+
+    Convention:
+        Light directions in the camera frame of SPEC.md; radiance units (module docstring).
+
+    Raises:
+        ImportError: Mitsuba is not installed.
+        ShapeError, TypeCheckError, ValueCheckError: a malformed subject, camera or setting.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> from kornia_ilum.synth.lightstage.olat import _icosphere  # a unit sphere mesh, for examples
+        >>> v, f = _icosphere(2)
+        >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
+        ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
+        >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
+        >>> rf = render_olat(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), lighting_size=4, spp=4,
+        ...                  variant="scalar_rgb")
+        >>> rf.field.shape, rf.field.dtype, rf.meta["lights_rendered"]
+        (torch.Size([3, 64, 16]), torch.bfloat16, 12)
+    """
+    start = time.perf_counter()
+    session = _session(subject, camera, lighting_size, spp, variant, max_depth, seed, envmap_height, threads)
+    setup = time.perf_counter() - start
+    if lights is None:
+        todo = session.valid
+    else:
+        todo = np.asarray(lights, dtype=np.int64).ravel()
+        if len(todo) == 0 or not np.isin(todo, session.valid).all():
+            raise ValueCheckError(f"lights must be valid light indices of the {lighting_size}^2 mirror ball")
+    size = camera.size
+    out = torch.zeros(3, size * size, lighting_size**2, dtype=torch.bfloat16)
+    alpha = torch.zeros(1, size, size)
+    for j, light in enumerate(todo):
+        img = session.render(session.basis[:, light].toarray())
+        out[:, :, light] = torch.from_numpy(img[..., :3].reshape(-1, 3)).T.to(torch.bfloat16)
+        if j == 0:  # every render shares the seed, hence the sub-pixel positions: one matte fits all
+            alpha = torch.from_numpy(img[..., 3].copy())[None]
+    box = project_points(subject.face_landmarks, camera, session.transform)
+    face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
+    meta = _meta(session, subject, max_depth, lighting_size, time.perf_counter() - start)
+    meta["lights_rendered"] = len(todo)
+    meta["setup_seconds"] = round(setup, 3)
+    return ReflectanceField(out, alpha, face_box, camera, int(subject.seed), meta)
+
+
+def render_lighting(
+    subject: Subject,
+    camera: Camera,
+    lighting: torch.Tensor,
+    *,
+    spp: int = 16,
+    variant: str | None = None,
+    max_depth: int = 4,
+    seed: int = 0,
+    envmap_height: int | None = None,
+    threads: int | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Render a subject directly under a mirror-ball lighting: the reference that relighting must match.
+
+    The envmap is the OLAT basis weighted by the lighting, ``sum_n L[n] basis_n``, so by the linearity of light
+    transport the image equals ``relight(render_olat(...).field, L)`` up to Monte-Carlo noise (same scene,
+    camera and settings as :func:`render_olat`).
+
+    Args:
+        subject: as for :func:`render_olat`.
+        camera: the camera.
+        lighting: ``(3, S, S)`` mirror-ball radiance (SPEC.md), non-negative; invalid pixels are ignored.
+        spp, variant, max_depth, seed, envmap_height, threads: as for :func:`render_olat`.
+
+    Returns:
+        ``(image, alpha)``: ``(3, size, size)`` float32 linear RGB (premultiplied, background 0) and the
+        ``(1, size, size)`` matte.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> from kornia_ilum.synth.lightstage.olat import _icosphere
+        >>> v, f = _icosphere(2)
+        >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
+        ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
+        >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
+        >>> image, alpha = render_lighting(subject, Camera(20.0, 1.0, 0.0, 0.0, size=8), torch.ones(3, 4, 4),
+        ...                                spp=64, variant="scalar_rgb")
+        >>> round(image[:, 3:5, 3:5].mean().item(), 1)  # a white environment: the albedo, up to noise
+        0.8
+    """
+    check_tensor(lighting, "lighting", ["3", "S", "S"], nonnegative=True)
+    if lighting.shape[-1] != lighting.shape[-2]:
+        raise ShapeError(f"lighting must have shape (3, S, S), got {tuple(lighting.shape)}")
+    lighting_size = int(lighting.shape[-1])
+    session = _session(subject, camera, lighting_size, spp, variant, max_depth, seed, envmap_height, threads)
+    lights = lighting.detach().to("cpu", torch.float64).flatten(1).T.numpy()  # (N, 3)
+    lights = lights * mirror_ball_valid(lighting_size).flatten().numpy()[:, None]
+    img = session.render(np.asarray(session.basis @ lights))
+    image = torch.from_numpy(np.ascontiguousarray(img[..., :3].transpose(2, 0, 1)))
+    return image, torch.from_numpy(img[..., 3].copy())[None]
+
+
+def _icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """A unit icosphere ``(vertices (V, 3) float32, faces (F, 3) int32)``, outward-wound; for examples and tests."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    verts = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+             (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
+             (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = [np.array(p, dtype=np.float64) / np.linalg.norm(p) for p in verts]
+    midpoints: dict[tuple[int, int], int] = {}
+
+    def mid(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in midpoints:
+            m = v[a] + v[b]
+            v.append(m / np.linalg.norm(m))
+            midpoints[key] = len(v) - 1
+        return midpoints[key]
+
+    for _ in range(subdivisions):
+        new = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            new += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = new
+    return np.asarray(v, dtype=np.float32), np.asarray(faces, dtype=np.int32)
