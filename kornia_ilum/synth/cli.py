@@ -25,6 +25,8 @@ from typing import TypeVar
 
 import torch
 
+from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+
 __all__ = ["add_synth_environments_parser", "run_synth_environments", "tone_map_tile", "write_contact_sheet"]
 
 T = TypeVar("T")
@@ -41,15 +43,6 @@ examples:
   kornia-ilum synth environments --folder ../shared/data/hdri -n 200 --sheet 48 --out envs/
 """
 
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
 
 
 def _nonnegative_int(text: str) -> int:
