@@ -25,6 +25,7 @@ from kornia_ilum.geometry import (
 from kornia_ilum.render import relight
 from kornia_ilum.synth.lightstage.olat import (
     MITSUBA_VARIANTS,
+    PIVOT_RAISE,
     VARIANT_ENV,
     Camera,
     ReflectanceField,
@@ -55,8 +56,10 @@ def sphere_subject(radius: float = 1.0, centre=(0.0, 0.0, 0.0), mat: SimpleNames
     v, f = _icosphere(subdivisions)
     v = v * radius + np.asarray(centre, dtype=np.float32)
     ball = SimpleNamespace(name="ball", vertices=v, faces=f, material=mat or material())
-    return SimpleNamespace(seed=11, split="eval", skin_tone=4, parts=[ball, *extra],
-                           face_landmarks=v if landmarks is None else landmarks, params={})
+    if landmarks is None:  # the sphere's vertices, lowered so that the camera's pivot is the sphere's centre
+        landmarks = v - np.array([0.0, PIVOT_RAISE * 2 * radius, 0.0], dtype=np.float32)
+    return SimpleNamespace(seed=11, split="eval", skin_tone=4, parts=[ball, *extra], face_landmarks=landmarks,
+                           params={})
 
 
 @pytest.fixture(scope="module")
@@ -170,10 +173,12 @@ class TestProjectPoints:
         alpha = rf.alpha[0]
         yy, xx = torch.meshgrid(torch.arange(64.0) + 0.5, torch.arange(64.0) + 0.5, indexing="ij")
         centroid = torch.stack([(alpha * xx).sum(), (alpha * yy).sum()]) / alpha.sum()
-        expected = project_points(np.array([centre]), cam, camera_transform(cam, (0.0, 0.0, 0.0)))[0]
+        pivot = (0.0, PIVOT_RAISE * 0.4, 0.0)  # the landmark box is 0.4 high, centred at the origin
+        expected = project_points(np.array([centre]), cam, camera_transform(cam, pivot))[0]
         assert torch.dist(centroid, expected) < 0.3
-        box = project_points(pivot_marks, cam, camera_transform(cam, (0.0, 0.0, 0.0)))
+        box = project_points(pivot_marks, cam, camera_transform(cam, pivot))
         torch.testing.assert_close(rf.face_box, torch.cat([box.min(0).values, box.max(0).values]))
+        torch.testing.assert_close(torch.tensor(rf.meta["landmarks"]), box, atol=1e-3, rtol=0)
 
 
 class TestOlatEnvmapBasis:

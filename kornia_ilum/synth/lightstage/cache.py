@@ -60,9 +60,11 @@ FORMAT = "kornia_ilum.olat.v1"
 MANIFEST_FORMAT = "kornia_ilum.olat-cache.v1"
 
 #: The default camera views, framed for the subjects of :func:`~kornia_ilum.synth.lightstage.make_subject`
-#: (face landmarks about 0.15 m across, so the face box is about half the image width): frontal at 30 degrees
-#: of field of view; turned +25 degrees with a slightly high, longer (25 degree) lens; turned -25 degrees with
-#: a slightly low, wider (35 degree) lens. Distances keep the framing about equal across the three lenses.
+#: (face landmarks 0.14 to 0.17 m tall: the face-landmark box is 0.5 to 0.6 of the image height and the
+#: detector-style crop of :mod:`~kornia_ilum.synth.lightstage.portraits`, 1.25 x 1.13 of that, 0.7 to 0.85,
+#: leaving room for its jitter): frontal
+#: at 30 degrees of field of view; turned +25 degrees with a slightly high, longer (25 degree) lens; turned -25
+#: degrees with a slightly low, wider (35 degree) lens. Distances keep the framing about equal across the lenses.
 DEFAULT_VIEWS: tuple[Camera, ...] = (
     Camera(fov_deg=30.0, distance=0.56, yaw_deg=0.0, pitch_deg=0.0),
     Camera(fov_deg=25.0, distance=0.68, yaw_deg=25.0, pitch_deg=5.0),
