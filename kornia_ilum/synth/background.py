@@ -78,11 +78,12 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
     r"""Bilinear lookup of a lat-long map in given directions (azimuth wraps, rows continue over the poles).
 
     Args:
-        latlong: lat-long map, ``(C, H, 2H)``.
-        directions: directions ``(..., 3)`` (normalised inside), any float dtype.
+        latlong: lat-long map, ``(C, H, 2H)``, or a batch of maps ``(B, C, H, 2H)``.
+        directions: directions ``(..., 3)`` (normalised inside), any float dtype; with a batch of maps,
+            ``(B, ..., 3)`` (one set per map) or ``(1, ..., 3)`` (one set for all maps).
 
     Returns:
-        the values ``(C, ...)`` in the dtype and on the device of ``latlong``.
+        the values ``(C, ...)`` (``(B, C, ...)`` for a batch) in the dtype and on the device of ``latlong``.
 
     Convention:
         SPEC.md lat-long grid; interpolation as in :func:`kornia_ilum.geometry.latlong_to_mirror_ball`
@@ -94,19 +95,28 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
         >>> env[0, :, 1:3] = 1.0  # the two centre columns: forward
         >>> sample_latlong(env, torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]]))
         tensor([[1., 0.]])
+        >>> sample_latlong(torch.stack([env, 2 * env]), torch.tensor([[[0.0, 0.0, -1.0]]] * 2)).flatten()
+        tensor([1., 2.])
     """
-    check_tensor(latlong, "latlong", ["C", "H", "2H"])
+    batched = isinstance(latlong, torch.Tensor) and latlong.dim() == 4
+    check_tensor(latlong, "latlong", ["B", "C", "H", "2H"] if batched else ["C", "H", "2H"])
     check_tensor(directions, "directions", ["*", "3"])
-    h = latlong.shape[-2]
-    if latlong.shape[-1] != 2 * h:
-        raise ShapeError(f"latlong must have shape (C, H, 2H), got {tuple(latlong.shape)}")
-    shape = directions.shape[:-1]
-    phi, el = direction_to_latlong(directions.reshape(-1, 3).to(torch.float64))
+    if batched and (directions.dim() < 2 or directions.shape[0] not in (1, latlong.shape[0])):
+        raise ShapeError(
+            f"directions must have shape ({latlong.shape[0]}, ..., 3) or (1, ..., 3), got {tuple(directions.shape)}"
+        )
+    maps = latlong if batched else latlong[None]
+    dirs = directions if batched else directions[None]
+    b, c, h = maps.shape[:3]
+    if maps.shape[-1] != 2 * h:
+        raise ShapeError(f"latlong must have shape ({'B, ' if batched else ''}C, H, 2H), got {tuple(latlong.shape)}")
+    shape = dirs.shape[1:-1]
+    phi, el = direction_to_latlong(dirs.reshape(-1, 3).to(torch.float64))
     px = angles_to_latlong_pixel(phi, el, h) + 1.0  # the source is padded by one pixel on every side
     grid = torch.stack([2.0 * px[:, 0] / (2 * h + 1) - 1.0, 2.0 * px[:, 1] / (h + 1) - 1.0], -1)
-    grid = grid.reshape(1, 1, -1, 2).to(device=latlong.device, dtype=latlong.dtype)
-    out = _resample_bilinear(latlong[None], ("latlong", h), grid, None)
-    return out.reshape(latlong.shape[0], *shape)
+    grid = grid.reshape(dirs.shape[0], 1, -1, 2).to(device=latlong.device, dtype=latlong.dtype)
+    out = _resample_bilinear(maps, ("latlong", h), grid, None).reshape(b, c, *shape)
+    return out if batched else out[0]
 
 
 def _check_size(size: object) -> tuple[int, int]:
