@@ -1,4 +1,4 @@
-"""The virtual light stage: synthetic subjects (and their reflectance fields)."""
+"""The virtual light stage: synthetic subjects, their OLAT reflectance fields, and portraits relit from them."""
 
 from kornia_ilum.synth.lightstage.cache import (
     DEFAULT_VIEWS,
@@ -7,7 +7,14 @@ from kornia_ilum.synth.lightstage.cache import (
     read_manifest,
     write_field,
 )
-from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, render_lighting, render_olat
+from kornia_ilum.synth.lightstage.olat import (
+    Camera,
+    ReflectanceField,
+    render_lighting,
+    render_olat,
+    select_mitsuba_variant,
+)
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields, relight_portraits
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -26,14 +33,18 @@ __all__ = [
     "Camera",
     "Material",
     "MeshPart",
+    "PortraitDataset",
     "ReflectanceField",
     "Subject",
     "build_cache",
+    "load_fields",
     "make_subject",
     "read_field",
     "read_manifest",
+    "relight_portraits",
     "render_lighting",
     "render_olat",
+    "select_mitsuba_variant",
     "subject_params",
     "subject_split",
     "write_field",

@@ -747,7 +747,8 @@ class PortraitDataset(IterableDataset):
         size = st["size"]
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
         mirrored = latlong.clone()
-        mirrored[flip] = flip_lighting_horizontal(latlong[flip], "latlong")
+        if flip.any():
+            mirrored[flip] = flip_lighting_horizontal(latlong[flip], "latlong")
         source_boxes = boxes.clone()
         source_boxes[flip, 0], source_boxes[flip, 2] = rf.size - boxes[flip, 2], rf.size - boxes[flip, 0]
         if st["subject"]:

@@ -1,0 +1,353 @@
+"""Portrait synthesis and the on-the-fly dataset of the virtual light stage."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+from kornia_ilum.color import linear_to_srgb, quantize, srgb_to_linear
+from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.synth.environments import Environment, EnvironmentSampler
+from kornia_ilum.synth.lightstage import (
+    DEFAULT_VIEWS,
+    LANDMARK_NAMES,
+    build_cache,
+    render_olat,
+    select_mitsuba_variant,
+    subject_split,
+)
+from kornia_ilum.synth.lightstage.olat import PIVOT_RAISE, Camera
+from kornia_ilum.synth.lightstage.portraits import (
+    PortraitDataset,
+    auto_exposure,
+    crop_images,
+    detector_boxes,
+    encode_ldr,
+    face_crop_boxes,
+    frame_background,
+    load_fields,
+    random_crop_boxes,
+    relight_portraits,
+    sphere_targets,
+)
+from tests.synth.test_olat import ALBEDO, sphere_subject
+
+S = 8  # lighting size of the tests
+SIZE = 48  # render side
+OUT = 64  # portrait side
+
+
+class Uniform:
+    """An environment source of constant radiance (or a bright patch on one side, for the flip test)."""
+
+    label = "indoor"
+
+    def __init__(self, radiance: float = 1.0, left_light: float = 0.0) -> None:
+        self.radiance, self.left_light = radiance, left_light
+
+    def sample(self, generator: torch.Generator) -> Environment:
+        latlong = torch.full((3, 16, 32), self.radiance)
+        if self.left_light:
+            latlong[:, 6:10, 7:9] = self.left_light  # azimuth about -90 degrees: light from -X (image left)
+        from kornia_ilum.geometry import latlong_to_mirror_ball
+
+        return Environment(latlong, latlong_to_mirror_ball(latlong[None], 32)[0], self.label, "test:uniform")
+
+
+def uniform_sampler(**kw: float) -> EnvironmentSampler:
+    return EnvironmentSampler([Uniform(**kw)], augment=None, seed=0)
+
+
+@pytest.fixture(scope="module")
+def variant() -> str:
+    return select_mitsuba_variant()
+
+
+@pytest.fixture(scope="module")
+def sphere_field(variant: str):
+    """A white Lambertian sphere (albedo 0.7) filling most of a 48 x 48 frontal view, with 20 landmarks."""
+    angles = 2 * math.pi * np.arange(len(LANDMARK_NAMES)) / len(LANDMARK_NAMES)
+    rho = 0.8
+    ring = np.stack([rho * np.cos(angles), rho * np.sin(angles), np.zeros_like(angles)], -1)
+    inner_height = np.ptp(ring[:, 1])
+    landmarks = (ring - [0.0, PIVOT_RAISE * inner_height, 0.0]).astype(np.float32)
+    camera = Camera(fov_deg=40.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=SIZE)
+    subject = sphere_subject(landmarks=landmarks)
+    return render_olat(subject, camera, lighting_size=S, spp=16, variant=variant, threads=1)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory, variant: str):
+    """Two light-stage subjects, seed 0 (train) and seed 1 (eval), one small view each."""
+    out = tmp_path_factory.mktemp("lightstage")
+    view = dataclasses.replace(DEFAULT_VIEWS[0], size=SIZE)
+    build_cache(out, [0, 1], [view], size=SIZE, spp=4, lighting_size=S, variant=variant, threads=1, progress=False)
+    return out
+
+
+def small(fields, **kw) -> PortraitDataset:
+    settings = {"size": OUT, "sphere_sizes": (4, 8), "fields_per_chunk": 2, "lightings_per_field": 4,
+                "env_pool": 4, "env_refresh": 1, "shuffle": 2, "environments": EnvironmentSampler(seed=0)}
+    settings.update(kw)
+    return PortraitDataset(fields, **settings)
+
+
+class TestRelight:
+    def test_white_environment_equals_sum_of_olats(self, sphere_field) -> None:
+        """Relighting with a white environment is the sum of the OLAT images."""
+        white = mirror_ball_valid(S).float().expand(1, 3, S, S)
+        image, alpha = relight_portraits(sphere_field, white)
+        expected = sphere_field.to_dense().field.float().sum(-1).reshape(3, SIZE, SIZE)
+        torch.testing.assert_close(image[0], expected, rtol=1e-2, atol=1e-3)
+        assert torch.equal(alpha[0], sphere_field.alpha)
+
+    def test_compact_equals_dense(self, cache) -> None:
+        field = load_fields(cache, None)[0]
+        lighting = torch.rand(3, 3, S, S) * mirror_ball_valid(S)
+        compact, a1 = relight_portraits(field, lighting)
+        dense, a2 = relight_portraits(field.to_dense(), lighting)
+        torch.testing.assert_close(compact, dense)
+        assert torch.equal(a1, a2)
+
+    def test_linear(self, sphere_field) -> None:
+        a, b = torch.rand(2, 1, 3, S, S) * mirror_ball_valid(S)
+        ia, ib, iab = (relight_portraits(sphere_field, x)[0] for x in (a, b, 2 * a + b))
+        torch.testing.assert_close(iab, 2 * ia + ib, rtol=2e-2, atol=1e-3)
+
+    def test_errors(self, sphere_field) -> None:
+        with pytest.raises(ShapeError):
+            relight_portraits(sphere_field, torch.ones(1, 3, 4, 4))
+        with pytest.raises(TypeCheckError, match="ReflectanceField"):
+            relight_portraits(torch.ones(3), torch.ones(1, 3, S, S))
+        with pytest.raises(ValueCheckError):
+            relight_portraits(sphere_field, -torch.ones(1, 3, S, S))
+
+
+class TestAnalytic:
+    def test_uniform_environment(self, sphere_field) -> None:
+        """A white Lambertian sphere under uniform radiance L over the matching background reads, exposed by g,
+        ``g L (a alpha + 1 - alpha)`` (alpha: the cropped matte), and its ground truth is ``g L``."""
+        data = small([sphere_field], split=None, environments=uniform_sampler(), noise=(0.0, 0.0),
+                     exposure_key=(0.18, 0.18), flip_probability=0.0, shuffle=1)
+        sample = data.chunk(0, 0)[0]
+        gain = float(sample["exposure"])
+        valid = mirror_ball_valid(S)
+        torch.testing.assert_close(sample["mirror_ball"][:, valid], torch.full((3, int(valid.sum())), gain),
+                                   rtol=1e-3, atol=0)  # resampling a constant map is exact to 4e-4
+        alpha = crop_images(sphere_field.alpha[None], sample["crop_box"][None], OUT)[0]
+        expected = gain * (ALBEDO * alpha + 1.0 - alpha)
+        measured = srgb_to_linear(sample["image"].float()[None] / 255.0)[0]
+        err = (measured - expected) / expected
+        assert err.mean().abs() < 0.01  # measured 0.2 %
+        assert err.abs().max() < 0.08  # Monte-Carlo noise of the 16-spp OLATs plus 8-bit rounding
+        assert (alpha == 0).any() and (alpha == 1).any()  # the crop shows both the sphere and the background
+        # the diffuse reference sphere (albedo 0.8) of the ground truth: softclip(0.8 g L)^(1/2.2) at its centre
+        centre = sample["spheres"]["diffuse_8"][:, 3:5, 3:5]
+        from kornia_ilum.filters import soft_clip
+
+        expected_sphere = soft_clip(torch.tensor(0.8 * gain)) ** (1 / 2.2)
+        torch.testing.assert_close(centre, expected_sphere.expand_as(centre), rtol=2e-3, atol=0)
+
+    def test_exposure_meters_the_key(self, sphere_field) -> None:
+        data = small([sphere_field], split=None, environments=uniform_sampler(radiance=50.0), noise=(0.0, 0.0),
+                     exposure_key=(0.25, 0.25))
+        sample = data.chunk(0, 0)[0]
+        assert 0.25 / 50.0 < float(sample["exposure"]) < 0.25 / (50.0 * ALBEDO)
+
+    def test_flip_keeps_the_light_where_the_ground_truth_says(self, sphere_field) -> None:
+        """A mirrored sample is the mirrored subject under the true lighting: the (symmetric) sphere is lit on
+        the side where the ground truth has its light, whether the sample is mirrored or not."""
+        checked = 0
+        for p in (0.0, 1.0):
+            data = small([sphere_field], split=None, environments=uniform_sampler(radiance=0.05, left_light=40.0),
+                         background="black", noise=(0.0, 0.0), flip_probability=p, lightings_per_field=8)
+            for sample in data.chunk(0, 0):
+                assert sample["flip"] == bool(p)
+                image = sample["image"].float()
+                ball = sample["mirror_ball"].sum(0)  # the light's side in the truth: -X is the ball's left half
+                ball_left, ball_right = ball[:, : S // 2].sum(), ball[:, S // 2 :].sum()
+                if max(ball_left, ball_right) < 10 * min(ball_left, ball_right):
+                    continue  # the light was turned to the front or the back
+                left, right = image[:, :, : OUT // 2].mean(), image[:, :, OUT // 2 :].mean()
+                assert (left > right) == (ball_left > ball_right)
+                checked += 1
+        assert checked >= 8
+
+
+class TestDataset:
+    def test_sample_contents(self, cache) -> None:
+        data = small(cache)
+        sample = next(iter(data))
+        assert sample["image"].dtype == torch.uint8 and sample["image"].shape == (3, OUT, OUT)
+        assert sample["mirror_ball"].shape == (3, S, S) and sample["mirror_ball"].dtype == torch.float32
+        assert sorted(sample["spheres"]) == sorted(f"{b}_{s}" for b in ("diffuse", "matte_silver", "mirror")
+                                                   for s in (4, 8))
+        assert sample["subject_seed"] == 0 and subject_split(0) == "train"
+        assert sample["skin_tone"] in range(1, 11) and sample["view_index"] == 0
+        assert sample["label"] in ("indoor", "outdoor") and isinstance(sample["source"], str)
+        assert float(sample["exposure"]) > 0 and sample["crop_box"].shape == (4,)
+        valid = mirror_ball_valid(S)
+        assert (sample["mirror_ball"][:, ~valid] == 0).all() and (sample["mirror_ball"] >= 0).all()
+        # the ground-truth spheres are exactly what the loss compares: softclip(render)^(1/2.2)
+        torch.testing.assert_close(sample["spheres"]["mirror_8"], sphere_targets(sample["mirror_ball"][None],
+                                                                                 (8,))["mirror_8"][0])
+
+    def test_train_and_eval_subjects_are_disjoint(self, cache) -> None:
+        train = {f.subject_seed for f in load_fields(cache, "train")}
+        evaluation = {f.subject_seed for f in load_fields(cache, "eval")}
+        assert train == {0} and evaluation == {1} and not train & evaluation
+        assert {s["subject_seed"] for s in small(cache, split="eval", length=8)} == {1}
+        seeds = range(2000)
+        assert not {s for s in seeds if subject_split(s) == "train"} & {s for s in seeds if subject_split(s) == "eval"}
+
+    def test_each_seed_reproduces_exactly(self, cache) -> None:
+        a, b, c = small(cache, seed=3), small(cache, seed=3), small(cache, seed=4)
+        first = a.chunk(0, 2)
+        a.chunk(1, 5)  # other chunks and workers in between change nothing
+        for x, y in zip(first, b.chunk(0, 2), strict=True):
+            assert torch.equal(x["image"], y["image"]) and torch.equal(x["mirror_ball"], y["mirror_ball"])
+        assert torch.equal(first[0]["image"], a.chunk(0, 2)[0]["image"])
+        assert not torch.equal(first[0]["image"], c.chunk(0, 2)[0]["image"])
+        assert not torch.equal(first[0]["image"], a.chunk(1, 2)[0]["image"])  # workers draw different samples
+
+    def test_data_loader_workers_reproduce(self, cache) -> None:
+        def run() -> list[torch.Tensor]:
+            loader = DataLoader(small(cache, length=6), batch_size=None, num_workers=2)
+            return [s["image"] for s in loader]
+
+        first, second = run(), run()
+        assert len(first) == 12
+        assert all(torch.equal(x, y) for x, y in zip(first, second, strict=True))
+        assert not torch.equal(first[0], first[1])  # worker 0, then worker 1
+
+    def test_black_background(self, cache) -> None:
+        field = load_fields(cache, "train")[0]
+        for sample in small(cache, background="black", noise=(0.0, 0.0), length=4):
+            alpha = crop_images(field.alpha[None], sample["crop_box"][None], OUT,
+                                torch.tensor([sample["flip"]]))[0]
+            if sample["flip"]:  # crop_box is in the mirrored image
+                alpha = crop_images(field.alpha.flip(-1)[None], sample["crop_box"][None], OUT)[0]
+            assert (sample["image"][:, alpha[0] == 0] == 0).all()
+
+    def test_background_only(self, cache) -> None:
+        with_subject, without = (small(cache, subject=flag, noise=(0.0, 0.0)).chunk(0, 0) for flag in (True, False))
+        for a, b in zip(with_subject, without, strict=True):
+            torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
+            assert not torch.equal(a["image"], b["image"])
+        image = without[0]["image"].float()
+        assert image.std() < 40  # a smooth background, no face
+
+    def test_random_crops_miss_the_face(self, cache) -> None:
+        for sample in small(cache, crop="random", length=8):
+            box, face = sample["crop_box"].double(), sample["face_box"].double()
+            w = (torch.minimum(box[2], face[2]) - torch.maximum(box[0], face[0])).clamp(min=0)
+            h = (torch.minimum(box[3], face[3]) - torch.maximum(box[1], face[1])).clamp(min=0)
+            assert w * h <= 0.2 * (face[2] - face[0]) * (face[3] - face[1]) + 1e-6
+
+    def test_pairs(self, cache) -> None:
+        for sample in small(cache, pairs=True, length=4):
+            pair = sample["pair"]
+            assert pair["image"].shape == sample["image"].shape and sorted(pair["spheres"]) == sorted(sample["spheres"])
+            assert not torch.equal(pair["mirror_ball"], sample["mirror_ball"])
+
+    def test_length_and_repr(self, cache) -> None:
+        data = small(cache, length=5)
+        assert len(list(data)) == 5
+        assert "2 fields of 2 subjects" in repr(small(cache, split=None))
+
+    @pytest.mark.parametrize(
+        ("kwargs", "error", "match"),
+        [
+            ({"background": "white"}, ValueCheckError, "background must be one of"),
+            ({"crop": "body"}, ValueCheckError, "crop must be one of"),
+            ({"split": "test"}, ValueCheckError, "split must be"),
+            ({"env_refresh": 9}, ValueCheckError, "must not exceed env_pool"),
+            ({"exposure_key": (0.0, 1.0)}, ValueCheckError, "exposure_key"),
+            ({"sphere_sizes": (16,)}, ValueCheckError, "exceed the lighting size"),
+            ({"seed": 1.5}, TypeCheckError, "seed must be an int"),
+            ({"environments": "sky"}, TypeCheckError, "EnvironmentSampler"),
+            ({"lightings_per_field": 0}, ValueCheckError, "lightings_per_field"),
+        ],
+    )
+    def test_errors(self, cache, kwargs, error, match) -> None:
+        with pytest.raises(error, match=match):
+            small(cache, **kwargs)
+
+    def test_no_fields(self, tmp_path, sphere_field) -> None:
+        with pytest.raises(ValueCheckError, match="no reflectance field"):
+            PortraitDataset([sphere_field], split="train")  # the sphere is an eval subject
+        with pytest.raises(TypeCheckError, match="sequence of ReflectanceField"):
+            load_fields([1, 2])
+
+
+class TestBoxes:
+    def test_detector_box_follows_the_inner_landmarks(self) -> None:
+        lm = torch.rand(3, len(LANDMARK_NAMES), 2) * 10 + 40
+        boxes = detector_boxes(lm)
+        side = boxes[:, 2] - boxes[:, 0]
+        torch.testing.assert_close(side, boxes[:, 3] - boxes[:, 1])
+        assert (side > 0).all()
+        with pytest.raises(ShapeError):
+            detector_boxes(torch.zeros(1, 5, 2))
+
+    def test_face_crops_stay_inside_and_jitter(self) -> None:
+        g = torch.Generator().manual_seed(0)
+        faces = torch.tensor([[60.0, 50.0, 140.0, 130.0]]).expand(500, 4)
+        boxes = face_crop_boxes(faces, 192, g)
+        side = boxes[:, 2] - boxes[:, 0]
+        assert (boxes[:, :2] >= 0).all() and (boxes[:, 2:] <= 192).all()
+        torch.testing.assert_close(side, boxes[:, 3] - boxes[:, 1])
+        assert side.min() >= 100 * math.exp(-0.15) - 1e-6 and side.max() <= 100 * math.exp(0.15) + 1e-6
+        assert side.std() > 3 and boxes[:, 0].std() > 2  # jittered in extent and position
+        torch.testing.assert_close(face_crop_boxes(faces[:1], 192), torch.tensor([[50.0, 40.0, 150.0, 140.0]],
+                                                                                 dtype=torch.float64))
+
+    def test_random_crops(self) -> None:
+        g = torch.Generator().manual_seed(1)
+        boxes = random_crop_boxes(torch.tensor([[40.0, 40.0, 88.0, 88.0]]).expand(64, 4), 128, g)
+        assert (boxes[:, :2] >= 0).all() and (boxes[:, 2:] <= 128).all()
+
+
+class TestImageOps:
+    def test_crop_images_matches_kornia(self) -> None:
+        from kornia.geometry.transform import crop_and_resize
+
+        image = torch.rand(2, 3, 40, 40)
+        boxes = torch.tensor([[5.0, 7.0, 25.0, 27.0], [0.0, 0.0, 40.0, 40.0]])
+        ours = crop_images(image, boxes, 16)
+        half = (boxes[:, 2] - boxes[:, 0]) / 32
+        lo, hi = boxes[:, :2] + half[:, None] - 0.5, boxes[:, 2:] - half[:, None] - 0.5
+        corners = torch.stack([lo, torch.stack([hi[:, 0], lo[:, 1]], -1), hi,
+                               torch.stack([lo[:, 0], hi[:, 1]], -1)], 1)
+        torch.testing.assert_close(ours, crop_and_resize(image, corners, (16, 16), align_corners=True),
+                                   atol=1e-5, rtol=0)
+        mirrored = crop_images(image, boxes, 16, torch.tensor([True, False]))
+        torch.testing.assert_close(mirrored[0], ours[0].flip(-1))
+        torch.testing.assert_close(mirrored[1], ours[1])
+
+    def test_encode_ldr_matches_srgb_and_quantize(self) -> None:
+        x = torch.rand(2, 3, 64, 64) ** 2.2 * 1.3
+        ours = encode_ldr(x).int()
+        reference = torch.round(quantize(linear_to_srgb(x.clamp(0, 1)), 8) * 255).int()
+        assert (ours - reference).abs().max() <= 1 and (ours != reference).float().mean() < 0.005
+        assert encode_ldr(torch.zeros(1, 3, 2, 2)).max() == 0 and encode_ldr(torch.full((1, 3, 2, 2), 9.0)).min() == 255
+        before = x.clone()
+        encode_ldr(x, torch.zeros_like(x))
+        assert torch.equal(x, before)  # inputs are not modified
+
+    def test_auto_exposure(self) -> None:
+        gain = auto_exposure(torch.full((2, 3, 8, 8), 0.5), torch.tensor([0.18, 0.36]))
+        torch.testing.assert_close(gain, torch.tensor([0.36, 0.72], dtype=torch.float64))
+        assert auto_exposure(torch.zeros(1, 3, 4, 4)).item() == 1.0
+
+    def test_frame_background(self) -> None:
+        latlong = torch.zeros(1, 3, 32, 64)
+        latlong[:, :, :16] = 1.0  # sky above the horizon
+        view = frame_background(latlong, Camera(60.0, 1.0, 0.0, 0.0), 16)
+        assert view[0, :, :6].min() > 0.99 and view[0, :, -6:].max() < 0.01
