@@ -118,9 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the estimators and face detectors",
                    description="List the registered lighting estimators and face detectors, with their metadata.")
 
-    from kornia_ilum.synth.cli import add_synth_environments_parser
+    from kornia_ilum.synth.cli import add_synth_environments_parser, add_synth_subjects_parser
 
     add_synth_environments_parser(sub)
+    add_synth_subjects_parser(sub)
     return parser
 
 

@@ -28,7 +28,6 @@ Convention:
 from __future__ import annotations
 
 import os
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +36,7 @@ import torch
 
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import HDRIOError, ShapeError, ValueCheckError
+from kornia_ilum.core.files import atomic_write
 
 __all__ = ["HALF_MAX", "read_hdr", "read_ldr", "write_hdr", "write_ldr"]
 
@@ -227,9 +227,8 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
         raise HDRIOError(f"cannot write {path}: it is a directory")
     if not path.parent.is_dir():
         raise HDRIOError(f"cannot write {path}: the folder {path.parent} does not exist")
-    # hidden, unique, same folder (so os.replace is an atomic rename), same extension (OIIO picks the format)
-    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
-    try:
+
+    def write(tmp: Path) -> None:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None:
             raise HDRIOError(f"cannot write {path}: {oiio.geterror()}")
@@ -245,15 +244,13 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
             err = out.geterror()
         if not ok:
             raise HDRIOError(f"cannot write {path}: {err or 'OpenImageIO reported a failure'}")
-        with open(tmp, "rb") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+
+    try:
+        atomic_write(path, write)
     except HDRIOError:
         raise
     except (OSError, RuntimeError, ValueError, TypeError) as e:  # the file system's or OpenImageIO's errors
         raise HDRIOError(f"cannot write {path}: {e}") from e
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def write_hdr(

@@ -1,6 +1,6 @@
-r"""``kornia-ilum synth environments``: sample lighting environments, draw a contact sheet, print statistics.
+r"""``kornia-ilum synth``: lighting environments and the virtual light stage, with contact sheets.
 
-The command samples ``N`` environments with :class:`~kornia_ilum.synth.environments.EnvironmentSampler`
+``synth environments`` samples ``N`` environments with :class:`~kornia_ilum.synth.environments.EnvironmentSampler`
 (procedural skies and rooms, plus the real maps of ``--folder``), with a progress bar (tqdm when it is
 installed, else a counter on stderr), and writes into ``--out``:
 
@@ -12,6 +12,12 @@ installed, else a counter on stderr), and writes into ``--out``:
 
 :func:`add_synth_environments_parser` adds the subcommand to an ``argparse`` subparsers action;
 :func:`run_synth_environments` runs it from the parsed arguments.
+
+``synth subjects`` renders the OLAT reflectance fields of light-stage subjects into a cache folder
+(:func:`~kornia_ilum.synth.lightstage.build_cache`: resumable, sharded with ``--worker I/N``, with a progress
+bar), then writes ``contact_sheet.png``: portraits synthesised from the cache
+(:class:`~kornia_ilum.synth.lightstage.PortraitDataset`) with their ground-truth spheres
+(:func:`write_portrait_sheet`). :func:`add_synth_subjects_parser` and :func:`run_synth_subjects` as above.
 """
 
 from __future__ import annotations
@@ -27,7 +33,16 @@ import torch
 
 from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
 
-__all__ = ["add_synth_environments_parser", "run_synth_environments", "tone_map_tile", "write_contact_sheet"]
+__all__ = [
+    "add_synth_environments_parser",
+    "add_synth_subjects_parser",
+    "parse_seeds",
+    "run_synth_environments",
+    "run_synth_subjects",
+    "tone_map_tile",
+    "write_contact_sheet",
+    "write_portrait_sheet",
+]
 
 T = TypeVar("T")
 
@@ -49,6 +64,20 @@ def _nonnegative_int(text: str) -> int:
     return 0 if text.strip() == "0" else _positive_int(text)
 
 
+def _synth_subparsers(subparsers: argparse._SubParsersAction) -> argparse._SubParsersAction:
+    """The subcommands of ``synth``, creating the ``synth`` command when it is not there yet."""
+    synth = subparsers.choices.get("synth")
+    if synth is None:
+        synth = subparsers.add_parser(
+            "synth", help="synthesis: lighting environments and light-stage subjects",
+            description="Synthesis tools of kornia_ilum.",
+        )
+    nested = [a for a in synth._actions if isinstance(a, argparse._SubParsersAction)]
+    if nested:
+        return nested[0]
+    return synth.add_subparsers(dest="synth_command", metavar="COMMAND", required=True)
+
+
 def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``synth environments`` to ``subparsers`` (reusing a ``synth`` command that is already there).
 
@@ -65,16 +94,7 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
         >>> args.n, args.seed, args.folder, args.func.__name__
         (4, 0, None, 'run_synth_environments')
     """
-    synth = subparsers.choices.get("synth")
-    if synth is None:
-        synth = subparsers.add_parser(
-            "synth", help="synthesis: lighting environments", description="Synthesis tools of kornia_ilum."
-        )
-    nested = [a for a in synth._actions if isinstance(a, argparse._SubParsersAction)]
-    if nested:
-        sub = nested[0]
-    else:
-        sub = synth.add_subparsers(dest="synth_command", metavar="COMMAND", required=True)
+    sub = _synth_subparsers(subparsers)
     env = sub.add_parser(
         "environments",
         help="sample lighting environments: contact sheet and statistics",
@@ -98,7 +118,7 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
     return env
 
 
-def _progress(items: Iterable[T], total: int, desc: str) -> Iterator[T]:
+def _progress(items: Iterable[T], total: int, desc: str, unit: str = "env") -> Iterator[T]:
     """tqdm on stderr when installed, else a ``desc: i/total`` counter on stderr."""
     try:
         from tqdm import tqdm
@@ -107,7 +127,7 @@ def _progress(items: Iterable[T], total: int, desc: str) -> Iterator[T]:
             yield item
             print(f"\r{desc}: {i}/{total}", end="\n" if i == total else "", file=sys.stderr, flush=True)
     else:
-        yield from tqdm(items, total=total, desc=desc, file=sys.stderr, unit="env")
+        yield from tqdm(items, total=total, desc=desc, file=sys.stderr, unit=unit)
 
 
 def tone_map_tile(mirror_ball: torch.Tensor) -> torch.Tensor:
@@ -160,8 +180,6 @@ def write_contact_sheet(
     With ``palette`` the PNG is stored with a 256-colour adaptive palette (Pillow, which matplotlib
     requires): a third of the size of true colour (about 160 KB instead of 550 KB for 48 tiles).
     """
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -176,6 +194,15 @@ def write_contact_sheet(
         ax.set_title(_caption(env), fontsize=6, pad=2)
     fig.suptitle("mirror ball | diffuse | matte silver | mirror (one exposure per environment)", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / (1.15 * rows + 0.4)), h_pad=0.4, w_pad=0.3)
+    _save_figure(fig, path, dpi, palette)
+
+
+def _save_figure(fig, path: str | Path, dpi: int, palette: bool) -> None:
+    """Save and close a matplotlib figure; with ``palette`` as a 256-colour adaptive-palette PNG (Pillow)."""
+    import io
+
+    import matplotlib.pyplot as plt
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if palette:
@@ -188,6 +215,18 @@ def write_contact_sheet(
     else:
         fig.savefig(path, dpi=dpi)
     plt.close(fig)
+
+
+def _require_matplotlib(command: str) -> None:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        from kornia_ilum.core.errors import IlumError
+
+        raise IlumError(
+            f"{command} draws its figures with matplotlib, which is not installed: "
+            "pip install matplotlib (or kornia_ilum[docs])"
+        ) from None
 
 
 def run_synth_environments(args: argparse.Namespace) -> int:
@@ -203,15 +242,7 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     from kornia_ilum.synth.environments import Augment, EnvironmentSampler, HDRFolderSource, default_sources
     from kornia_ilum.synth.stats import format_table, plot_histograms, stats_rows, summarize, write_csv
 
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
-        from kornia_ilum.core.errors import IlumError
-
-        raise IlumError(
-            "synth environments draws its figures with matplotlib, which is not installed: "
-            "pip install matplotlib (or kornia_ilum[docs])"
-        ) from None
+    _require_matplotlib("synth environments")
     out = Path(args.out)
     sources = default_sources(args.folder, height=args.height)
     augment = None if getattr(args, "no_augment", False) else Augment()
@@ -244,4 +275,171 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     print(table)
     for path in written:
         print(f"wrote {path}")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------
+# synth subjects
+
+_SUBJECTS_HELP = """\
+Render the OLAT reflectance fields of light-stage subjects (one Mitsuba render per light of the 32 x 32
+mirror-ball basis, per subject and view) into --out, resumably: fields already on disk with the same
+settings are skipped, so rerun the same command after an interruption. --worker I/N renders share I of N
+(round robin over subject x view), so N machines can fill one cache. Then write --out/contact_sheet.png:
+--sheet portraits synthesised from the cache (relit, composited over their environment, cropped and encoded
+as training samples) with their ground-truth reference spheres. Needs the lightstage extra (Mitsuba 3).
+
+examples:
+  kornia-ilum synth subjects --seeds 0-9 --out lightstage/
+  kornia-ilum synth subjects --seeds 0-99 --worker 3/8 --sheet 0 --out /shared/lightstage/
+  kornia-ilum synth subjects --seeds 0-2 --size 64 --spp 4 --lighting-size 8 --out tiny/
+"""
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Subject seeds from ``"0-9"``, ``"3,5,8"`` or a mix (``"0-4,10"``); ranges include both ends.
+
+    Examples:
+        >>> parse_seeds("0-3,7")
+        [0, 1, 2, 3, 7]
+    """
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, sep, hi = part.strip().partition("-")
+            seeds.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds must look like '0-9' or '1,4,7', got {text!r}") from None
+    if not seeds:
+        raise argparse.ArgumentTypeError(f"no seed in {text!r}")
+    return list(dict.fromkeys(seeds))
+
+
+def _worker(text: str) -> tuple[int, int]:
+    index, sep, count = text.partition("/")
+    try:
+        i, n = int(index), int(count)
+    except ValueError:
+        i, n = -1, 0
+    if not sep or n <= 0 or not 0 <= i < n:
+        raise argparse.ArgumentTypeError(f"worker must be I/N with 0 <= I < N, got {text!r}")
+    return i, n
+
+
+def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``synth subjects`` to ``subparsers`` (reusing a ``synth`` command that is already there).
+
+    Examples:
+        >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
+        >>> args = add_synth_subjects_parser(parser.add_subparsers(dest="command")).parse_args(["--seeds", "0-2"])
+        >>> args.seeds, args.worker, args.size, args.func.__name__
+        ([0, 1, 2], (0, 1), 192, 'run_synth_subjects')
+    """
+    sub = _synth_subparsers(subparsers)
+    cmd = sub.add_parser(
+        "subjects",
+        help="render light-stage reflectance fields; portrait contact sheet",
+        description=_SUBJECTS_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    cmd.add_argument("--out", default="lightstage", metavar="DIR", help="the cache folder (lightstage)")
+    cmd.add_argument("--seeds", type=parse_seeds, default=parse_seeds("0-9"), metavar="SEEDS",
+                     help="subject seeds, e.g. 0-9 or 1,4,7 (0-9); about one in ten is an eval subject")
+    cmd.add_argument("--views", type=_positive_int, default=3, metavar="N",
+                     help="the first N of the default camera views (3)")
+    cmd.add_argument("--size", type=_positive_int, default=192, metavar="PX", help="render side in pixels (192)")
+    cmd.add_argument("--spp", type=_positive_int, default=16, metavar="N", help="samples per pixel per light (16)")
+    cmd.add_argument("--lighting-size", type=_positive_int, default=32, metavar="S",
+                     help="side of the mirror-ball lighting basis (32: 812 lights)")
+    cmd.add_argument("--worker", type=_worker, default=(0, 1), metavar="I/N", help="render share I of N (0/1)")
+    cmd.add_argument("--threads", type=_positive_int, default=None, metavar="N",
+                     help="render threads (default: all cores)")
+    cmd.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_rgb, else scalar_rgb)")
+    cmd.add_argument("--sheet", type=_nonnegative_int, default=64, metavar="N",
+                     help="portraits in contact_sheet.png (64; 0: none)")
+    cmd.add_argument("--split", choices=("train", "eval", "all"), default="train",
+                     help="subjects shown in the sheet (train)")
+    cmd.add_argument("--folder", metavar="DIR", help="also light the sheet's portraits with these real HDR maps")
+    cmd.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sheet's portraits (0)")
+    cmd.set_defaults(func=run_synth_subjects)
+    return cmd
+
+
+def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int = 8, dpi: int = 100,
+                         palette: bool = True) -> None:
+    """A PNG grid of portraits (samples of :class:`~kornia_ilum.synth.lightstage.PortraitDataset`), each
+    above its ground-truth diffuse, matte-silver and mirror spheres at their largest size (as the loss sees them:
+    ``softclip(I)^(1/2.2)``), captioned with the subject seed, Monk skin tone, view and environment."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    import torch.nn.functional as F
+
+    rows = max(1, -(-len(samples) // columns))
+    fig, axes = plt.subplots(rows, columns, figsize=(1.45 * columns, 2.05 * rows + 0.3), squeeze=False)
+    for ax in axes.flat:
+        ax.axis("off")
+    for ax, sample in zip(axes.flat, samples, strict=False):
+        portrait = F.interpolate(sample["image"][None].float() / 255.0, size=(120, 120), mode="area")[0]
+        largest = max(int(k.rsplit("_", 1)[1]) for k in sample["spheres"])
+        spheres = [F.interpolate(sample["spheres"][f"{b}_{largest}"][None], size=(38, 38), mode="nearest")[0]
+                   for b in ("diffuse", "matte_silver", "mirror")]
+        gap = torch.ones(3, 38, 3)
+        strip = torch.cat([spheres[0], gap, spheres[1], gap, spheres[2]], -1)
+        tile = torch.ones(3, 120 + 3 + 38, 120)
+        tile[:, :120] = portrait
+        tile[:, 123:, (120 - strip.shape[-1]) // 2 : (120 - strip.shape[-1]) // 2 + strip.shape[-1]] = strip
+        ax.imshow(tile.clamp(0, 1).permute(1, 2, 0).numpy(), interpolation="nearest")
+        source = sample["source"].split(":")[-1]
+        ax.set_title(f"s{sample['subject_seed']} MST {sample['skin_tone']} v{sample['view_index']}\n"
+                     f"{sample['label']}: {source}", fontsize=5.5, pad=1.5)
+    fig.suptitle("light-stage portraits (256 x 256, shown at 120) | ground truth: diffuse, matte silver, mirror",
+                 fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / (2.05 * rows + 0.3)), h_pad=0.3, w_pad=0.2)
+    _save_figure(fig, path, dpi, palette)
+
+
+def run_synth_subjects(args: argparse.Namespace) -> int:
+    """Run ``synth subjects`` from parsed arguments (module docstring); returns 0.
+
+    Raises:
+        ImportError: Mitsuba (the ``lightstage`` extra) is not installed.
+        IlumError: matplotlib is not installed and a sheet is asked for.
+    """
+    import dataclasses
+    import statistics
+
+    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+    from kornia_ilum.synth.lightstage import DEFAULT_VIEWS, PortraitDataset, build_cache
+
+    if args.sheet:
+        _require_matplotlib("synth subjects")
+    out = Path(args.out)
+    views = [dataclasses.replace(v, size=args.size) for v in DEFAULT_VIEWS[: args.views]]
+    t0 = time.perf_counter()
+    manifest = build_cache(out, args.seeds, views, worker_index=args.worker[0], worker_count=args.worker[1],
+                           size=args.size, spp=args.spp, lighting_size=args.lighting_size, variant=args.variant,
+                           threads=args.threads, progress=True)
+    seconds = time.perf_counter() - t0
+    entries = manifest["entries"]
+    subjects = sorted({e["subject_seed"] for e in entries})
+    print(f"cache {out}: {len(entries)} fields of {len(subjects)} subjects "
+          f"({sum(e.get('split') == 'eval' for e in entries)} fields of eval subjects); this run {seconds:.0f} s")
+    if entries:
+        print(f"per field: median {statistics.median(e['render_seconds'] for e in entries):.0f} s to render, "
+              f"{statistics.median(e['bytes'] for e in entries) / 1e6:.1f} MB on disk")
+    if not args.sheet:
+        return 0
+    split = None if args.split == "all" else args.split
+    environments = EnvironmentSampler(default_sources(args.folder), seed=args.seed)
+    sizes = tuple(s for s in (4, 8, 16, 32) if s <= args.lighting_size)
+    data = PortraitDataset(out, split, environments, args.seed, fields_per_chunk=args.sheet, lightings_per_field=1,
+                           env_pool=args.sheet, env_refresh=args.sheet, shuffle=1, sphere_sizes=sizes)
+    t1 = time.perf_counter()
+    samples = sorted(data.chunk(0, 0), key=lambda s: (s["skin_tone"], s["subject_seed"], s["label"]))
+    rate = len(samples) / (time.perf_counter() - t1)
+    write_portrait_sheet(samples, out / "contact_sheet.png")
+    print(f"{len(samples)} portraits ({rate:.0f}/s, each with a fresh environment and a field of its own)")
+    print(f"wrote {out / 'contact_sheet.png'}")
     return 0

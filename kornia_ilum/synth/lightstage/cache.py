@@ -33,7 +33,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import tempfile
 import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -43,6 +42,7 @@ import torch
 
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.files import atomic_write
 from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, render_olat
 
 __all__ = [
@@ -90,23 +90,9 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _atomic_write(path: Path, write: Any) -> None:
-    """Call ``write(tmp_path)``, flush it to disk and rename it to ``path`` (same folder, so atomic)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _write_json(path: Path, obj: Any) -> None:
-    _atomic_write(path, lambda tmp: tmp.write_text(json.dumps(obj, indent=1, sort_keys=True)))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, lambda tmp: tmp.write_text(json.dumps(obj, indent=1, sort_keys=True)))
 
 
 def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, Any]:
@@ -149,7 +135,8 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
         "meta": json.dumps(field.meta),
     }
     path = Path(path)
-    _atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata=metadata))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata=metadata))
     return {
         "sha256": _sha256(path),
         "bytes": path.stat().st_size,
@@ -259,7 +246,7 @@ def _progress(items: list[Any], enabled: bool) -> Iterable[Any]:
         return items
     from kornia_ilum.synth.cli import _progress as bar
 
-    return bar(items, len(items), "OLAT fields")
+    return bar(items, len(items), "OLAT fields", unit="field")
 
 
 def build_cache(

@@ -1,0 +1,100 @@
+"""Benchmark of the on-the-fly portrait dataset: samples per second on one core, against an unbatched baseline.
+
+Run: ``python benchmarks/bench_portraits.py [--cache DIR] [--chunks 6] [--repeats 3] [--threads 1]``
+
+It times :meth:`PortraitDataset.chunk` (everything a training sample needs: environments drawn from the pool,
+relighting, background, crop, exposure, 8-bit encoding, the 12 ground-truth sphere renders) with the default
+settings (4 fields x 16 lightings per chunk, one fresh environment per chunk), and, in the same process, the
+same code one sample at a time (``fields_per_chunk=1, lightings_per_field=1``, a fresh environment per
+sample: each sample pays for a whole read of its field and for a procedural environment). Medians over
+``--repeats`` runs of ``--chunks`` chunks (after a warm-up chunk); 256 x 256 portraits, ``torch`` limited to
+``--threads`` threads (1: the issue's "one core").
+
+With ``--cache`` (a folder written by ``kornia-ilum synth subjects``) it uses the cached reflectance fields
+and also prints the cache's render time and disk per subject-view (medians over the manifest). Without it,
+it builds stand-in fields of the shape of a 192 x 192 light-stage view (17 116 covered pixels x 812 lights,
+bfloat16; random values), which cost the same to relight.
+
+This is a benchmark, not a test: it prints numbers and asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import torch
+
+from kornia_ilum.synth.environments import EnvironmentSampler
+from kornia_ilum.synth.lightstage import LANDMARK_NAMES, Camera, PortraitDataset, ReflectanceField, read_manifest
+from kornia_ilum.geometry import mirror_ball_valid
+
+
+def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:
+    """Random fields with the layout and size of cached 192 x 192 light-stage views (compact, bfloat16)."""
+    g = torch.Generator().manual_seed(0)
+    lights = torch.nonzero(mirror_ball_valid(32).flatten()).flatten()
+    fields = []
+    for k in range(count):
+        yy, xx = torch.meshgrid(torch.arange(size), torch.arange(size), indexing="ij")
+        disk = ((yy - size * 0.55) ** 2 + (xx - size / 2) ** 2).flatten().argsort()[:covered].sort().values
+        alpha = torch.zeros(size * size)
+        alpha[disk] = 1.0
+        field = (torch.rand(3, covered, len(lights), generator=g) * 2e-3).to(torch.bfloat16)
+        angles = torch.linspace(0, 6.28, len(LANDMARK_NAMES))
+        landmarks = torch.stack([size / 2 + 50 * angles.cos(), size / 2 + 55 * angles.sin()], -1)
+        meta = {"landmarks": landmarks.tolist(), "lighting_size": 32, "split": "train", "skin_tone": 5}
+        fields.append(ReflectanceField(field, alpha.reshape(1, size, size), torch.tensor([40.0, 40.0, 150.0, 150.0]),
+                                       Camera(30.0, 0.56, 0.0, 0.0, size=size), k, meta, disk, lights))
+    return fields
+
+
+def rate(data: PortraitDataset, chunks: int, repeats: int) -> tuple[float, int]:
+    """Median samples per second over ``repeats`` runs of ``chunks`` chunks, and the samples per chunk."""
+    per_chunk = len(data.chunk(0, 0))  # warm-up: caches, first environments
+    rates, index = [], 1
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(chunks):
+            data.chunk(0, index)
+            index += 1
+        rates.append(chunks * per_chunk / (time.perf_counter() - start))
+    return statistics.median(rates), per_chunk
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cache", help="a light-stage cache folder (default: stand-in fields)")
+    parser.add_argument("--chunks", type=int, default=6, help="chunks per timed run (6)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (3)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+
+    fields = args.cache if args.cache else stand_in_fields()
+    split = None
+    batched = PortraitDataset(fields, split, EnvironmentSampler(seed=0), seed=0)
+    print(f"{batched!r}\n{torch.get_num_threads()} torch thread(s); 256 x 256 portraits")
+    if args.cache:
+        entries = read_manifest(args.cache)["entries"]
+        seconds = statistics.median(e["render_seconds"] for e in entries)
+        megabytes = statistics.median(e["bytes"] for e in entries) / 1e6
+        sizes = sorted({e["camera"]["size"] for e in entries})
+        print(f"cache: {len(entries)} subject-views, {len({e['subject_seed'] for e in entries})} subjects, "
+              f"{sizes} px; median render {seconds:.0f} s and {megabytes:.0f} MB on disk per subject-view")
+    else:
+        print("stand-in fields: 4 random fields shaped like 192 x 192 light-stage views")
+
+    fast, per_chunk = rate(batched, args.chunks, args.repeats)
+    single = PortraitDataset(fields, split, EnvironmentSampler(seed=0), seed=0, fields_per_chunk=1,
+                             lightings_per_field=1, env_pool=1, env_refresh=1)
+    slow, _ = rate(single, args.chunks * 8, args.repeats)
+    print(f"\nbatched (defaults, {per_chunk} samples per chunk): {fast:7.1f} samples/s ({1000 / fast:.2f} ms each)")
+    print(f"one sample at a time (baseline):          {slow:7.1f} samples/s ({1000 / slow:.2f} ms each)")
+    print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: {'PASS' if fast >= 200 else 'FAIL'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,39 @@
+"""Atomic file writes: a file appears complete under its name, or not at all."""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["atomic_write"]
+
+
+def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> None:
+    """Call ``write(tmp)`` for a hidden temporary file beside ``path``, flush it to disk, rename it to ``path``.
+
+    The temporary file is in the same folder (so the rename is atomic) and keeps ``path``'s extension (so
+    writers that pick a format by extension, such as OpenImageIO, pick the right one). It is removed if
+    ``write`` fails, and ``path`` is then left as it was. The file gets the default permissions (umask).
+
+    Args:
+        path: the destination; its folder must exist.
+        write: writes the whole file at the path it is given.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     atomic_write(Path(d) / "a.txt", lambda tmp: tmp.write_text("done"))
+        ...     print((Path(d) / "a.txt").read_text(), len(os.listdir(d)))
+        done 1
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
