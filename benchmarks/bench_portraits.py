@@ -26,9 +26,15 @@ import time
 
 import torch
 
-from kornia_ilum.synth.environments import EnvironmentSampler
-from kornia_ilum.synth.lightstage import LANDMARK_NAMES, Camera, PortraitDataset, ReflectanceField, read_manifest
 from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.synth.environments import EnvironmentSampler
+from kornia_ilum.synth.lightstage import (
+    LANDMARK_NAMES,
+    Camera,
+    PortraitDataset,
+    ReflectanceField,
+    read_manifest,
+)
 
 
 def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:

@@ -63,6 +63,19 @@ class TestWriteReadField:
         assert torch.equal(compact.to_dense().field, rf.field)
         assert info["bytes"] < 0.8 * rf.field.numel() * 2  # measured 0.58 of the dense bfloat16 here
 
+    def test_mmap(self, tmp_path: Path) -> None:
+        """A mapped field equals the read one, and writing it never touches the file (copy-on-write)."""
+        rf = synthetic_field()
+        path = tmp_path / "a.safetensors"
+        write_field(path, rf)
+        before = path.read_bytes()
+        read = read_field(path, dense=False)
+        mapped = read_field(path, dense=False, mmap=True)
+        assert torch.equal(mapped.field, read.field) and mapped.field.dtype == torch.bfloat16
+        assert torch.equal(mapped.pixel_index, read.pixel_index) and mapped.meta == read.meta
+        mapped.field.zero_()
+        assert path.read_bytes() == before
+
     def test_atomic(self, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
         """A failing write leaves neither the file nor a temporary one."""
         import safetensors.torch

@@ -145,7 +145,7 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
     }
 
 
-def read_field(path: str | os.PathLike, *, dense: bool = True) -> ReflectanceField:
+def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = False) -> ReflectanceField:
     r"""Read a field written by :func:`write_field`.
 
     Args:
@@ -153,6 +153,10 @@ def read_field(path: str | os.PathLike, *, dense: bool = True) -> ReflectanceFie
         dense: return the dense ``(3, size^2, S^2)`` layout (403 MB at 256 x 256, ``S = 32``); ``False`` keeps
             the compact layout with its ``pixel_index`` and ``light_index`` (faster to relight: relight the
             ``P'`` pixels with the ``N'`` lights, scatter into the image, zero elsewhere).
+        mmap: with ``dense=False``, map the field's bytes from the file instead of reading them: nothing is
+            read until it is used, and processes that map the same file (data-loader workers) share one copy
+            in the page cache. safetensors' own reader always copies, so the tensor is a copy-on-write
+            :class:`numpy.memmap` of the file's data (the format is a JSON header and raw little-endian bytes).
 
     Raises:
         HDRIOError: the file is missing, unreadable or not a field of this format (the message names it).
@@ -165,7 +169,10 @@ def read_field(path: str | os.PathLike, *, dense: bool = True) -> ReflectanceFie
             metadata = fh.metadata() or {}
             if metadata.get("format") != FORMAT:
                 raise HDRIOError(f"{path} is not a reflectance field of format {FORMAT!r}")
-            tensors = {k: fh.get_tensor(k) for k in fh.keys()}  # noqa: SIM118 - safe_open has no iterator
+            names = [k for k in fh.keys() if not (mmap and k == "field")]  # noqa: SIM118 - no iterator
+            tensors = {k: fh.get_tensor(k) for k in names}
+        if mmap:
+            tensors["field"] = _mapped_bfloat16(path, "field")
     except HDRIOError:
         raise
     except Exception as exc:  # safetensors raises its own error types, OSError for a missing file
@@ -183,6 +190,20 @@ def read_field(path: str | os.PathLike, *, dense: bool = True) -> ReflectanceFie
         tensors["light_index"].long(),
     )
     return field.to_dense() if dense else field
+
+
+def _mapped_bfloat16(path: Path, name: str) -> torch.Tensor:
+    """Tensor ``name`` of a safetensors file, mapped (copy-on-write) rather than read; bfloat16 only."""
+    import numpy as np
+
+    with open(path, "rb") as fh:
+        length = int.from_bytes(fh.read(8), "little")
+        info = json.loads(fh.read(length))[name]
+    if info["dtype"] != "BF16":
+        raise HDRIOError(f"{path}: {name} is {info['dtype']}, not BF16")
+    start, end = info["data_offsets"]
+    array = np.memmap(path, dtype="<i2", mode="c", offset=8 + length + start, shape=((end - start) // 2,))
+    return torch.from_numpy(array).view(torch.bfloat16).reshape(info["shape"])
 
 
 def _read_manifest_file(path: Path) -> list[dict[str, Any]]:

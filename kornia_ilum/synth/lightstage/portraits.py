@@ -476,8 +476,9 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
     r"""Reflectance fields from a cache folder (:func:`~kornia_ilum.synth.lightstage.build_cache`) or a list.
 
     Args:
-        source: a cache folder (its manifest's entries are read in the compact layout, sorted by seed and view)
-            or a sequence of :class:`~kornia_ilum.synth.lightstage.ReflectanceField`.
+        source: a cache folder (its manifest's entries, sorted by seed and view, in the compact layout and
+            memory-mapped: :func:`~kornia_ilum.synth.lightstage.read_field` with ``mmap=True``) or a sequence
+            of :class:`~kornia_ilum.synth.lightstage.ReflectanceField`.
         split: keep only the subjects of this split (``"train"`` or ``"eval"``,
             :func:`~kornia_ilum.synth.lightstage.subject_split`); ``None``: all.
 
@@ -491,7 +492,7 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
     if isinstance(source, (str, os.PathLike)):
         entries = read_manifest(source)["entries"]
         entries = [e for e in entries if split is None or e.get("split") == split]
-        fields = [read_field(Path(source) / e["path"], dense=False) for e in entries]
+        fields = [read_field(Path(source) / e["path"], dense=False, mmap=True) for e in entries]
         for f, e in zip(fields, entries, strict=True):
             f.meta.setdefault("view_index", e["view_index"])
     else:
