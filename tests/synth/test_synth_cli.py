@@ -10,7 +10,14 @@ import pytest
 import torch
 
 from kornia_ilum.core.errors import HDRIOError
-from kornia_ilum.synth.cli import add_synth_environments_parser, run_synth_environments, tone_map_tile
+from kornia_ilum.synth.cli import (
+    add_synth_environments_parser,
+    add_synth_subjects_parser,
+    parse_seeds,
+    run_synth_environments,
+    run_synth_subjects,
+    tone_map_tile,
+)
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -109,3 +116,46 @@ def test_missing_matplotlib(tmp_path, monkeypatch):
     args = argparse.Namespace(folder=None, n=1, seed=0, out=str(tmp_path), height=8)
     with pytest.raises(IlumError, match="pip install matplotlib"):
         run_synth_environments(args)
+
+
+class TestSubjects:
+    def parser(self) -> argparse.ArgumentParser:
+        p = argparse.ArgumentParser(prog="kornia-ilum")
+        add_synth_subjects_parser(p.add_subparsers(dest="command"))
+        return p
+
+    def test_defaults_and_options(self):
+        args = self.parser().parse_args(["synth", "subjects"])
+        assert (args.out, args.seeds, args.views, args.size, args.spp, args.lighting_size, args.worker) == (
+            "lightstage", list(range(10)), 3, 192, 16, 32, (0, 1),
+        )  # fmt: skip
+        assert (args.sheet, args.split, args.folder, args.func) == (64, "train", None, run_synth_subjects)
+        args = self.parser().parse_args(["synth", "subjects", "--seeds", "4,1-2,4", "--worker", "2/3"])
+        assert args.seeds == [4, 1, 2] and args.worker == (2, 3)
+
+    def test_bad_values(self, capsys):
+        for bad in (["--seeds", "a-b"], ["--seeds", ""], ["--worker", "3/3"], ["--worker", "1"], ["--size", "0"]):
+            with pytest.raises(SystemExit):
+                self.parser().parse_args(["synth", "subjects", *bad])
+        err = capsys.readouterr().err
+        assert "seeds must look like" in err and "worker must be I/N" in err
+
+    def test_parse_seeds(self):
+        assert parse_seeds("7") == [7] and parse_seeds("0-2, 5") == [0, 1, 2, 5]
+
+    def test_renders_resumes_and_writes_the_sheet(self, tmp_path, capsys):
+        argv = ["synth", "subjects", "--seeds", "0-1", "--views", "1", "--size", "32", "--spp", "2",
+                "--lighting-size", "8", "--threads", "1", "--sheet", "4", "--split", "all", "--out", str(tmp_path)]
+        args = self.parser().parse_args(argv)
+        assert args.func(args) == 0
+        captured = capsys.readouterr()
+        assert "OLAT fields" in captured.err  # the progress bar
+        assert "2 fields of 2 subjects (1 fields of eval subjects)" in captured.out
+        assert (tmp_path / "contact_sheet.png").read_bytes()[:8] == PNG
+        assert sorted(p.name for p in (tmp_path / "fields").iterdir()) == ["s000000_v00.safetensors",
+                                                                           "s000001_v00.safetensors"]
+        stamp = (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns
+        args = self.parser().parse_args([*argv[:-4], "--sheet", "0", "--out", str(tmp_path)])
+        assert args.func(args) == 0  # resumed: nothing left to render
+        assert (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns == stamp
+        assert "this run" in capsys.readouterr().out
