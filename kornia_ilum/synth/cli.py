@@ -180,20 +180,29 @@ def write_contact_sheet(
     With ``palette`` the PNG is stored with a 256-colour adaptive palette (Pillow, which matplotlib
     requires): a third of the size of true colour (about 160 KB instead of 550 KB for 48 tiles).
     """
+    tiles = [tone_map_tile(env.mirror_ball) for env in envs]
+    title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
+    _write_grid(tiles, [_caption(env) for env in envs], title, path, columns, (2.9, 1.15), 6, dpi, palette)
+
+
+def _write_grid(tiles: Sequence[torch.Tensor], captions: Sequence[str], title: str, path: str | Path, columns: int,
+                cell: tuple[float, float], fontsize: float, dpi: int, palette: bool) -> None:
+    """A captioned grid of ``(3, H, W)`` images in ``[0, 1]``, ``cell`` inches per tile, saved as a PNG."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    rows = max(1, -(-len(envs) // columns))
-    fig, axes = plt.subplots(rows, columns, figsize=(2.9 * columns, 1.15 * rows + 0.4), squeeze=False)
+    rows = max(1, -(-len(tiles) // columns))
+    height = cell[1] * rows + 0.35
+    fig, axes = plt.subplots(rows, columns, figsize=(cell[0] * columns, height), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
-    for ax, env in zip(axes.flat, envs, strict=False):
-        ax.imshow(tone_map_tile(env.mirror_ball).permute(1, 2, 0).numpy(), interpolation="nearest")
-        ax.set_title(_caption(env), fontsize=6, pad=2)
-    fig.suptitle("mirror ball | diffuse | matte silver | mirror (one exposure per environment)", fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / (1.15 * rows + 0.4)), h_pad=0.4, w_pad=0.3)
+    for ax, tile, caption in zip(axes.flat, tiles, captions, strict=False):
+        ax.imshow(tile.clamp(0, 1).permute(1, 2, 0).numpy(), interpolation="nearest")
+        ax.set_title(caption, fontsize=fontsize, pad=1.5)
+    fig.suptitle(title, fontsize=8.5)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / height), h_pad=0.3, w_pad=0.2)
     _save_figure(fig, path, dpi, palette)
 
 
@@ -370,17 +379,10 @@ def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int
     """A PNG grid of portraits (samples of :class:`~kornia_ilum.synth.lightstage.PortraitDataset`), each
     above its ground-truth diffuse, matte-silver and mirror spheres at their largest size (as the loss sees them:
     ``softclip(I)^(1/2.2)``), captioned with the subject seed, Monk skin tone, view and environment."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
     import torch.nn.functional as F
 
-    rows = max(1, -(-len(samples) // columns))
-    fig, axes = plt.subplots(rows, columns, figsize=(1.45 * columns, 2.05 * rows + 0.3), squeeze=False)
-    for ax in axes.flat:
-        ax.axis("off")
-    for ax, sample in zip(axes.flat, samples, strict=False):
+    tiles, captions = [], []
+    for sample in samples:
         portrait = F.interpolate(sample["image"][None].float() / 255.0, size=(120, 120), mode="area")[0]
         largest = max(int(k.rsplit("_", 1)[1]) for k in sample["spheres"])
         spheres = [F.interpolate(sample["spheres"][f"{b}_{largest}"][None], size=(38, 38), mode="nearest")[0]
@@ -389,15 +391,13 @@ def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int
         strip = torch.cat([spheres[0], gap, spheres[1], gap, spheres[2]], -1)
         tile = torch.ones(3, 120 + 3 + 38, 120)
         tile[:, :120] = portrait
-        tile[:, 123:, (120 - strip.shape[-1]) // 2 : (120 - strip.shape[-1]) // 2 + strip.shape[-1]] = strip
-        ax.imshow(tile.clamp(0, 1).permute(1, 2, 0).numpy(), interpolation="nearest")
-        source = sample["source"].split(":")[-1]
-        ax.set_title(f"s{sample['subject_seed']} MST {sample['skin_tone']} v{sample['view_index']}\n"
-                     f"{sample['label']}: {source}", fontsize=5.5, pad=1.5)
-    fig.suptitle("light-stage portraits (256 x 256, shown at 120) | ground truth: diffuse, matte silver, mirror",
-                 fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / (2.05 * rows + 0.3)), h_pad=0.3, w_pad=0.2)
-    _save_figure(fig, path, dpi, palette)
+        left = (120 - strip.shape[-1]) // 2
+        tile[:, 123:, left : left + strip.shape[-1]] = strip
+        tiles.append(tile)
+        captions.append(f"s{sample['subject_seed']} MST {sample['skin_tone']} v{sample['view_index']}\n"
+                        f"{sample['label']}: {sample['source'].split(':')[-1]}")
+    title = "light-stage portraits (256 x 256, shown at 120) | ground truth: diffuse, matte silver, mirror"
+    _write_grid(tiles, captions, title, path, columns, (1.45, 2.05), 5.5, dpi, palette)
 
 
 def run_synth_subjects(args: argparse.Namespace) -> int:

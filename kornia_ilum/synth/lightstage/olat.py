@@ -109,7 +109,7 @@ MATERIAL_KINDS: tuple[str, ...] = ("skin", "diffuse", "glossy", "cornea", "hair"
 
 #: The camera aims this fraction of the face-landmark box's height above the box's centre: OpenCV's Haar
 #: detector centres its box 0.19 +- 0.04 landmark-box heights higher (measured on 16 detections in 36
-#: light-stage renders, :data:`kornia_ilum.synth.lightstage.portraits.DETECTOR_BOX`).
+#: light-stage renders; :data:`kornia_ilum.synth.lightstage.portraits.DETECTOR_BOX` uses the same number).
 PIVOT_RAISE = 0.19
 
 _CORNEA_MIRROR_PROBABILITY = 0.3  # how often a camera path picks the cornea's mirror lobe

@@ -56,7 +56,7 @@ from kornia_ilum.geometry import flip_lighting_horizontal, latlong_to_mirror_bal
 from kornia_ilum.render import BRDFS, relight, render_spheres
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, sample_latlong
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
-from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField
+from kornia_ilum.synth.lightstage.olat import PIVOT_RAISE, Camera, ReflectanceField
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
 
 __all__ = [
@@ -80,14 +80,15 @@ __all__ = [
 #: (brows, outer eye corners, nose tip, mouth corners, chin; ears, cheeks and jaw excluded because they swing
 #: out when the head turns): a square of side ``scale * h`` centred at the inner box's centre raised by
 #: ``raise_ * h``, ``h`` the inner box's height. Fitted on the 16 detections in 36 renders (12 subjects x 3
-#: views, 192 x 192): side 1.13 +- 0.14 h, centre raised 0.19 +- 0.04 h, horizontal offset -0.02 +- 0.03 h.
+#: views, 192 x 192): side 1.13 +- 0.14 h, centre raised 0.19 +- 0.04 h (the cameras aim there:
+#: :data:`~kornia_ilum.synth.lightstage.olat.PIVOT_RAISE`), horizontal offset -0.02 +- 0.03 h.
 DETECTOR_BOX: dict[str, Any] = {
     "landmarks": (
         "brow_right_top", "brow_left_top", "eye_right_outer", "eye_left_outer", "nose_tip",
         "mouth_right", "mouth_left", "chin",
     ),
     "scale": 1.13,
-    "raise_": 0.19,
+    "raise_": PIVOT_RAISE,
 }  # fmt: skip
 
 #: Workers per dataset at most: worker ``w`` draws environment ``j`` of its own stream as the sampler's index
