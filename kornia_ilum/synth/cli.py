@@ -118,16 +118,39 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
     return env
 
 
+class _Bar:
+    """A progress bar on stderr: tqdm when installed, else a ``desc: i/total`` counter (every 1 %)."""
+
+    def __init__(self, total: int, desc: str, unit: str) -> None:
+        self.total, self.desc, self.done, self.shown = total, desc, 0, -1
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            self.tqdm = None
+        else:
+            self.tqdm = tqdm(total=total, desc=desc, file=sys.stderr, unit=unit)
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        if self.tqdm is not None:
+            self.tqdm.update(n)
+        elif self.done == self.total or 100 * self.done // max(self.total, 1) > self.shown:
+            self.shown = 100 * self.done // max(self.total, 1)
+            end = "\n" if self.done == self.total else ""
+            print(f"\r{self.desc}: {self.done}/{self.total}", end=end, file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.tqdm is not None:
+            self.tqdm.close()
+
+
 def _progress(items: Iterable[T], total: int, desc: str, unit: str = "env") -> Iterator[T]:
-    """tqdm on stderr when installed, else a ``desc: i/total`` counter on stderr."""
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        for i, item in enumerate(items, 1):
-            yield item
-            print(f"\r{desc}: {i}/{total}", end="\n" if i == total else "", file=sys.stderr, flush=True)
-    else:
-        yield from tqdm(items, total=total, desc=desc, file=sys.stderr, unit=unit)
+    """Iterate ``items`` with a :class:`_Bar`."""
+    bar = _Bar(total, desc, unit)
+    for item in items:
+        yield item
+        bar.update()
+    bar.close()
 
 
 def tone_map_tile(mirror_ball: torch.Tensor) -> torch.Tensor:

@@ -149,7 +149,7 @@ class TestSubjects:
         args = self.parser().parse_args(argv)
         assert args.func(args) == 0
         captured = capsys.readouterr()
-        assert "OLAT fields" in captured.err  # the progress bar
+        assert "OLAT renders" in captured.err  # the progress bar
         assert "2 fields of 2 subjects (1 fields of eval subjects)" in captured.out
         assert (tmp_path / "contact_sheet.png").read_bytes()[:8] == PNG
         assert sorted(p.name for p in (tmp_path / "fields").iterdir()) == ["s000000_v00.safetensors",

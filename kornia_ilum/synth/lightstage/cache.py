@@ -43,6 +43,7 @@ import torch
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
+from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, render_olat
 
 __all__ = [
@@ -262,14 +263,6 @@ def _entry_ok(entry: dict[str, Any] | None, out_dir: Path, camera: Camera, spp: 
     return path.is_file() and path.stat().st_size == entry["bytes"] and _sha256(path) == entry["sha256"]
 
 
-def _progress(items: list[Any], enabled: bool) -> Iterable[Any]:
-    if not enabled:
-        return items
-    from kornia_ilum.synth.cli import _progress as bar
-
-    return bar(items, len(items), "OLAT fields", unit="field")
-
-
 def build_cache(
     out_dir: str | os.PathLike,
     seeds: Iterable[int],
@@ -303,7 +296,7 @@ def build_cache(
         lighting_size: the mirror-ball side ``S`` of the lighting basis.
         variant: the Mitsuba variant (:func:`~.olat.select_mitsuba_variant`).
         threads: Dr.Jit threads (process-global); default Dr.Jit's (all cores).
-        progress: show a progress bar on stderr.
+        progress: show a progress bar of the lights rendered on stderr.
 
     Returns:
         the merged manifest (:func:`read_manifest`).
@@ -331,11 +324,16 @@ def build_cache(
     todo = [(s, v) for s, v in pairs if not _entry_ok(known.get((s, v)), out_dir, cameras[v], spp, lighting_size)]
 
     subject, subject_seed = None, None
-    for seed, view in _progress(todo, progress):
+    bar = None
+    if progress and todo:
+        from kornia_ilum.synth.cli import _Bar
+
+        bar = _Bar(len(todo) * int(mirror_ball_valid(lighting_size).sum()), "OLAT renders", "light")
+    for seed, view in todo:
         if subject_seed != seed:
             subject, subject_seed = make_subject(seed), seed
         rf = render_olat(subject, cameras[view], lighting_size=lighting_size, spp=spp, variant=variant,
-                         threads=threads)
+                         threads=threads, callback=None if bar is None else bar.update)
         rel = field_path(seed, view)
         info = write_field(out_dir / rel, rf)
         own[(seed, view)] = {
@@ -355,6 +353,8 @@ def build_cache(
             "written": time.time(),
         }
         _write_json(own_file, {"format": MANIFEST_FORMAT, "entries": [own[k] for k in sorted(own)]})
+    if bar is not None:
+        bar.close()
     manifest = read_manifest(out_dir)
     _write_json(out_dir / "manifest.json", manifest)
     return manifest

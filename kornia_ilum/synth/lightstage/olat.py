@@ -68,6 +68,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
 from typing import TYPE_CHECKING, Any
@@ -726,6 +727,7 @@ def render_olat(
     envmap_height: int | None = None,
     threads: int | None = None,
     lights: np.ndarray | list[int] | None = None,
+    callback: Callable[[int], Any] | None = None,
 ) -> ReflectanceField:
     r"""Render the OLAT reflectance field of a subject seen by a camera (module docstring for the method).
 
@@ -743,6 +745,7 @@ def render_olat(
         threads: if given, sets Dr.Jit's thread count (process-global) before rendering.
         lights: render only these light indices (the other columns stay 0); default all valid lights.
             For benchmarks and tests.
+        callback: called with 1 after each light (a progress bar's ``update``).
 
     Returns:
         the :class:`ReflectanceField`; ``meta`` records the variant, integrator, settings, the rendered light
@@ -789,6 +792,8 @@ def render_olat(
         out[:, :, light] = torch.from_numpy(img[..., :3].reshape(-1, 3)).T.to(torch.bfloat16)
         if j == 0:  # every render shares the seed, hence the sub-pixel positions: one matte fits all
             alpha = torch.from_numpy(img[..., 3].copy())[None]
+        if callback is not None:
+            callback(1)
     box = project_points(subject.face_landmarks, camera, session.transform)
     face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
     meta = _meta(session, subject, max_depth, lighting_size, time.perf_counter() - start)
