@@ -1,6 +1,6 @@
 """Benchmark of the on-the-fly portrait dataset: samples per second on one core, against an unbatched baseline.
 
-Run: ``python benchmarks/bench_portraits.py [--cache DIR] [--chunks 6] [--repeats 3] [--threads 1]``
+Run: ``python benchmarks/bench_portraits.py [--cache DIR] [--chunks 6] [--repeats 3] [--threads 1] [--loader-workers 2]``
 
 It times :meth:`PortraitDataset.chunk` (everything a training sample needs: environments drawn from the pool,
 relighting, background, crop, exposure, 8-bit encoding, the 12 ground-truth sphere renders) with the default
@@ -9,6 +9,9 @@ same code one sample at a time (``fields_per_chunk=1, lightings_per_field=1``, a
 sample: each sample pays for a whole read of its field and for a procedural environment). Medians over
 ``--repeats`` runs of ``--chunks`` chunks (after a warm-up chunk); 256 x 256 portraits, ``torch`` limited to
 ``--threads`` threads (1: the issue's "one core").
+
+``--loader-workers N`` also times what a training loop sees: a :class:`~torch.utils.data.DataLoader` with
+``N`` worker processes (one torch thread each) and batches of 32, over 40 batches after the first.
 
 With ``--cache`` (a folder written by ``kornia-ilum synth subjects``) it uses the cached reflectance fields
 and also prints the cache's render time and disk per subject-view (medians over the manifest). Without it,
@@ -25,6 +28,7 @@ import statistics
 import time
 
 import torch
+from torch.utils.data import DataLoader
 
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.environments import EnvironmentSampler
@@ -75,6 +79,7 @@ def main() -> int:
     parser.add_argument("--chunks", type=int, default=6, help="chunks per timed run (6)")
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (3)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    parser.add_argument("--loader-workers", type=int, default=0, help="also time a DataLoader with N workers")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
 
@@ -99,6 +104,15 @@ def main() -> int:
     print(f"\nbatched (defaults, {per_chunk} samples per chunk): {fast:7.1f} samples/s ({1000 / fast:.2f} ms each)")
     print(f"one sample at a time (baseline):          {slow:7.1f} samples/s ({1000 / slow:.2f} ms each)")
     print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: {'PASS' if fast >= 200 else 'FAIL'}")
+    if args.loader_workers:
+        loader = DataLoader(batched, batch_size=32, num_workers=args.loader_workers)
+        batches = iter(loader)
+        next(batches)  # start-up: workers, first chunks
+        start = time.perf_counter()
+        for _ in range(40):
+            next(batches)
+        loaded = 40 * 32 / (time.perf_counter() - start)
+        print(f"DataLoader, {args.loader_workers} workers, batches of 32:  {loaded:7.1f} samples/s")
     return 0
 
 
