@@ -429,6 +429,7 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     Raises:
         ImportError: Mitsuba (the ``lightstage`` extra) is not installed.
         IlumError: matplotlib is not installed and a sheet is asked for.
+        ValueCheckError: more views than :data:`~kornia_ilum.synth.lightstage.DEFAULT_VIEWS` holds.
     """
     import dataclasses
     import statistics
@@ -436,6 +437,10 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
     from kornia_ilum.synth.lightstage import DEFAULT_VIEWS, PortraitDataset, build_cache
 
+    if args.views > len(DEFAULT_VIEWS):
+        from kornia_ilum.core.errors import ValueCheckError
+
+        raise ValueCheckError(f"--views must be at most {len(DEFAULT_VIEWS)} (the default views), got {args.views}")
     if args.sheet:
         _require_matplotlib("synth subjects")
     out = Path(args.out)

@@ -140,6 +140,14 @@ class TestSubjects:
         err = capsys.readouterr().err
         assert "seeds must look like" in err and "worker must be I/N" in err
 
+    def test_too_many_views(self, tmp_path):
+        from kornia_ilum.core.errors import ValueCheckError
+
+        args = self.parser().parse_args(["synth", "subjects", "--views", "4", "--out", str(tmp_path)])
+        with pytest.raises(ValueCheckError, match="--views must be at most 3"):
+            args.func(args)
+        assert not any(tmp_path.iterdir())
+
     def test_parse_seeds(self):
         assert parse_seeds("7") == [7] and parse_seeds("0-2, 5") == [0, 1, 2, 5]
 
