@@ -201,7 +201,7 @@ def write_contact_sheet(
     """A PNG grid of :func:`tone_map_tile` tiles with captions (source, label, augmentation).
 
     With ``palette`` the PNG is stored with a 256-colour adaptive palette (Pillow, which matplotlib
-    requires): a third of the size of true colour (about 160 KB instead of 550 KB for 48 tiles).
+    requires), dithered: about 410 KB for 48 tiles instead of 550 KB in true colour.
     """
     tiles = [tone_map_tile(env.mirror_ball) for env in envs]
     title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
@@ -230,7 +230,8 @@ def _write_grid(tiles: Sequence[torch.Tensor], captions: Sequence[str], title: s
 
 
 def _save_figure(fig, path: str | Path, dpi: int, palette: bool) -> None:
-    """Save and close a matplotlib figure; with ``palette`` as a 256-colour adaptive-palette PNG (Pillow)."""
+    """Save and close a matplotlib figure; with ``palette`` as a 256-colour adaptive-palette PNG (Pillow's
+    median cut, with Floyd-Steinberg dithering so that smooth shading does not band)."""
     import io
 
     import matplotlib.pyplot as plt
@@ -243,7 +244,8 @@ def _save_figure(fig, path: str | Path, dpi: int, palette: bool) -> None:
         buffer = io.BytesIO()
         fig.savefig(buffer, dpi=dpi, format="png")
         image = Image.open(buffer).convert("RGB")
-        image.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
+        palette_image = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+        image.quantize(palette=palette_image, dither=Image.Dither.FLOYDSTEINBERG).save(path, optimize=True)
     else:
         fig.savefig(path, dpi=dpi)
     plt.close(fig)
@@ -401,7 +403,8 @@ def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int
                          palette: bool = True) -> None:
     """A PNG grid of portraits (samples of :class:`~kornia_ilum.synth.lightstage.PortraitDataset`), each
     above its ground-truth diffuse, matte-silver and mirror spheres at their largest size (as the loss sees them:
-    ``softclip(I)^(1/2.2)``), captioned with the subject seed, Monk skin tone, view and environment."""
+    ``softclip(I)^(1/2.2)``), captioned with the subject seed, Monk skin tone, view and environment. With
+    ``palette``, a dithered 256-colour PNG: 64 portraits in about 0.75 MB instead of 1.7 MB."""
     import torch.nn.functional as F
 
     tiles, captions = [], []
@@ -420,7 +423,7 @@ def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int
         captions.append(f"s{sample['subject_seed']} MST {sample['skin_tone']} v{sample['view_index']}\n"
                         f"{sample['label']}: {sample['source'].split(':')[-1]}")
     title = "light-stage portraits (256 x 256, shown at 120) | ground truth: diffuse, matte silver, mirror"
-    _write_grid(tiles, captions, title, path, columns, (1.45, 2.05), 5.5, dpi, palette)
+    _write_grid(tiles, captions, title, path, columns, (1.45, 2.3), 5.5, dpi, palette)
 
 
 def run_synth_subjects(args: argparse.Namespace) -> int:
