@@ -144,8 +144,9 @@ class TestAnalytic:
         expected = gain * (ALBEDO * alpha + 1.0 - alpha)
         measured = srgb_to_linear(sample["image"].float()[None] / 255.0)[0]
         err = (measured - expected) / expected
-        assert err.mean().abs() < 0.01  # measured 0.2 %
-        assert err.abs().max() < 0.08  # Monte-Carlo noise of the 16-spp OLATs plus 8-bit rounding
+        assert err.mean().abs() < 0.01  # measured 0.1 % or less
+        assert err.abs().max() < 0.12  # Monte-Carlo noise of the 16-spp OLATs (measured 7 %) and 8-bit rounding
+        assert err[:, alpha[0] == 0].abs().max() < 0.01  # the background alone: 8-bit rounding (measured 0.7 %)
         assert (alpha == 0).any() and (alpha == 1).any()  # the crop shows both the sphere and the background
         # the diffuse reference sphere (albedo 0.8) of the ground truth: softclip(0.8 g L)^(1/2.2) at its centre
         centre = sample["spheres"]["diffuse_8"][:, 3:5, 3:5]
