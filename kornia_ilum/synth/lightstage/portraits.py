@@ -266,24 +266,23 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
         raise TypeCheckError(f"field must be a ReflectanceField, got {type(field).__name__}")
     s = field.lighting_size
     check_tensor(lighting, "lighting", ["B", "3", str(s), str(s)], finite=True, nonnegative=True)
-    rgba = _relight_rgba(field, lighting)
-    return rgba[:, :3], rgba[:1, 3:]
+    image = _add_relit(lighting.new_zeros(lighting.shape[0], 3, field.size, field.size, dtype=torch.float32),
+                       field, lighting)
+    return image, field.alpha.float().reshape(1, 1, field.size, field.size)
 
 
-def _relight_rgba(field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
-    """``(B, 4, H, W)``: the relit premultiplied image and the matte, scattered into one buffer."""
-    b, size = lighting.shape[0], field.size
+def _add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
+    """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels."""
     lights = mirror_ball_to_lights(lighting.float())
     if field.light_index is not None:
         lights = lights[:, field.light_index]
     image = relight(field.field, lights, (1, field.field.shape[1]))[:, :, 0]  # (B, 3, P')
-    rgba = image.new_zeros(b, 4, size * size)
+    flat = frame.view(frame.shape[0], 3, -1)
     if field.pixel_index is None:
-        rgba[:, :3] = image
+        flat.add_(image)
     else:
-        rgba[:, :3].index_copy_(2, field.pixel_index, image)
-    rgba[:, 3] = field.alpha.float().reshape(1, -1)
-    return rgba.reshape(b, 4, size, size)
+        flat.index_add_(2, field.pixel_index, image)
+    return frame
 
 
 def crop_images(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: torch.Tensor | None = None
@@ -347,7 +346,8 @@ def _crop_grid(boxes: torch.Tensor, hw: Sequence[int], size: int, mirror: torch.
     return torch.stack(torch.broadcast_tensors(gx[:, None, :], gy[:, :, None]), -1)
 
 
-def frame_background(latlong: torch.Tensor, camera: Camera, size: int = 64) -> torch.Tensor:
+def frame_background(latlong: torch.Tensor, camera: Camera, size: int = 64, mirror: torch.Tensor | None = None
+                     ) -> torch.Tensor:
     r"""What the camera sees of each environment, linear, on a coarse ``size x size`` grid of its frame.
 
     The pixels' rays of the pinhole ``camera`` (:func:`~kornia_ilum.synth.background.camera_rays`: SPEC frame,
@@ -360,6 +360,8 @@ def frame_background(latlong: torch.Tensor, camera: Camera, size: int = 64) -> t
         latlong: ``(B, 3, H, 2H)`` linear lat-long maps in the camera frame.
         camera: the render's camera (its ``fov_deg``; the frame is square).
         size: rays per side.
+        mirror: ``(B,)`` bool: view the mirrored environment (``x -> -x``,
+            :func:`~kornia_ilum.geometry.flip_lighting_horizontal`) for these maps, by mirroring the rays.
 
     Returns:
         ``(B, 3, size, size)`` linear.
@@ -370,8 +372,11 @@ def frame_background(latlong: torch.Tensor, camera: Camera, size: int = 64) -> t
     """
     check_tensor(latlong, "latlong", ["B", "3", "H", "2H"], nonnegative=True)
     check_positive_int(size, "size")
-    rays = camera_rays((size, size), float(camera.fov_deg), torch.eye(3, dtype=torch.float64))
-    return sample_latlong(latlong, rays[None])
+    rays = camera_rays((size, size), float(camera.fov_deg), torch.eye(3, dtype=torch.float64))[None]
+    if mirror is not None and bool(mirror.any()):
+        rays = rays.repeat(len(latlong), 1, 1, 1)
+        rays[mirror, ..., 0] = -rays[mirror, ..., 0]
+    return sample_latlong(latlong, rays)
 
 
 def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18) -> torch.Tensor:
@@ -666,8 +671,12 @@ class PortraitDataset(IterableDataset):
         window = list(range(max(0, last - pool), last))
         picks = torch.randint(len(window), (n,), generator=g).tolist()
         envs = [self._environment(worker, window[p]) for p in picks]
-        shifts = torch.randint(envs[0].latlong.shape[-1], (n,), generator=g).tolist()
-        latlongs = torch.stack([e.latlong.float().roll(k, dims=-1) for e, k in zip(envs, shifts, strict=True)])
+        width = envs[0].latlong.shape[-1]
+        shifts = torch.randint(width, (n,), generator=g).tolist()
+        latlongs = torch.empty(n, *envs[0].latlong.shape)
+        columns = torch.arange(width)
+        for out, env, k in zip(latlongs, envs, shifts, strict=True):  # out = env.latlong.roll(k, dims=-1)
+            torch.index_select(env.latlong.float(), -1, (columns - k) % width, out=out)
         return latlongs, envs
 
     def chunk(self, worker: int, index: int) -> list[dict[str, Any]]:
@@ -742,32 +751,27 @@ class PortraitDataset(IterableDataset):
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (module docstring).
 
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
-        with the mirrored lighting over the mirrored environment's background, cropped through the mirrored
-        box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
+        with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
+        the mirrored box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
         """
         st = self.settings
         size = st["size"]
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
-        mirrored = latlong.clone()
-        if flip.any():
-            mirrored[flip] = flip_lighting_horizontal(latlong[flip], "latlong")
         source_boxes = boxes.clone()
         source_boxes[flip, 0], source_boxes[flip, 2] = rf.size - boxes[flip, 2], rf.size - boxes[flip, 0]
-        if st["subject"]:
-            relit = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
-            rgba = _relight_rgba(rf, relit)
-            frame, alpha = rgba[:, :3], rgba[:, 3:]
-        else:
-            frame, alpha = None, None
         if st["background"] == "environment":
-            background = F.interpolate(frame_background(mirrored, rf.camera, _BACKGROUND_GRID), size=rf.size,
-                                       mode="bilinear", align_corners=False)
-            frame = background if frame is None else frame.add_(background.mul_(1.0 - alpha))
-        elif frame is None:
+            frame = F.interpolate(frame_background(latlong, rf.camera, _BACKGROUND_GRID, flip), size=rf.size,
+                                  mode="bilinear", align_corners=False)
+            if st["subject"]:
+                frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
+        else:
             frame = latlong.new_zeros(len(latlong), 3, rf.size, rf.size)
+        if st["subject"]:
+            _add_relit(frame, rf, torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting))
         linear = _crop(frame, source_boxes, size, flip)
         linear = linear.clamp_(min=0.0)
-        gain = auto_exposure(F.avg_pool2d(linear, max(1, size // 64)), key)
+        step = max(1, size // 64)  # meter on a 64 x 64 subsample
+        gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step], key)
         linear.mul_(gain[:, None, None, None].to(linear))
         self._add_noise(linear, sigma, g)
         image = _encode(linear)
