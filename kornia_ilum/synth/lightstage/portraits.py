@@ -53,7 +53,7 @@ from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import flip_lighting_horizontal, latlong_to_mirror_ball, mirror_ball_to_lights
-from kornia_ilum.render import BRDFS, relight, render_spheres
+from kornia_ilum.render import relight, render_spheres
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, sample_latlong
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
 from kornia_ilum.synth.lightstage.olat import PIVOT_RAISE, Camera, ReflectanceField
@@ -65,7 +65,6 @@ __all__ = [
     "PortraitDataset",
     "auto_exposure",
     "crop_images",
-    "describe",
     "detector_boxes",
     "encode_ldr",
     "face_crop_boxes",
@@ -776,17 +775,3 @@ class PortraitDataset(IterableDataset):
         self._add_noise(linear, sigma, g)
         image = _encode(linear)
         return image, lighting * gain[:, None, None, None].to(lighting), gain.float()
-
-
-def describe(dataset: PortraitDataset) -> dict[str, Any]:
-    """JSON-ready facts about a dataset: its fields, subjects, skin tones and settings."""
-    return {
-        "fields": len(dataset.fields),
-        "subjects": sorted({f.subject_seed for f in dataset.fields}),
-        "skin_tones": sorted({int(f.meta.get("skin_tone", -1)) for f in dataset.fields}),
-        "lighting_size": dataset.lighting_size,
-        "seed": dataset.seed,
-        **{k: list(v) if isinstance(v, tuple) else v for k, v in dataset.settings.items()},
-        "brdfs": list(BRDFS),
-        "camera_sizes": sorted({f.size for f in dataset.fields}),
-    }
