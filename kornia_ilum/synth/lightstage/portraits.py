@@ -369,7 +369,7 @@ def frame_background(latlong: torch.Tensor, camera: Camera, size: int = 64, mirr
         >>> frame_background(torch.ones(2, 3, 8, 16), Camera(30.0, 1.0, 0.0, 0.0)).shape
         torch.Size([2, 3, 64, 64])
     """
-    check_tensor(latlong, "latlong", ["B", "3", "H", "2H"], nonnegative=True)
+    check_tensor(latlong, "latlong", ["B", "3", "H", "2H"], finite=False)  # values: once, in sample_latlong
     check_positive_int(size, "size")
     rays = camera_rays((size, size), float(camera.fov_deg), torch.eye(3, dtype=torch.float64))[None]
     if mirror is not None and bool(mirror.any()):
