@@ -1,6 +1,6 @@
 """Input checks and typed errors shared by every kornia_ilum entry point."""
 
-from kornia_ilum.core.check import check_positive_int, check_same_device, check_tensor, checks_active
+from kornia_ilum.core.check import check_positive_int, check_same_device, check_tensor, checks_active, trusted
 from kornia_ilum.core.errors import (
     BaseError,
     EmptyTensorError,
@@ -20,6 +20,7 @@ __all__ = [
     "check_same_device",
     "check_positive_int",
     "checks_active",
+    "trusted",
     "BaseError",
     "EmptyTensorError",
     "HDRIOError",

@@ -8,8 +8,10 @@ message names the argument and the expected shape. It honours Kornia's global sw
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import torch
@@ -17,12 +19,35 @@ from kornia.core.check import are_checks_enabled
 
 from kornia_ilum.core.errors import EmptyTensorError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
 
-__all__ = ["check_tensor", "check_same_device", "check_positive_int", "checks_active"]
+__all__ = ["check_tensor", "check_same_device", "check_positive_int", "checks_active", "trusted"]
+
+_TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_trusted", default=False)
 
 
 def checks_active() -> bool:
-    """Whether input checks run now (Kornia's global switch, and not while tracing)."""
-    return are_checks_enabled() and not torch.jit.is_scripting()
+    """Whether input checks run now (Kornia's global switch, not while tracing, not inside :func:`trusted`)."""
+    return are_checks_enabled() and not _TRUSTED.get() and not torch.jit.is_scripting()
+
+
+@contextlib.contextmanager
+def trusted() -> Iterator[None]:
+    """Skip the input checks inside the block, in this thread (or asyncio task) only.
+
+    For pipelines that validate their inputs once where they enter and then call public functions many
+    times on data they made themselves (:class:`~kornia_ilum.synth.lightstage.PortraitDataset`): a check scans
+    every value of a tensor, which is a large part of the cost of cheap operations on large images.
+
+    Examples:
+        >>> with trusted():
+        ...     check_tensor(torch.tensor([float("nan")]), "x")  # not checked
+        >>> checks_active()
+        True
+    """
+    token = _TRUSTED.set(True)
+    try:
+        yield
+    finally:
+        _TRUSTED.reset(token)
 
 
 def _fmt(shape: Sequence[str]) -> str:

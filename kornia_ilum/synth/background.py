@@ -35,6 +35,8 @@ __all__ = [
     "RenderBackground",
     "camera_rays",
     "camera_rotation",
+    "latlong_grid",
+    "lookup_latlong",
     "render_background",
     "sample_latlong",
 ]
@@ -111,12 +113,38 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
     if maps.shape[-1] != 2 * h:
         raise ShapeError(f"latlong must have shape ({'B, ' if batched else ''}C, H, 2H), got {tuple(latlong.shape)}")
     shape = dirs.shape[1:-1]
-    phi, el = direction_to_latlong(dirs.reshape(-1, 3).to(torch.float64))
-    px = angles_to_latlong_pixel(phi, el, h) + 1.0  # the source is padded by one pixel on every side
-    grid = torch.stack([2.0 * px[:, 0] / (2 * h + 1) - 1.0, 2.0 * px[:, 1] / (h + 1) - 1.0], -1)
-    grid = grid.reshape(dirs.shape[0], 1, -1, 2).to(device=latlong.device, dtype=latlong.dtype)
-    out = _resample_bilinear(maps, ("latlong", h), grid, None).reshape(b, c, *shape)
+    grid = latlong_grid(dirs.reshape(dirs.shape[0], 1, -1, 3), h).to(device=latlong.device, dtype=latlong.dtype)
+    out = lookup_latlong(maps, grid).reshape(b, c, *shape)
     return out if batched else out[0]
+
+
+def latlong_grid(directions: torch.Tensor, rows: int) -> torch.Tensor:
+    r"""The :func:`lookup_latlong` grid of directions in a lat-long map of ``rows`` rows (float64).
+
+    Compute it once for directions that many lookups share (a camera's rays): the trigonometry costs more than
+    the lookup.
+
+    Args:
+        directions: ``(..., 3)`` directions (normalised inside).
+        rows: the map's height ``H``.
+
+    Returns:
+        ``(..., 2)`` normalised ``grid_sample`` coordinates (``align_corners=True``) into the map padded by one
+        pixel on every side.
+    """
+    check_tensor(directions, "directions", ["*", "3"])
+    check_positive_int(rows, "rows")
+    phi, el = direction_to_latlong(directions.to(torch.float64))
+    px = angles_to_latlong_pixel(phi, el, rows) + 1.0  # the source is padded by one pixel on every side
+    return torch.stack([2.0 * px[..., 0] / (2 * rows + 1) - 1.0, 2.0 * px[..., 1] / (rows + 1) - 1.0], -1)
+
+
+def lookup_latlong(latlong: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
+    r"""Bilinear lookup of lat-long maps ``(B, C, H, 2H)`` at a :func:`latlong_grid` ``(B | 1, h, w, 2)``.
+
+    Returns ``(B, C, h, w)``; no value checks (:func:`sample_latlong` is the checked entry point).
+    """
+    return _resample_bilinear(latlong, ("latlong", latlong.shape[-2]), grid.to(latlong.dtype), None)
 
 
 def _check_size(size: object) -> tuple[int, int]:

@@ -10,9 +10,12 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from kornia_ilum.color import linear_to_srgb, quantize, srgb_to_linear
+from kornia_ilum.color import gamma_encode, linear_to_srgb, quantize, srgb_to_linear
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.render import render_spheres
+from kornia_ilum.synth.background import camera_rays, sample_latlong
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
 from kornia_ilum.synth.lightstage import (
     DEFAULT_VIEWS,
@@ -350,5 +353,26 @@ class TestImageOps:
     def test_frame_background(self) -> None:
         latlong = torch.zeros(1, 3, 32, 64)
         latlong[:, :, :16] = 1.0  # sky above the horizon
-        view = frame_background(latlong, Camera(60.0, 1.0, 0.0, 0.0), 16)
+        view = frame_background(latlong, Camera(60.0, 1.0, 0.0, 0.0, size=16))
         assert view[0, :, :6].min() > 0.99 and view[0, :, -6:].max() < 0.01
+
+    def test_frame_background_is_the_cameras_rays_looked_up(self) -> None:
+        latlong = torch.rand(2, 3, 16, 32)
+        camera = Camera(40.0, 1.0, 0.0, 0.0, size=12)
+        rays = camera_rays((12, 12), 40.0, torch.eye(3, dtype=torch.float64))
+        mirrored = rays * torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64)
+        view = frame_background(latlong, camera, torch.tensor([False, True]))
+        torch.testing.assert_close(view[0], sample_latlong(latlong[0], rays))
+        torch.testing.assert_close(view[1], sample_latlong(latlong[1], mirrored))
+        with pytest.raises(TypeCheckError, match="mirror"):
+            frame_background(latlong, camera, torch.tensor([True]))
+
+    def test_sphere_targets_are_the_rendered_spheres_encoded(self) -> None:
+        lighting = torch.rand(3, 3, 16, 16) * 4.0 * mirror_ball_valid(16)
+        targets = sphere_targets(lighting, (4, 16))
+        assert len(targets) == 6
+        for size in (4, 16):
+            for brdf, render in render_spheres(lighting, size=size).items():
+                torch.testing.assert_close(targets[f"{brdf}_{size}"], gamma_encode(soft_clip(render), 2.2))
+        with pytest.raises(ShapeError):
+            sphere_targets(torch.ones(1, 3, 12, 12))

@@ -1,0 +1,35 @@
+"""The shared input checks: Kornia's switch and the trusted block."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+import torch
+
+from kornia_ilum.core import NonFiniteError, check_tensor, checks_active, trusted
+
+
+def test_trusted_skips_checks_only_inside_the_block() -> None:
+    nan = torch.tensor([float("nan")])
+    with trusted():
+        assert not checks_active()
+        check_tensor(nan, "x")  # not scanned
+    assert checks_active()
+    with pytest.raises(NonFiniteError):
+        check_tensor(nan, "x")
+
+
+def test_trusted_is_undone_by_an_exception() -> None:
+    with pytest.raises(RuntimeError), trusted():
+        raise RuntimeError("boom")
+    assert checks_active()
+
+
+def test_trusted_is_local_to_its_thread() -> None:
+    seen = []
+    with trusted():
+        thread = threading.Thread(target=lambda: seen.append(checks_active()))
+        thread.start()
+        thread.join()
+    assert seen == [True]
