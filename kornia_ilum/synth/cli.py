@@ -23,15 +23,14 @@ bar), then writes ``contact_sheet.png``: portraits synthesised from the cache
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TypeVar
 
 import torch
 
 from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+from kornia_ilum.core.progress import progress
 
 __all__ = [
     "add_synth_environments_parser",
@@ -44,7 +43,6 @@ __all__ = [
     "write_portrait_sheet",
 ]
 
-T = TypeVar("T")
 
 _HELP = """\
 Sample N lighting environments (procedural skies and rooms, plus the real maps of --folder, augmented by
@@ -116,41 +114,6 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
     env.add_argument("--no-augment", action="store_true", help="no rotation, flip, exposure or white balance")
     env.set_defaults(func=run_synth_environments)
     return env
-
-
-class _Bar:
-    """A progress bar on stderr: tqdm when installed, else a ``desc: i/total`` counter (every 1 %)."""
-
-    def __init__(self, total: int, desc: str, unit: str) -> None:
-        self.total, self.desc, self.done, self.shown = total, desc, 0, -1
-        try:
-            from tqdm import tqdm
-        except ImportError:
-            self.tqdm = None
-        else:
-            self.tqdm = tqdm(total=total, desc=desc, file=sys.stderr, unit=unit)
-
-    def update(self, n: int = 1) -> None:
-        self.done += n
-        if self.tqdm is not None:
-            self.tqdm.update(n)
-        elif self.done == self.total or 100 * self.done // max(self.total, 1) > self.shown:
-            self.shown = 100 * self.done // max(self.total, 1)
-            end = "\n" if self.done == self.total else ""
-            print(f"\r{self.desc}: {self.done}/{self.total}", end=end, file=sys.stderr, flush=True)
-
-    def close(self) -> None:
-        if self.tqdm is not None:
-            self.tqdm.close()
-
-
-def _progress(items: Iterable[T], total: int, desc: str, unit: str = "env") -> Iterator[T]:
-    """Iterate ``items`` with a :class:`_Bar`."""
-    bar = _Bar(total, desc, unit)
-    for item in items:
-        yield item
-        bar.update()
-    bar.close()
 
 
 def tone_map_tile(mirror_ball: torch.Tensor) -> torch.Tensor:
@@ -282,7 +245,7 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     augment = None if getattr(args, "no_augment", False) else Augment()
     sampler = EnvironmentSampler(sources, augment=augment, seed=args.seed)
     t0 = time.perf_counter()
-    envs = [sampler.sample(i) for i in _progress(range(args.n), args.n, "sampling environments")]
+    envs = [sampler.sample(i) for i in progress(range(args.n), args.n, "sampling environments", "env")]
     seconds = time.perf_counter() - t0
     folders = [s for s in sources if isinstance(s, HDRFolderSource)]
     real = [s.environment(i) for s in folders for i in range(len(s))]

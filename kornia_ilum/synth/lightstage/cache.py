@@ -326,9 +326,9 @@ def build_cache(
     subject, subject_seed = None, None
     bar = None
     if progress and todo:
-        from kornia_ilum.synth.cli import _Bar
+        from kornia_ilum.core.progress import ProgressBar
 
-        bar = _Bar(len(todo) * int(mirror_ball_valid(lighting_size).sum()), "OLAT renders", "light")
+        bar = ProgressBar(len(todo) * int(mirror_ball_valid(lighting_size).sum()), "OLAT renders", "light")
     for seed, view in todo:
         if subject_seed != seed:
             subject, subject_seed = make_subject(seed), seed

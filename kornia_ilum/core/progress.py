@@ -1,0 +1,52 @@
+"""A progress bar on stderr for long commands: tqdm when it is installed, else a plain counter."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
+
+__all__ = ["ProgressBar", "progress"]
+
+T = TypeVar("T")
+
+
+class ProgressBar:
+    """A progress bar on stderr: tqdm when installed, else a ``desc: i/total`` counter (every 1 %).
+
+    Examples:
+        >>> bar = ProgressBar(2, "renders", "light")
+        >>> bar.update(2)
+        >>> bar.close()
+    """
+
+    def __init__(self, total: int, desc: str, unit: str) -> None:
+        self.total, self.desc, self.done, self.shown = total, desc, 0, -1
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            self.tqdm = None
+        else:
+            self.tqdm = tqdm(total=total, desc=desc, file=sys.stderr, unit=unit)
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        if self.tqdm is not None:
+            self.tqdm.update(n)
+        elif self.done == self.total or 100 * self.done // max(self.total, 1) > self.shown:
+            self.shown = 100 * self.done // max(self.total, 1)
+            end = "\n" if self.done == self.total else ""
+            print(f"\r{self.desc}: {self.done}/{self.total}", end=end, file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.tqdm is not None:
+            self.tqdm.close()
+
+
+def progress(items: Iterable[T], total: int, desc: str, unit: str = "item") -> Iterator[T]:
+    """Iterate ``items`` with a :class:`ProgressBar` of ``total`` steps."""
+    bar = ProgressBar(total, desc, unit)
+    for item in items:
+        yield item
+        bar.update()
+    bar.close()
