@@ -26,7 +26,9 @@ _TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_tru
 
 def checks_active() -> bool:
     """Whether input checks run now (Kornia's global switch, not while tracing, not inside :func:`trusted`)."""
-    return are_checks_enabled() and not _TRUSTED.get() and not torch.jit.is_scripting()
+    if not are_checks_enabled() or torch.jit.is_scripting():
+        return False
+    return torch.compiler.is_compiling() or not _TRUSTED.get()  # Dynamo cannot trace a ContextVar
 
 
 @contextlib.contextmanager
@@ -35,7 +37,8 @@ def trusted() -> Iterator[None]:
 
     For pipelines that validate their inputs once where they enter and then call public functions many
     times on data they made themselves (:class:`~kornia_ilum.synth.lightstage.PortraitDataset`): a check scans
-    every value of a tensor, which is a large part of the cost of cheap operations on large images.
+    every value of a tensor, which is a large part of the cost of cheap operations on large images. Code that
+    :func:`torch.compile` traces ignores it (compiled checks never scan values).
 
     Examples:
         >>> with trusted():
