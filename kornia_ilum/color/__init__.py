@@ -1,4 +1,4 @@
-"""Colour transfer functions: exact sRGB, gamma 2.2 with a finite slope at 0, and quantisation."""
+"""Colour transfer functions: exact sRGB, gamma 2.2 with a finite slope at 0, quantisation and 8-bit sRGB codes."""
 
 from kornia_ilum.color.transfer import (
     GAMMA_KNEE,
@@ -6,6 +6,7 @@ from kornia_ilum.color.transfer import (
     LinearToSrgb,
     Quantize,
     SrgbToLinear,
+    encode_srgb8,
     gamma_decode,
     gamma_encode,
     linear_to_srgb,
@@ -19,6 +20,7 @@ __all__ = [
     "LinearToSrgb",
     "Quantize",
     "SrgbToLinear",
+    "encode_srgb8",
     "gamma_decode",
     "gamma_encode",
     "linear_to_srgb",

@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kornia_ilum.color import linear_to_srgb, quantize
+from kornia_ilum.color import encode_srgb8
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import angles_to_latlong_pixel, direction_to_latlong
@@ -211,7 +211,7 @@ def render_background(
 
     Each pixel averages 2 x 2 rays (supersampling against aliasing), each a bilinear lookup of the map
     (:func:`sample_latlong`). The linear image is multiplied by the exposure, clipped to ``[0, 1]``,
-    encoded with the exact sRGB curve (:func:`kornia_ilum.color.linear_to_srgb`) and quantised to 8 bits.
+    encoded with the sRGB curve and quantised to 8 bits (:func:`kornia_ilum.color.encode_srgb8`).
 
     Args:
         latlong: linear HDR lat-long environment, non-negative.
@@ -264,8 +264,7 @@ def render_background(
         gain = 0.18 / ref if ref > 0 else torch.ones((), dtype=linear.dtype, device=linear.device)
     else:
         gain = float(exposure)
-    encoded = quantize(linear_to_srgb((linear * gain).clamp(0.0, 1.0)), 8)
-    return torch.round(encoded * 255.0).to(torch.uint8)
+    return encode_srgb8(linear.float().mul_(gain), inplace=True)
 
 
 class RenderBackground(nn.Module):

@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kornia_ilum.color import (
+    encode_srgb8,
     GAMMA_KNEE,
     GammaEncode,
     LinearToSrgb,
@@ -276,3 +277,33 @@ class TestQuantize:
         torch.testing.assert_close(torch.compile(quantize)(x), quantize(x))
         module = Quantize(6, straight_through=True)
         torch.testing.assert_close(torch.compile(module)(x), module(x))
+
+
+class TestEncodeSrgb8:
+    def test_matches_srgb_and_quantize(self):
+        x = torch.rand(2, 3, 64, 64) ** 2.2 * 1.3
+        ours = encode_srgb8(x).int()
+        reference = torch.round(quantize(linear_to_srgb(x.clamp(0, 1)), 8) * 255).int()
+        assert (ours - reference).abs().max() <= 1 and (ours != reference).float().mean() < 0.005
+        assert encode_srgb8(x).dtype == torch.uint8 and encode_srgb8(x.double()).shape == x.shape
+
+    def test_every_code_boundary(self):
+        codes = torch.arange(256, dtype=torch.float64) / 255
+        linear = srgb_to_linear(codes.reshape(1, 1, 1, -1).expand(1, 3, 1, -1))[0, 0, 0]
+        assert torch.equal(encode_srgb8(linear).long(), torch.arange(256))  # each code's own value
+        assert encode_srgb8(torch.tensor([-1.0, 0.0, 1.0, 9.0])).tolist() == [0, 0, 255, 255]
+
+    def test_inplace_overwrites_only_when_asked(self):
+        x = torch.rand(3, 8, 8)
+        before = x.clone()
+        codes = encode_srgb8(x)
+        assert torch.equal(x, before)
+        assert torch.equal(encode_srgb8(x, inplace=True), codes) and not torch.equal(x, before)
+        with pytest.raises(ValueCheckError, match="inplace"):
+            encode_srgb8(torch.rand(3, 8, 8, dtype=torch.float64), inplace=True)
+
+    def test_errors(self):
+        with pytest.raises(NonFiniteError):
+            encode_srgb8(torch.tensor([float("nan")]))
+        with pytest.raises(TypeCheckError):
+            encode_srgb8(torch.tensor([1, 2]))

@@ -15,7 +15,7 @@ A training portrait is made the way LeGendre et al. 2020 made theirs from light-
 3. **Composite** over a background rendered from the same environment, through the same camera: the frame's
    rays looked up in the lat-long map (:func:`frame_background`) and cropped with the same sampling grid as
    the subject, ``I + (1 - alpha) B``.
-4. **Expose, clip and encode to 8-bit sRGB** (:func:`auto_exposure`, :func:`encode_ldr`): a centre-weighted
+4. **Expose, clip and encode to 8-bit sRGB** (:func:`auto_exposure`, :func:`~kornia_ilum.color.encode_srgb8`): a centre-weighted
    auto-exposure (a camera's metering) with a random key, optional sensor noise, then the HDR is discarded.
    The ground-truth lighting is multiplied by the same exposure, so it is in the units of the image
    (SPEC.md, "Units of lighting"): a white Lambertian surface rendered with it gives the recorded pixel values.
@@ -47,7 +47,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import IterableDataset, get_worker_info
 
-from kornia_ilum.color import gamma_encode, linear_to_srgb, quantize
+from kornia_ilum.color import encode_srgb8, gamma_encode
 from kornia_ilum.core.check import check_positive_int, check_tensor, trusted
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE
@@ -72,7 +72,6 @@ __all__ = [
     "auto_exposure",
     "crop_images",
     "detector_boxes",
-    "encode_ldr",
     "face_crop_boxes",
     "frame_background",
     "load_fields",
@@ -431,55 +430,6 @@ def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18) -> tor
     return torch.where(mean > 0, key / mean.clamp(min=1e-30), torch.ones_like(mean))
 
 
-def encode_ldr(linear: torch.Tensor, noise: torch.Tensor | None = None) -> torch.Tensor:
-    r"""Clip to ``[0, 1]``, encode with the sRGB curve and quantise to 8 bits, optionally with noise first.
-
-    Args:
-        linear: ``(B, 3, H, W)`` exposed linear images.
-        noise: ``(B, 3, H, W)`` sensor noise added to ``linear`` before the clip (linear units), or ``None``.
-
-    Returns:
-        ``(B, 3, H, W)`` ``torch.uint8`` sRGB codes (divide by 255 for the ``[0, 1]`` input of the estimators).
-
-    Convention:
-        The codes of :func:`~kornia_ilum.color.linear_to_srgb` then :func:`~kornia_ilum.color.quantize`
-        (8 bits), read from a table of 65536 cells evenly spaced in ``sqrt(x)``: 7 times faster (2.4 against
-        18 ms for 8 images of 3 x 256 x 256 on one core). A value within a cell that straddles a code boundary
-        may land on the neighbouring code: 0.1 % of the values of random images, never more than one code off.
-
-    Examples:
-        >>> encode_ldr(torch.tensor([0.0, 0.2140, 1.0, 7.0]).reshape(1, 1, 1, 4).expand(1, 3, 1, 4))[0, 0]
-        tensor([[  0, 127, 255, 255]], dtype=torch.uint8)
-    """
-    check_tensor(linear, "linear", ["B", "3", "H", "W"], finite=True)
-    if noise is not None:
-        check_tensor(noise, "noise", [str(s) for s in linear.shape], finite=True)
-        return _encode(linear.float() + noise)
-    return _encode(linear.float().clone())
-
-
-_LUT_SIZE = 1 << 16
-
-
-@functools.cache
-def _srgb_codes() -> torch.Tensor:
-    """uint8 sRGB codes of ``x = ((i + 0.5) / _LUT_SIZE)^2``: cell ``i`` of ``sqrt(x)``, read by truncation."""
-    x = ((torch.arange(_LUT_SIZE, dtype=torch.float64) + 0.5) / _LUT_SIZE) ** 2
-    encoded = quantize(linear_to_srgb(x.reshape(1, 1, 1, -1).expand(1, 3, 1, -1)), 8)[0, 0, 0]
-    return torch.round(encoded * 255.0).to(torch.uint8).contiguous()
-
-
-def _encode(linear: torch.Tensor) -> torch.Tensor:
-    """``encode_ldr(linear)``, overwriting ``linear`` (float32)."""
-    return _encode_scaled(linear.mul_(float(_LUT_SIZE) ** 2))
-
-
-def _encode_scaled(x: torch.Tensor) -> torch.Tensor:
-    """``encode_ldr(x / L^2)``, overwriting ``x`` (float32): ``sqrt(x)`` is the table index."""
-    x = x.clamp_(0.0, (_LUT_SIZE - 0.5) ** 2)  # float32 rounds 2^32 - 1 up to 2^32
-    return _srgb_codes().index_select(0, x.sqrt_().to(torch.int32).flatten()).view(x.shape)
-
-
 def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 32)) -> dict[str, torch.Tensor]:
     r"""The reference spheres as the loss sees them: ``softclip(render)^(1/2.2)`` at each size.
 
@@ -820,8 +770,7 @@ class PortraitDataset(IterableDataset):
         linear = _crop(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)
-        # exposure, noise and the encoding's scale in one pass: _encode_scaled(L^2 (gain x + noise))
-        linear.mul_((gain * _LUT_SIZE**2)[:, None, None, None].to(linear))
-        self._add_noise(linear, sigma * _LUT_SIZE**2, g)
-        image = _encode_scaled(linear)
+        linear.mul_(gain[:, None, None, None].to(linear))
+        self._add_noise(linear, sigma, g)
+        image = encode_srgb8(linear, inplace=True)
         return image, lighting * gain[:, None, None, None].to(lighting), gain.float()
