@@ -8,12 +8,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kornia_ilum.color import (
-    encode_srgb8,
     GAMMA_KNEE,
     GammaEncode,
     LinearToSrgb,
     Quantize,
     SrgbToLinear,
+    encode_srgb8,
     gamma_decode,
     gamma_encode,
     linear_to_srgb,

@@ -10,7 +10,7 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from kornia_ilum.color import gamma_encode, linear_to_srgb, quantize, srgb_to_linear
+from kornia_ilum.color import gamma_encode, srgb_to_linear
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
