@@ -24,7 +24,7 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.check import check_choice, check_tensor, checks_active
 from kornia_ilum.core.errors import NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, create_detector, crop_faces, square_crop_boxes
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, create_estimator
@@ -258,8 +258,7 @@ def estimate_lighting(
         >>> (light.mirror_ball >= 0).all().item()
         True
     """
-    if faces not in _FACES:
-        raise ValueCheckError(f"faces must be one of {_FACES}, got {faces!r}")
+    check_choice(faces, "faces", _FACES)
     if fallback not in _FALLBACKS:
         raise ValueCheckError(f"fallback must be None or 'full_image', got {fallback!r}")
     if not isinstance(bgr, bool):

@@ -1,6 +1,13 @@
 """Input checks and typed errors shared by every kornia_ilum entry point."""
 
-from kornia_ilum.core.check import check_positive_int, check_same_device, check_tensor, checks_active, trusted
+from kornia_ilum.core.check import (
+    check_choice,
+    check_positive_int,
+    check_same_device,
+    check_tensor,
+    checks_active,
+    trusted,
+)
 from kornia_ilum.core.errors import (
     BaseError,
     EmptyTensorError,
@@ -16,6 +23,7 @@ from kornia_ilum.core.errors import (
 )
 
 __all__ = [
+    "check_choice",
     "check_tensor",
     "check_same_device",
     "check_positive_int",

@@ -19,7 +19,7 @@ from kornia.core.check import are_checks_enabled
 
 from kornia_ilum.core.errors import EmptyTensorError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
 
-__all__ = ["check_tensor", "check_same_device", "check_positive_int", "checks_active", "trusted"]
+__all__ = ["check_choice", "check_positive_int", "check_same_device", "check_tensor", "checks_active", "trusted"]
 
 _TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_trusted", default=False)
 
@@ -151,3 +151,20 @@ def check_positive_int(value: Any, name: str, allowed: Sequence[int] | None = No
         raise ValueCheckError(f"{name} must be positive, got {value}")
     if allowed is not None and value not in allowed:
         raise ValueCheckError(f"{name} must be one of {tuple(allowed)}, got {value}")
+
+
+def check_choice(value: Any, name: str, choices: Sequence[str | int]) -> None:
+    """Require ``value`` to be one of ``choices`` (strings or ints; a bool is no int here).
+
+    Raises:
+        ValueCheckError: ``value`` is not one of ``choices``; the message lists them.
+
+    Examples:
+        >>> check_choice("mean", "reduction", ("mean", "sum", "none"))
+        >>> check_choice("avg", "reduction", ("mean", "sum", "none"))
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: reduction must be one of ('mean', 'sum', 'none'), got 'avg'
+    """
+    if isinstance(value, bool) or not isinstance(value, (str, int)) or value not in tuple(choices):
+        raise ValueCheckError(f"{name} must be one of {tuple(choices)}, got {value!r}")

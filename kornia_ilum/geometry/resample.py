@@ -75,8 +75,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kornia_ilum.core.check import check_positive_int, check_tensor, checks_active
-from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
+from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.geometry.latlong import (
     angles_to_latlong_pixel,
     direction_to_latlong,
@@ -394,13 +394,11 @@ def _resample_bilinear(
 
 
 def _check_layout(layout: str) -> None:
-    if layout not in _LAYOUTS:
-        raise ValueCheckError(f"layout must be one of {_LAYOUTS}, got {layout!r}")
+    check_choice(layout, "layout", _LAYOUTS)
 
 
 def _check_mode(mode: str) -> None:
-    if mode not in _MODES:
-        raise ValueCheckError(f"mode must be one of {_MODES}, got {mode!r}")
+    check_choice(mode, "mode", _MODES)
 
 
 def _check_lighting(x: torch.Tensor, name: str, layout: str) -> None:

@@ -8,7 +8,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.color.transfer import gamma_encode
-from kornia_ilum.core.check import check_positive_int, check_tensor, checks_active
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.filters.soft_clip import soft_clip
 from kornia_ilum.geometry.mirror_ball import (
@@ -50,8 +50,7 @@ def _check_pair(pred: torch.Tensor, target: torch.Tensor) -> int:
 
 
 def _check_reduction(reduction: str) -> None:
-    if reduction not in _REDUCTIONS:
-        raise ValueCheckError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}")
+    check_choice(reduction, "reduction", _REDUCTIONS)
 
 
 def _reduce(x: torch.Tensor, reduction: str) -> torch.Tensor:

@@ -23,7 +23,7 @@ from functools import lru_cache
 import torch
 from torch import nn
 
-from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_pixel_index,
@@ -65,8 +65,7 @@ _CHUNK = 8  # sphere pixels per chunk: float64 temporaries of _CHUNK * 51k sampl
 
 
 def _check_brdf(brdf: str, name: str = "brdf") -> None:
-    if brdf not in BRDFS:
-        raise ValueCheckError(f"{name} must be one of {BRDFS}, got {brdf!r}")
+    check_choice(brdf, name, BRDFS)
 
 
 def _grid_lookup(uv: torch.Tensor, n: int) -> torch.Tensor:

@@ -65,7 +65,7 @@ from functools import lru_cache
 import torch
 from torch import nn
 
-from kornia_ilum.core.check import check_positive_int, check_same_device, check_tensor
+from kornia_ilum.core.check import check_choice, check_positive_int, check_same_device, check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.latlong import latlong_directions, latlong_solid_angles
 from kornia_ilum.geometry.mirror_ball import mirror_ball_directions, mirror_ball_solid_angles
@@ -113,8 +113,7 @@ def _work_dtype(dtype: torch.dtype) -> torch.dtype:
 
 
 def _check_layout(layout: str) -> None:
-    if layout not in LAYOUTS:
-        raise ValueCheckError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    check_choice(layout, "layout", LAYOUTS)
 
 
 def sh_basis(directions: torch.Tensor) -> torch.Tensor:

@@ -96,7 +96,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.color.transfer import gamma_decode
-from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.check import check_choice, check_tensor, checks_active
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import mirror_ball_valid
 from kornia_ilum.render.spheres import MIRROR_REFLECTIVITY, SPHERE_SIZES, _shared_field
@@ -192,10 +192,8 @@ def _check_params(lam: float, gamma: float, clip_threshold: float, method: str, 
         raise ValueCheckError(f"gamma must be positive and finite, got {gamma}")
     if not 0 < clip_threshold <= 1:
         raise ValueCheckError(f"clip_threshold must be in (0, 1], got {clip_threshold}")
-    if method not in _METHODS:
-        raise ValueCheckError(f"method must be one of {_METHODS}, got {method!r}")
-    if balance not in _BALANCES:
-        raise ValueCheckError(f"balance must be one of {_BALANCES}, got {balance!r}")
+    check_choice(method, "method", _METHODS)
+    check_choice(balance, "balance", _BALANCES)
 
 
 @dataclass
@@ -587,8 +585,7 @@ class PromoteSpheres(nn.Module):
         super().__init__()
         if isinstance(size, bool) or not isinstance(size, int):
             raise TypeCheckError(f"size must be an int, got {type(size).__name__}")
-        if size not in SPHERE_SIZES:
-            raise ValueCheckError(f"size must be one of {SPHERE_SIZES}, got {size}")
+        check_choice(size, "size", SPHERE_SIZES)
         _check_params(lam, gamma, clip_threshold, method, balance)
         self.size, self.lam, self.gamma, self.clip_threshold = (
             size,

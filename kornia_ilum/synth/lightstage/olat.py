@@ -76,7 +76,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_pixel_index, mirror_ball_valid
 from kornia_ilum.synth.background import camera_rotation
@@ -394,8 +394,7 @@ def select_mitsuba_variant(variant: str | None = None) -> str:
         variant = next((v for v in MITSUBA_VARIANTS if _variant_works(v)), None)
         if variant is None:
             raise ValueCheckError(f"no Mitsuba variant of {MITSUBA_VARIANTS} works here; have {mi.variants()}")
-    if not isinstance(variant, str) or variant not in mi.variants():
-        raise ValueCheckError(f"variant must be one of {mi.variants()}, got {variant!r}")
+    check_choice(variant, "variant", mi.variants())
     if mi.variant() != variant:
         mi.set_variant(variant)
     return variant
@@ -425,8 +424,7 @@ def material_bsdf(material: Material) -> dict[str, Any]:
         'diffuse'
     """
     kind = getattr(material, "kind", None)
-    if kind not in MATERIAL_KINDS:
-        raise ValueCheckError(f"material.kind must be one of {MATERIAL_KINDS}, got {kind!r}")
+    check_choice(kind, "material.kind", MATERIAL_KINDS)
     alpha = float(getattr(material, "roughness", 0.5))
     specular = float(getattr(material, "specular", 0.5))
     if not 0.0 <= alpha <= 1.0:

@@ -48,7 +48,7 @@ import torch.nn.functional as F
 from torch.utils.data import IterableDataset, get_worker_info
 
 from kornia_ilum.color import encode_srgb8, gamma_encode
-from kornia_ilum.core.check import check_positive_int, check_tensor, trusted
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, trusted
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.filters import soft_clip
@@ -511,11 +511,6 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
     return fields
 
 
-def _check_choice(value: str, name: str, choices: tuple[str, ...]) -> None:
-    if value not in choices:
-        raise ValueCheckError(f"{name} must be one of {choices}, got {value!r}")
-
-
 class PortraitDataset(IterableDataset):
     r"""Training portraits synthesised on the fly from cached reflectance fields (module docstring).
 
@@ -599,8 +594,8 @@ class PortraitDataset(IterableDataset):
         self.environments = EnvironmentSampler(seed=seed) if environments is None else environments
         if isinstance(seed, bool) or not isinstance(seed, int):
             raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
-        _check_choice(background, "background", ("environment", "black"))
-        _check_choice(crop, "crop", ("face", "random"))
+        check_choice(background, "background", ("environment", "black"))
+        check_choice(crop, "crop", ("face", "random"))
         for name in ("size", "fields_per_chunk", "lightings_per_field", "env_pool", "env_refresh"):
             check_positive_int(locals()[name], name)
         check_positive_int(shuffle, "shuffle")
