@@ -61,3 +61,18 @@ def assert_close_dtype(actual: torch.Tensor, expected: torch.Tensor, dtype: torc
     torch.testing.assert_close(
         actual.to(torch.float64), expected.to(torch.float64), atol=tol["atol"] * scale, rtol=tol["rtol"] * scale
     )
+
+
+def hdr_lighting(
+    b: int = 2, s: int = 32, seed: int = 0, dtype=torch.float32, coloured: bool = False
+) -> torch.Tensor:
+    """HDR-like mirror-ball lighting: a dim floor plus one bright light per item (white, or of a random colour
+    with ``coloured``), zero off the ball."""
+    from kornia_ilum.geometry import mirror_ball_valid
+
+    g = torch.Generator().manual_seed(seed)
+    x = 0.3 * torch.rand(b, 3, s, s, generator=g, dtype=torch.float64)
+    for i in range(b):
+        r, c = torch.randint(s // 4, 3 * s // 4, (2,), generator=g).tolist()
+        x[i, :, r, c] += 30.0 * (torch.rand(3, generator=g, dtype=torch.float64) if coloured else 1.0)
+    return (x * mirror_ball_valid(s)).to(dtype)

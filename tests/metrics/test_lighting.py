@@ -20,19 +20,9 @@ from kornia_ilum.metrics import (
     relative_radiance,
 )
 from kornia_ilum.render import BRDFS, render_spheres
-from tests.conftest import assert_close_dtype
+from tests.conftest import assert_close_dtype, hdr_lighting
 
 F64 = torch.float64
-
-
-def _lighting(b: int = 2, s: int = 32, seed: int = 0, dtype=torch.float32) -> torch.Tensor:
-    """HDR-like mirror-ball lighting: a dim floor plus one bright light per item, zero off the ball."""
-    g = torch.Generator().manual_seed(seed)
-    x = 0.3 * torch.rand(b, 3, s, s, generator=g, dtype=F64)
-    for i in range(b):
-        r, c = torch.randint(s // 4, 3 * s // 4, (2,), generator=g).tolist()
-        x[i, :, r, c] += 30.0
-    return (x * mirror_ball_valid(s)).to(dtype)
 
 
 def _l_rec_reference(pred, target, brdf, size):
@@ -45,7 +35,7 @@ def _l_rec_reference(pred, target, brdf, size):
 
 class TestReconstructionLoss:
     def test_smoke(self, device, dtype):
-        pred, target = _lighting(seed=1, dtype=dtype).to(device), _lighting(seed=2, dtype=dtype).to(device)
+        pred, target = hdr_lighting(seed=1, dtype=dtype).to(device), hdr_lighting(seed=2, dtype=dtype).to(device)
         loss = reconstruction_loss(pred, target, "diffuse")
         assert loss.shape == () and loss.dtype == dtype and loss.device == pred.device
         assert loss.item() > 0
@@ -53,7 +43,7 @@ class TestReconstructionLoss:
     @pytest.mark.parametrize("brdf", BRDFS)
     @pytest.mark.parametrize("size", [4, 16, 32])
     def test_cardinality(self, brdf, size):
-        pred, target = _lighting(3, seed=1, dtype=F64), _lighting(3, seed=2, dtype=F64)
+        pred, target = hdr_lighting(3, seed=1, dtype=F64), hdr_lighting(3, seed=2, dtype=F64)
         per_item = reconstruction_loss(pred, target, brdf, size, reduction="none")
         assert per_item.shape == (3,)
         torch.testing.assert_close(per_item, _l_rec_reference(pred, target, brdf, size))
@@ -61,11 +51,11 @@ class TestReconstructionLoss:
         torch.testing.assert_close(reconstruction_loss(pred, target, brdf, size, "sum"), per_item.sum())
 
     def test_other_lighting_sizes(self):
-        pred, target = _lighting(s=16, seed=1), _lighting(s=16, seed=2)
+        pred, target = hdr_lighting(s=16, seed=1), hdr_lighting(s=16, seed=2)
         assert reconstruction_loss(pred, target, "mirror", 8).item() > 0
 
     def test_exception(self):
-        pred = _lighting()
+        pred = hdr_lighting()
         with pytest.raises(ShapeError, match=r"pred and target must have the same shape"):
             reconstruction_loss(pred, pred[:1], "diffuse")
         with pytest.raises(ShapeError, match=r"target must have shape \(B, 3, S, S\)"):
@@ -84,26 +74,26 @@ class TestReconstructionLoss:
             ReconstructionLoss("diffuse")(pred[..., :16, :16], pred[..., :16, :16])
 
     def test_gradcheck(self):
-        pred = (_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
-        target = _lighting(1, s=4, seed=2, dtype=F64)
+        pred = (hdr_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
+        target = hdr_lighting(1, s=4, seed=2, dtype=F64)
         for brdf in BRDFS:
             assert torch.autograd.gradcheck(lambda p, b=brdf: reconstruction_loss(p, target, b, 4), (pred,))
 
     def test_finite_gradient_on_black(self):
         pred = torch.zeros(1, 3, 32, 32, requires_grad=True)
-        reconstruction_loss(pred, _lighting(1), "matte_silver").backward()
+        reconstruction_loss(pred, hdr_lighting(1), "matte_silver").backward()
         assert torch.isfinite(pred.grad).all() and pred.grad.abs().sum() > 0
 
     @pytest.mark.parametrize("brdf", BRDFS)
     def test_module_matches_functional(self, brdf):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         module = ReconstructionLoss(brdf, 16, reduction="none")
         torch.testing.assert_close(module(pred, target), reconstruction_loss(pred, target, brdf, 16, "none"))
         assert not module.state_dict()
 
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
-        pred, target = _lighting(seed=1, dtype=F64), _lighting(seed=2, dtype=F64)
+        pred, target = hdr_lighting(seed=1, dtype=F64), hdr_lighting(seed=2, dtype=F64)
         expected = reconstruction_loss(pred, target, "matte_silver", reduction="none")
         out = reconstruction_loss(pred.to(dt), target.to(dt), "matte_silver", reduction="none")
         assert out.dtype == dt
@@ -112,7 +102,7 @@ class TestReconstructionLoss:
         assert_close_dtype(module(pred.to(dt), target.to(dt)), expected, dt)
 
     def test_compile(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         compiled = torch.compile(reconstruction_loss)
         torch.testing.assert_close(
             compiled(pred, target, "diffuse", 8), reconstruction_loss(pred, target, "diffuse", 8)
@@ -120,13 +110,13 @@ class TestReconstructionLoss:
 
     @given(st.integers(0, 2**16), st.sampled_from(BRDFS), st.sampled_from([4, 8, 32]))
     def test_zero_for_identical_lightings(self, seed, brdf, size):
-        x = _lighting(2, seed=seed)
+        x = hdr_lighting(2, seed=seed)
         assert reconstruction_loss(x, x, brdf, size).item() == 0.0
 
     @given(st.integers(0, 2**16), st.sampled_from(BRDFS))
     def test_symmetric_and_bounded(self, seed, brdf):
         """|a - b| of values in [0, 1]: symmetric, in [0, 1]."""
-        a, b = _lighting(2, s=8, seed=seed, dtype=F64), _lighting(2, s=8, seed=seed + 1, dtype=F64)
+        a, b = hdr_lighting(2, s=8, seed=seed, dtype=F64), hdr_lighting(2, s=8, seed=seed + 1, dtype=F64)
         ab = reconstruction_loss(a, b, brdf, 8, "none")
         torch.testing.assert_close(ab, reconstruction_loss(b, a, brdf, 8, "none"))
         assert (ab >= 0).all() and (ab <= 1).all()
@@ -134,20 +124,20 @@ class TestReconstructionLoss:
 
 class TestMultiscaleReconstructionLoss:
     def test_smoke(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         loss = multiscale_reconstruction_loss(pred, target, "diffuse")
         assert loss.shape == () and loss.item() > 0
 
     @pytest.mark.parametrize("sizes", [(4, 8, 16, 32), (32,), (8, 64)])
     def test_cardinality(self, sizes):
-        pred, target = _lighting(3, seed=1, dtype=F64), _lighting(3, seed=2, dtype=F64)
+        pred, target = hdr_lighting(3, seed=1, dtype=F64), hdr_lighting(3, seed=2, dtype=F64)
         out = multiscale_reconstruction_loss(pred, target, "mirror", sizes, reduction="none")
         assert out.shape == (3,)
         per_scale = [reconstruction_loss(pred, target, "mirror", s, "none") for s in sizes]
         torch.testing.assert_close(out, torch.stack(per_scale).mean(0))
 
     def test_exception(self):
-        pred = _lighting()
+        pred = hdr_lighting()
         with pytest.raises(ValueCheckError, match="sizes must name at least one"):
             multiscale_reconstruction_loss(pred, pred, "diffuse", sizes=())
         with pytest.raises(ValueCheckError, match=r"sizes must be one of \(4, 8, 16, 32, 64\), got 5"):
@@ -156,13 +146,13 @@ class TestMultiscaleReconstructionLoss:
             MultiscaleReconstructionLoss("glass")
 
     def test_gradcheck(self):
-        pred = (_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
-        target = _lighting(1, s=4, seed=2, dtype=F64)
+        pred = (hdr_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
+        target = hdr_lighting(1, s=4, seed=2, dtype=F64)
         fn = lambda p: multiscale_reconstruction_loss(p, target, "matte_silver", (4, 8))
         assert torch.autograd.gradcheck(fn, (pred,))
 
     def test_module_matches_functional(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         module = MultiscaleReconstructionLoss("diffuse", (4, 16))
         torch.testing.assert_close(
             module(pred, target), multiscale_reconstruction_loss(pred, target, "diffuse", (4, 16))
@@ -170,34 +160,34 @@ class TestMultiscaleReconstructionLoss:
 
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
-        pred, target = _lighting(seed=1, dtype=F64), _lighting(seed=2, dtype=F64)
+        pred, target = hdr_lighting(seed=1, dtype=F64), hdr_lighting(seed=2, dtype=F64)
         expected = multiscale_reconstruction_loss(pred, target, "mirror", reduction="none")
         out = multiscale_reconstruction_loss(pred.to(dt), target.to(dt), "mirror", reduction="none")
         assert out.dtype == dt
         assert_close_dtype(out, expected, dt)
 
     def test_compile(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         compiled = torch.compile(MultiscaleReconstructionLoss("diffuse", (4, 8)))
         expected = multiscale_reconstruction_loss(pred, target, "diffuse", (4, 8))
         torch.testing.assert_close(compiled(pred, target), expected)
 
     @given(st.integers(0, 2**16))
     def test_zero_for_identical_lightings(self, seed):
-        x = _lighting(1, seed=seed)
+        x = hdr_lighting(1, seed=seed)
         assert multiscale_reconstruction_loss(x, x, "matte_silver").item() == 0.0
 
 
 class TestRelativeRadiance:
     def test_smoke(self, device, dtype):
-        target = _lighting(dtype=dtype).to(device)
+        target = hdr_lighting(dtype=dtype).to(device)
         out = relative_radiance(0.5 * target, target)
         assert out.shape == (2, 3) and out.dtype == dtype and out.device == target.device
         torch.testing.assert_close(out, torch.full_like(out, 0.5))
 
     @pytest.mark.parametrize("b, s", [(1, 4), (3, 16), (2, 32)])
     def test_cardinality(self, b, s):
-        pred, target = _lighting(b, s, seed=1, dtype=F64), _lighting(b, s, seed=2, dtype=F64)
+        pred, target = hdr_lighting(b, s, seed=1, dtype=F64), hdr_lighting(b, s, seed=2, dtype=F64)
         omega = mirror_ball_solid_angles(s, dtype=F64)
         sum_gt, sum_pred = (target * omega).sum((-2, -1)), (pred * omega).sum((-2, -1))
         torch.testing.assert_close(relative_radiance(pred, target), (sum_gt - sum_pred) / sum_gt)
@@ -213,7 +203,7 @@ class TestRelativeRadiance:
         torch.testing.assert_close(relative_radiance(pred, target), expected.expand(1, 3))
 
     def test_exception(self):
-        target = _lighting()
+        target = hdr_lighting()
         with pytest.raises(
             ValueCheckError, match="target must have a positive total radiance in every channel"
         ):
@@ -226,17 +216,17 @@ class TestRelativeRadiance:
             relative_radiance(target * float("nan"), target)
 
     def test_gradcheck(self):
-        pred = _lighting(1, 4, seed=1, dtype=F64).requires_grad_()
-        target = (_lighting(1, 4, seed=2, dtype=F64) + 0.1).requires_grad_()
+        pred = hdr_lighting(1, 4, seed=1, dtype=F64).requires_grad_()
+        target = (hdr_lighting(1, 4, seed=2, dtype=F64) + 0.1).requires_grad_()
         assert torch.autograd.gradcheck(relative_radiance, (pred, target))
 
     def test_module_matches_functional(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         torch.testing.assert_close(RelativeRadiance()(pred, target), relative_radiance(pred, target))
 
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
-        pred, target = _lighting(seed=1, dtype=F64), _lighting(seed=2, dtype=F64)
+        pred, target = hdr_lighting(seed=1, dtype=F64), hdr_lighting(seed=2, dtype=F64)
         out = relative_radiance(pred.to(dt), target.to(dt))
         assert out.dtype == dt
         assert_close_dtype(out, relative_radiance(pred, target), dt)
@@ -247,7 +237,7 @@ class TestRelativeRadiance:
         assert torch.isfinite(relative_radiance(sun.half(), sun.half())).all()
 
     def test_compile(self):
-        pred, target = _lighting(seed=1), _lighting(seed=2)
+        pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         torch.testing.assert_close(
             torch.compile(relative_radiance)(pred, target), relative_radiance(pred, target)
         )
@@ -255,7 +245,7 @@ class TestRelativeRadiance:
     @given(st.integers(0, 2**16), st.floats(0.0, 100.0, allow_nan=False))
     def test_scaling(self, seed, k):
         """x vs x is 0, k x vs x is 1 - k (2x gives -1: the estimate added light)."""
-        x = _lighting(2, 8, seed=seed, dtype=F64)
+        x = hdr_lighting(2, 8, seed=seed, dtype=F64)
         assert relative_radiance(x, x).abs().max().item() == 0.0
         torch.testing.assert_close(relative_radiance(k * x, x), torch.full((2, 3), 1.0 - k, dtype=F64))
         torch.testing.assert_close(relative_radiance(2 * x, x), torch.full((2, 3), -1.0, dtype=F64))

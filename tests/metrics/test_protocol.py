@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 import torch
@@ -19,18 +21,10 @@ from kornia_ilum.metrics import (
 )
 from kornia_ilum.metrics.protocol import _sphere_metrics
 from kornia_ilum.render import BRDFS, render_spheres
-from tests.conftest import assert_close_dtype
+from tests.conftest import assert_close_dtype, hdr_lighting
 
 F64 = torch.float64
-
-
-def _lighting(b: int = 2, s: int = 32, seed: int = 0, dtype=torch.float32) -> torch.Tensor:
-    g = torch.Generator().manual_seed(seed)
-    x = 0.3 * torch.rand(b, 3, s, s, generator=g, dtype=F64)
-    for i in range(b):
-        r, c = torch.randint(s // 4, 3 * s // 4, (2,), generator=g).tolist()
-        x[i, :, r, c] += 30.0 * torch.rand(3, generator=g, dtype=F64)
-    return (x * mirror_ball_valid(s)).to(dtype)
+_lighting = functools.partial(hdr_lighting, coloured=True)  # a bright light of a random colour
 
 
 # --- StyleLight's evaluation/fast_rmse.py and TonemapHDR, ported to NumPy unchanged in substance --------
