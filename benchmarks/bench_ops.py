@@ -9,6 +9,8 @@ Sections
     resample    lat-long 1024x512 -> 32x32 mirror ball (area) and back (bilinear), vs point sampling.
     sh          SH projection of a 32x32 mirror ball, vs a naive per-pixel loop in torch.
     spheres     rendering the three reference spheres from a batch of lightings, vs the naive einsum.
+    encode      8-bit sRGB codes of 8 images of 3x256x256 (encode_srgb8's table), vs linear_to_srgb and
+                quantize; and background frames looked up through a cached camera grid vs sample_latlong.
 
 This is a benchmark, not a test: it prints numbers and asserts nothing except the bandwidth target,
 which it reports as PASS/FAIL (exit code 1 on FAIL).
@@ -24,6 +26,7 @@ from collections.abc import Callable
 
 import torch
 
+from kornia_ilum.color import encode_srgb8, linear_to_srgb, quantize
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_latlong, mirror_ball_to_lights
 from kornia_ilum.render import Relight, relight, render_spheres, sphere_reflectance_field
 from kornia_ilum.sh import sh_basis, sh_project
@@ -183,6 +186,31 @@ def bench_spheres(quick: bool) -> None:
           f"{time.perf_counter() - t0:.2f} s")
 
 
+def bench_encode(quick: bool) -> None:
+    reps = 5 if quick else 20
+    print("\n[encode] 8-bit sRGB codes of 8 linear images 3x256x256")
+    x = torch.rand(8, 3, 256, 256) ** 2.2 * 1.2
+
+    def exact() -> torch.Tensor:
+        return torch.round(quantize(linear_to_srgb(x.clamp(0.0, 1.0)), 8) * 255.0).to(torch.uint8)
+
+    base = median_ms(exact, reps)
+    row("linear_to_srgb + quantize + round (baseline)", base, base)
+    row("encode_srgb8 (65536-cell table)", median_ms(lambda: encode_srgb8(x), reps), base)
+
+    from kornia_ilum.synth.background import camera_rays, sample_latlong
+    from kornia_ilum.synth.lightstage import Camera
+    from kornia_ilum.synth.lightstage.portraits import frame_background
+
+    print("[encode] background frames 192x192 of 16 lat-long maps 128x256 through a 30-degree camera")
+    maps = torch.rand(16, 3, 128, 256)
+    camera = Camera(30.0, 0.56, 0.0, 0.0, size=192)
+    rays = camera_rays((192, 192), 30.0, torch.eye(3, dtype=torch.float64))[None]
+    base = median_ms(lambda: sample_latlong(maps, rays), reps)
+    row("sample_latlong, rays converted per call (baseline)", base, base)
+    row("frame_background (cached camera grid)", median_ms(lambda: frame_background(maps, camera), reps), base)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes and fewer repeats")
@@ -194,6 +222,7 @@ def main() -> int:
     bench_resample(args.quick)
     bench_sh(args.quick)
     bench_spheres(args.quick)
+    bench_encode(args.quick)
     return 0 if ok else 1
 
 

@@ -15,8 +15,9 @@ A training portrait is made the way LeGendre et al. 2020 made theirs from light-
 3. **Composite** over a background rendered from the same environment, through the same camera: the frame's
    rays looked up in the lat-long map (:func:`frame_background`) and cropped with the same sampling grid as
    the subject, ``I + (1 - alpha) B``.
-4. **Expose, clip and encode to 8-bit sRGB** (:func:`auto_exposure`, :func:`~kornia_ilum.color.encode_srgb8`): a centre-weighted
-   auto-exposure (a camera's metering) with a random key, optional sensor noise, then the HDR is discarded.
+4. **Expose, clip and encode to 8-bit sRGB** (:func:`auto_exposure`, :func:`~kornia_ilum.color.encode_srgb8`):
+   a centre-weighted auto-exposure (a camera's metering) with a random key, optional sensor noise, then the HDR
+   is discarded.
    The ground-truth lighting is multiplied by the same exposure, so it is in the units of the image
    (SPEC.md, "Units of lighting"): a white Lambertian surface rendered with it gives the recorded pixel values.
 
@@ -458,6 +459,8 @@ def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 
             keys.append(f"{brdf}_{s}")
             masks.append(mirror_ball_valid(s, device=mirror_ball.device).flatten())
             parts.append(relight(field, lights, (1, field.shape[0]))[:, :, 0])
+    if not parts:
+        return {}
     encoded = gamma_encode(soft_clip(torch.cat(parts, -1)), 2.2)
     out, start = {}, 0
     for key, mask, part in zip(keys, masks, parts, strict=True):
@@ -667,7 +670,7 @@ class PortraitDataset(IterableDataset):
         latlongs = torch.empty(n, *envs[0].latlong.shape)
         for out, env, k in zip(latlongs, envs, shifts, strict=True):  # out = env.latlong.roll(k, dims=-1)
             x = env.latlong.float()
-            torch.cat([x[..., width - k :], x[..., : width - k]], -1, out=out)  # 15 times faster than index_select
+            torch.cat([x[..., width - k :], x[..., : width - k]], -1, out=out)  # two block copies
         return latlongs, envs
 
     def chunk(self, worker: int, index: int) -> list[dict[str, Any]]:
