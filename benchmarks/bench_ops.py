@@ -9,8 +9,9 @@ Sections
     resample    lat-long 1024x512 -> 32x32 mirror ball (area) and back (bilinear), vs point sampling.
     sh          SH projection of a 32x32 mirror ball, vs a naive per-pixel loop in torch.
     spheres     rendering the three reference spheres from a batch of lightings, vs the naive einsum.
-    encode      8-bit sRGB codes of 8 images of 3x256x256 (encode_srgb8's table), vs linear_to_srgb and
-                quantize; and background frames looked up through a cached camera grid vs sample_latlong.
+    images      the portrait dataset's image ops: 8-bit sRGB codes (encode_srgb8's table) vs
+                linear_to_srgb and quantize; background frames through a cached camera grid vs
+                sample_latlong; face crops (crop_images) vs kornia's crop_and_resize.
 
 This is a benchmark, not a test: it prints numbers and asserts nothing except the bandwidth target,
 which it reports as PASS/FAIL (exit code 1 on FAIL).
@@ -186,9 +187,9 @@ def bench_spheres(quick: bool) -> None:
           f"{time.perf_counter() - t0:.2f} s")
 
 
-def bench_encode(quick: bool) -> None:
+def bench_images(quick: bool) -> None:
     reps = 5 if quick else 20
-    print("\n[encode] 8-bit sRGB codes of 8 linear images 3x256x256")
+    print("\n[images] 8-bit sRGB codes of 8 linear images 3x256x256")
     x = torch.rand(8, 3, 256, 256) ** 2.2 * 1.2
 
     def exact() -> torch.Tensor:
@@ -202,13 +203,26 @@ def bench_encode(quick: bool) -> None:
     from kornia_ilum.synth.lightstage import Camera
     from kornia_ilum.synth.lightstage.portraits import frame_background
 
-    print("[encode] background frames 192x192 of 16 lat-long maps 128x256 through a 30-degree camera")
+    print("[images] background frames 192x192 of 16 lat-long maps 128x256 through a 30-degree camera")
     maps = torch.rand(16, 3, 128, 256)
     camera = Camera(30.0, 0.56, 0.0, 0.0, size=192)
     rays = camera_rays((192, 192), 30.0, torch.eye(3, dtype=torch.float64))[None]
     base = median_ms(lambda: sample_latlong(maps, rays), reps)
     row("sample_latlong, rays converted per call (baseline)", base, base)
     row("frame_background (cached camera grid)", median_ms(lambda: frame_background(maps, camera), reps), base)
+
+    from kornia.geometry.transform import crop_and_resize
+
+    from kornia_ilum.synth.lightstage.portraits import crop_images
+
+    print("[images] 8 square crops of 4 x 192 x 192 frames resized to 256 x 256")
+    frames = torch.rand(8, 4, 192, 192)
+    boxes = torch.tensor([[20.0 + k, 25.0, 180.0 + k, 185.0] for k in range(8)])
+    lo, hi = boxes[:, :2], boxes[:, 2:] - 1.0
+    corners = torch.stack([lo, torch.stack([hi[:, 0], lo[:, 1]], -1), hi, torch.stack([lo[:, 0], hi[:, 1]], -1)], 1)
+    base = median_ms(lambda: crop_and_resize(frames, corners, (256, 256)), reps)
+    row("kornia crop_and_resize (baseline)", base, base)
+    row("crop_images (separable grid + grid_sample)", median_ms(lambda: crop_images(frames, boxes, 256), reps), base)
 
 
 def main() -> int:
@@ -222,7 +236,7 @@ def main() -> int:
     bench_resample(args.quick)
     bench_sh(args.quick)
     bench_spheres(args.quick)
-    bench_encode(args.quick)
+    bench_images(args.quick)
     return 0 if ok else 1
 
 

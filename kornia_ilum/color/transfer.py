@@ -167,9 +167,9 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
         ``torch.uint8`` codes of the shape of ``linear`` (divide by 255 for ``[0, 1]``).
 
     Convention:
-        The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)``: 5.6 to 7 times faster
-        than :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section encode: 2.9
-        against 16 to 22 ms for 8 images of 3 x 256 x 256 on one core). A value within a cell that straddles
+        The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)``: 5.6 to 9 times faster
+        than :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section images: 2.8 to
+        3 ms against 16 to 25 ms for 8 images of 3 x 256 x 256 on one core). A value within a cell that straddles
         a code boundary may land on the neighbouring code: 0.1 % of the values of random images, never more
         than one code off.
 

@@ -305,10 +305,10 @@ def crop_images(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: to
 
     Convention:
         Bilinear, without antialiasing: meant for enlarging or mild shrinking (the light-stage crops of 130 to
-        190 pixels are enlarged to 256). One :func:`torch.nn.functional.affine_grid` and
+        190 pixels are enlarged to 256). One separable sampling grid and
         :func:`~torch.nn.functional.grid_sample`: the same result as
-        :func:`kornia.geometry.transform.crop_and_resize`, which builds a perspective warp and is 2 times
-        slower here (8.6 against 4.4 ms for 8 crops of 4 x 192 x 192 to 256 x 256 on one core).
+        :func:`kornia.geometry.transform.crop_and_resize`, which builds a perspective warp and is slower
+        (``benchmarks/bench_ops.py``, section images).
 
     Examples:
         >>> crop_images(torch.arange(16.0).reshape(1, 1, 4, 4), torch.tensor([[0.0, 0.0, 2.0, 2.0]]), 2)
