@@ -43,12 +43,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import torch
+from bench_ops import median_ms  # the same timer as the op benchmarks (this folder is on sys.path)
 from scipy.optimize import nnls
 
 from kornia_ilum.color import gamma_encode, quantize
@@ -189,16 +188,6 @@ def evaluate(truth: torch.Tensor, size: int, noise: float = 0.0) -> dict[str, li
             int(keep.sum()),
         ]
     return rows
-
-
-def median_ms(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
 
 
 def systems(truth: torch.Tensor, size: int):
