@@ -51,7 +51,7 @@ from torch.utils.data import IterableDataset, get_worker_info
 from kornia_ilum.color import encode_srgb8, gamma_encode
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, trusted
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
-from kornia_ilum.detection.crop import CROP_SCALE
+from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import (
     flip_lighting_horizontal,
@@ -184,9 +184,9 @@ def face_crop_boxes(
     """
     check_tensor(face_boxes, "face_boxes", ["B", "4"], finite=True)
     check_positive_int(size, "size")
-    boxes = face_boxes.double()
+    boxes = square_crop_boxes(face_boxes.double(), scale)  # the crop at inference
     b = boxes.shape[0]
-    side = scale * (boxes[:, 2] - boxes[:, 0])
+    side = boxes[:, 2] - boxes[:, 0]
     cx, cy = 0.5 * (boxes[:, 0] + boxes[:, 2]), 0.5 * (boxes[:, 1] + boxes[:, 3])
     if generator is not None:
         side = side * torch.exp(_uniform(b, -extent, extent, generator))
@@ -321,7 +321,9 @@ def crop_images(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: to
     if images.shape[0] not in (1, boxes.shape[0]):
         raise ShapeError(f"images must hold 1 or {boxes.shape[0]} images, got {images.shape[0]}")
     _check_mirror(mirror, len(boxes))
-    return _crop(images, boxes, size, mirror)
+    grid = _crop_grid(boxes, images.shape[-2:], size, mirror).to(images.dtype)
+    images = images.expand(len(boxes), -1, -1, -1)
+    return F.grid_sample(images, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
 
 
 def _check_mirror(mirror: object, n: int) -> None:
@@ -329,12 +331,6 @@ def _check_mirror(mirror: object, n: int) -> None:
         not isinstance(mirror, torch.Tensor) or mirror.dtype != torch.bool or mirror.shape != (n,)
     ):
         raise TypeCheckError(f"mirror must be a bool tensor of shape ({n},), got {mirror!r}")
-
-
-def _crop(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: torch.Tensor | None) -> torch.Tensor:
-    grid = _crop_grid(boxes, images.shape[-2:], size, mirror).to(images.dtype)
-    images = images.expand(len(boxes), -1, -1, -1)
-    return F.grid_sample(images, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
 
 
 def _crop_grid(boxes: torch.Tensor, hw: Sequence[int], size: int, mirror: torch.Tensor | None) -> torch.Tensor:
@@ -382,10 +378,6 @@ def frame_background(latlong: torch.Tensor, camera: Camera, mirror: torch.Tensor
     if not isinstance(camera, Camera):
         raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
     _check_mirror(mirror, len(latlong))
-    return _frame_background(latlong, camera, mirror)
-
-
-def _frame_background(latlong: torch.Tensor, camera: Camera, mirror: torch.Tensor | None) -> torch.Tensor:
     rows = latlong.shape[-2]
     grid = _frame_grid(float(camera.fov_deg), camera.size, rows, False)
     if mirror is not None and bool(mirror.any()):
@@ -675,7 +667,7 @@ class PortraitDataset(IterableDataset):
 
     def chunk(self, worker: int, index: int) -> list[dict[str, Any]]:
         """The samples of chunk ``index`` of ``worker``: a pure function of ``(seed, worker, index)``."""
-        with trusted():  # its inputs are the loaded fields and the sampler's checked environments
+        with trusted():  # no value scans: its inputs are the loaded fields and the sampler's checked environments
             return self._chunk(worker, index)
 
     def _chunk(self, worker: int, index: int) -> list[dict[str, Any]]:
@@ -758,14 +750,14 @@ class PortraitDataset(IterableDataset):
         source_boxes = boxes.clone()
         source_boxes[flip, 0], source_boxes[flip, 2] = rf.size - boxes[flip, 2], rf.size - boxes[flip, 0]
         if st["background"] == "environment":
-            frame = _frame_background(latlong, rf.camera, flip)
+            frame = frame_background(latlong, rf.camera, flip)
             if st["subject"]:
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
             frame = latlong.new_zeros(len(latlong), 3, rf.size, rf.size)
         if st["subject"]:
             _add_relit(frame, rf, torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting))
-        linear = _crop(frame, source_boxes, size, flip)
+        linear = crop_images(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)
         linear.mul_(gain[:, None, None, None].to(linear))
