@@ -14,7 +14,6 @@ Convention:
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -28,6 +27,7 @@ from torch import nn
 
 from kornia_ilum.core.check import check_tensor, checks_active
 from kornia_ilum.core.errors import MissingWeightsError, ShapeError, ValueCheckError, WeightsChecksumError
+from kornia_ilum.core.files import sha256_file
 from kornia_ilum.detection.crop import CROP_SCALE
 
 __all__ = [
@@ -351,8 +351,7 @@ class YuNetFaceDetector(FaceDetector):
                 "https://huggingface.co/kornia/yunet/resolve/main/yunet_final.pth"
             )
         if sha256 is not None:
-            with path.open("rb") as f:
-                digest = hashlib.file_digest(f, "sha256").hexdigest()
+            digest = sha256_file(path)
             if digest != sha256.lower():
                 raise WeightsChecksumError(
                     f"YuNet weights {str(path)!r} have SHA-256 {digest}, expected {sha256}; "

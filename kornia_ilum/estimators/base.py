@@ -23,7 +23,6 @@ Convention:
 
 from __future__ import annotations
 
-import hashlib
 import inspect
 import os
 import re
@@ -46,6 +45,7 @@ from kornia_ilum.core.errors import (
     ValueCheckError,
     WeightsChecksumError,
 )
+from kornia_ilum.core.files import sha256_file
 from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
 from kornia_ilum.io import write_hdr, write_ldr
 from kornia_ilum.render import SPHERE_SIZES, render_spheres
@@ -393,11 +393,6 @@ def check_crops(crops: Tensor, size: int = 256) -> None:
         )
 
 
-def _sha256(path: Path) -> str:
-    with open(path, "rb") as f:
-        return hashlib.file_digest(f, "sha256").hexdigest()
-
-
 class LightingEstimator(nn.Module):
     r"""Base class of lighting estimators: ``forward(crops) -> LightingEstimate``.
 
@@ -489,7 +484,7 @@ class LightingEstimator(nn.Module):
                 raise MissingWeightsError(
                     f"weight file {weight.name!r} of estimator '{info.name}' not found in {folder}{hint}"
                 )
-            digest = _sha256(path)
+            digest = sha256_file(path)
             if digest != weight.sha256:
                 raise WeightsChecksumError(
                     f"{path}: SHA-256 is {digest}, but estimator '{info.name}' expects {weight.sha256}; "

@@ -30,7 +30,6 @@ is on disk with the manifest's hash and the requested settings, so rerunning it 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import time
@@ -42,7 +41,7 @@ import torch
 
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
-from kornia_ilum.core.files import atomic_write
+from kornia_ilum.core.files import atomic_write, sha256_file
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, render_olat
 
@@ -81,14 +80,6 @@ def field_path(seed: int, view_index: int) -> str:
         'fields/s000007_v01.safetensors'
     """
     return f"fields/s{seed:06d}_v{view_index:02d}.safetensors"
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _write_json(path: Path, obj: Any) -> None:
@@ -139,7 +130,7 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata=metadata))
     return {
-        "sha256": _sha256(path),
+        "sha256": sha256_file(path),
         "bytes": path.stat().st_size,
         "shape": list(tensors["field"].shape),
         "dtype": "bfloat16",
@@ -260,7 +251,7 @@ def _entry_ok(entry: dict[str, Any] | None, out_dir: Path, camera: Camera, spp: 
     if entry.get("spp_requested") != spp or entry.get("lighting_size") != lighting_size:
         return False
     path = out_dir / entry["path"]
-    return path.is_file() and path.stat().st_size == entry["bytes"] and _sha256(path) == entry["sha256"]
+    return path.is_file() and path.stat().st_size == entry["bytes"] and sha256_file(path) == entry["sha256"]
 
 
 def build_cache(
