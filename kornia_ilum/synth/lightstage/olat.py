@@ -287,8 +287,12 @@ class ReflectanceField:
 
     @property
     def lighting_size(self) -> int:
-        """The mirror-ball side ``S`` of the lighting basis."""
-        return int(self.meta.get("lighting_size", 0)) or math.isqrt(self.field.shape[-1])
+        """The mirror-ball side ``S`` of the lighting basis: ``meta["lighting_size"]``, else ``sqrt(N)`` (dense)."""
+        if "lighting_size" in self.meta:
+            return int(self.meta["lighting_size"])
+        if self.is_compact:  # N' valid lights do not give S
+            raise ValueCheckError("a compact ReflectanceField needs meta['lighting_size']")
+        return math.isqrt(self.field.shape[-1])
 
     @property
     def is_compact(self) -> bool:
@@ -302,10 +306,8 @@ class ReflectanceField:
         p, n = self.size**2, self.lighting_size**2
         rows = torch.arange(p) if self.pixel_index is None else self.pixel_index
         cols = torch.arange(n) if self.light_index is None else self.light_index
-        wide = torch.zeros(3, self.field.shape[1], n, dtype=self.field.dtype)
-        wide[:, :, cols] = self.field
         dense = torch.zeros(3, p, n, dtype=self.field.dtype)
-        dense[:, rows] = wide
+        dense[:, rows[:, None], cols] = self.field
         return ReflectanceField(dense, self.alpha, self.face_box, self.camera, self.subject_seed, dict(self.meta))
 
     def to_compact(self) -> ReflectanceField:
@@ -315,7 +317,7 @@ class ReflectanceField:
         cols = torch.from_numpy(np.flatnonzero(mirror_ball_valid(self.lighting_size).flatten().numpy()))
         keep = (self.alpha.flatten() > 0) | (self.field != 0).any(dim=2).any(dim=0)
         rows = torch.nonzero(keep).flatten()
-        compact = self.field[:, rows][:, :, cols].contiguous()
+        compact = self.field[:, rows[:, None], cols]
         return ReflectanceField(compact, self.alpha, self.face_box, self.camera, self.subject_seed, dict(self.meta),
                                 rows, cols)
 
@@ -679,7 +681,6 @@ def _session(subject: Any, camera: Camera, lighting_size: int, spp: int, variant
     _check_subject(subject)
     for part in subject.parts:
         material_bsdf(part.material)  # validates every material before any rendering
-    height = max(height, 3)
     basis, valid = olat_envmap_basis(lighting_size, height)
     variant = select_mitsuba_variant(variant)
     mi = _import_mitsuba()
@@ -847,7 +848,6 @@ def render_lighting(
     lighting_size = int(lighting.shape[-1])
     session = _session(subject, camera, lighting_size, spp, variant, max_depth, seed, envmap_height, threads)
     lights = lighting.detach().to("cpu", torch.float64).flatten(1).T.numpy()  # (N, 3)
-    lights = lights * mirror_ball_valid(lighting_size).flatten().numpy()[:, None]
     img = session.render(np.asarray(session.basis @ lights))
     image = torch.from_numpy(np.ascontiguousarray(img[..., :3].transpose(2, 0, 1)))
     return image, torch.from_numpy(img[..., 3].copy())[None]
