@@ -191,7 +191,8 @@ def evaluate(truth: torch.Tensor, size: int, noise: float = 0.0) -> dict[str, li
 
 
 def systems(truth: torch.Tensor, size: int):
-    """The promotion inputs and the NNLS systems that ``promote_spheres`` builds for them (lambda = 0.5)."""
+    """The promotion inputs, and their NNLS systems (lambda = 0.5) built as ``promote_spheres`` builds them but in
+    one batch padded to the largest probe (``promote_spheres`` sorts the probes by size into chunks of 32)."""
     ldr = encode(render_spheres(truth, size))
     args = (ldr["mirror"], ldr["diffuse"], ldr["matte_silver"])
     enc, lin, clipped, base, thr = _prepare(*args, 2.2, CLIP_THRESHOLD)

@@ -19,13 +19,20 @@ from kornia.core.check import are_checks_enabled
 
 from kornia_ilum.core.errors import EmptyTensorError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
 
-__all__ = ["check_choice", "check_positive_int", "check_same_device", "check_tensor", "checks_active", "trusted"]
+__all__ = [
+    "check_choice",
+    "check_positive_int",
+    "check_same_device",
+    "check_tensor",
+    "checks_active",
+    "trusted",
+]
 
 _TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_trusted", default=False)
 
 
 def checks_active() -> bool:
-    """Whether input checks run now (Kornia's global switch, not while tracing, not inside :func:`trusted`)."""
+    """Whether input checks run now: Kornia's global switch, not while tracing, not inside :func:`trusted`."""
     if not are_checks_enabled() or torch.jit.is_scripting():
         return False
     return torch.compiler.is_compiling() or not _TRUSTED.get()  # Dynamo cannot trace a ContextVar
@@ -153,8 +160,8 @@ def check_positive_int(value: Any, name: str, allowed: Sequence[int] | None = No
         raise ValueCheckError(f"{name} must be one of {tuple(allowed)}, got {value}")
 
 
-def check_choice(value: Any, name: str, choices: Sequence[str | int]) -> None:
-    """Require ``value`` to be one of ``choices`` (strings or ints; a bool is no int here).
+def check_choice(value: Any, name: str, choices: Sequence[str]) -> None:
+    """Require ``value`` to be one of the strings ``choices`` (for ints: :func:`check_positive_int`).
 
     Raises:
         ValueCheckError: ``value`` is not one of ``choices``; the message lists them.
@@ -166,5 +173,5 @@ def check_choice(value: Any, name: str, choices: Sequence[str | int]) -> None:
         ...
         kornia.core.exceptions.ValueCheckError: reduction must be one of ('mean', 'sum', 'none'), got 'avg'
     """
-    if isinstance(value, bool) or not isinstance(value, (str, int)) or value not in tuple(choices):
+    if not isinstance(value, str) or value not in tuple(choices):
         raise ValueCheckError(f"{name} must be one of {tuple(choices)}, got {value!r}")

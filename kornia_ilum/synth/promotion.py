@@ -88,6 +88,7 @@ not apply; :class:`PromoteSpheres`, the module twin, holds the two reflectance f
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Literal
 
@@ -96,7 +97,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.color.transfer import gamma_decode
-from kornia_ilum.core.check import check_choice, check_tensor, checks_active
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import mirror_ball_valid
 from kornia_ilum.render.spheres import MIRROR_REFLECTIVITY, SPHERE_SIZES, _shared_field
@@ -453,7 +454,7 @@ def _promote(
             fields, enc[:, idx], lin[:, idx], base[idx], clipped[idx], thr_enc, lam, balance
         )
         k_max = system.order.shape[1]
-        u = _solve(system, method).view(-1, 3, k_max) * system.free.view(-1, 3, k_max)  # U >= 0
+        u = _solve(system, method).view(-1, 3, k_max)  # U >= 0, 0 where not free
         res = torch.zeros(idx.numel(), 3, base.shape[-1], dtype=base.dtype, device=device)
         residual[idx] = res.scatter_add_(2, system.order[:, None, :].expand(-1, 3, -1), u)
     shape = (bsz, 3, s, s)
@@ -465,7 +466,9 @@ def _promote(
     )
 
 
+@functools.lru_cache(maxsize=8)
 def _fields(size: int, device: torch.device) -> torch.Tensor:
+    """The solve's sphere fields ``(2, S^2, S^2)`` float64, stacked once per size and device (read-only)."""
     return torch.stack([_shared_field(k, size, size, device, torch.float64) for k in _SOLVE_SPHERES])
 
 
@@ -583,9 +586,7 @@ class PromoteSpheres(nn.Module):
         balance: Balance = "residual",
     ) -> None:
         super().__init__()
-        if isinstance(size, bool) or not isinstance(size, int):
-            raise TypeCheckError(f"size must be an int, got {type(size).__name__}")
-        check_choice(size, "size", SPHERE_SIZES)
+        check_positive_int(size, "size", allowed=SPHERE_SIZES)
         _check_params(lam, gamma, clip_threshold, method, balance)
         self.size, self.lam, self.gamma, self.clip_threshold = (
             size,
@@ -594,7 +595,7 @@ class PromoteSpheres(nn.Module):
             float(clip_threshold),
         )
         self.method, self.balance = method, balance
-        self.register_buffer("fields", _fields(size, torch.device("cpu")), persistent=False)
+        self.register_buffer("fields", _fields(size, torch.device("cpu")).clone(), persistent=False)
 
     def forward(
         self, mirror_ldr: torch.Tensor, diffuse_ldr: torch.Tensor, matte_ldr: torch.Tensor
