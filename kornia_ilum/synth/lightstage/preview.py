@@ -18,7 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from kornia_ilum.synth.lightstage.olat import _import_mitsuba, material_bsdf, select_mitsuba_variant
+from kornia_ilum.synth.lightstage.olat import (
+    _import_mitsuba,
+    _mitsuba_mesh,
+    material_bsdf,
+    select_mitsuba_variant,
+)
 from kornia_ilum.synth.lightstage.subjects import Subject
 
 __all__ = ["contact_sheet", "render_preview"]
@@ -78,17 +83,8 @@ def render_preview(
         "env": {"type": "envmap", "bitmap": mi.Bitmap(_studio_envmap())},
     }
     for i, part in enumerate(subject.parts):
-        props = mi.Properties()
-        props["bsdf"] = mi.load_dict(material_bsdf(part.material))
-        mesh = mi.Mesh(part.name, len(part.vertices), len(part.faces), props=props,
-                       has_vertex_normals=part.normals is not None)  # fmt: skip
-        params = mi.traverse(mesh)
-        params["vertex_positions"] = mi.Float(np.ascontiguousarray(part.vertices, dtype=np.float32).ravel())
-        params["faces"] = mi.UInt32(np.ascontiguousarray(part.faces, dtype=np.uint32).ravel())
-        if part.normals is not None:
-            params["vertex_normals"] = mi.Float(np.ascontiguousarray(part.normals, dtype=np.float32).ravel())
-        params.update()
-        scene[f"part{i}"] = mesh
+        bsdf = material_bsdf(part.material)
+        scene[f"part{i}"] = _mitsuba_mesh(mi, part.name, part.vertices, part.faces, part.normals, bsdf)
     yaw = math.radians(yaw_deg)
     target = np.array([0.0, -0.02, 0.02])
     origin = target + distance * np.array([math.sin(yaw), 0.0, math.cos(yaw)])
@@ -137,16 +133,15 @@ def contact_sheet(
     import torch
     from PIL import Image
 
-    from kornia_ilum.color import linear_to_srgb
+    from kornia_ilum.color import encode_srgb8
 
     rows = math.ceil(len(subjects) / columns)
     sheet = np.zeros((rows * size, columns * size, 3), np.uint8)
     for k, s in enumerate(subjects):
         yaw = yaw_deg if k % 2 else -yaw_deg
         lin = torch.from_numpy(render_preview(s, size=size, yaw_deg=yaw, spp=spp, distance=distance))
-        srgb = linear_to_srgb(lin.permute(2, 0, 1).clamp(0.0, 1.0)).permute(1, 2, 0).numpy()
         r, c = divmod(k, columns)
-        sheet[r * size : (r + 1) * size, c * size : (c + 1) * size] = np.round(srgb * 255.0).astype(np.uint8)
+        sheet[r * size : (r + 1) * size, c * size : (c + 1) * size] = encode_srgb8(lin).numpy()
     if path is not None:
         Image.fromarray(sheet).save(str(path), optimize=True)
     return sheet
