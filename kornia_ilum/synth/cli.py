@@ -397,7 +397,6 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
         IlumError: matplotlib is not installed and a sheet is asked for.
         ValueCheckError: more views than :data:`~kornia_ilum.synth.lightstage.DEFAULT_VIEWS` holds.
     """
-    import dataclasses
     import statistics
 
     from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
@@ -410,9 +409,8 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     if args.sheet:
         _require_matplotlib("synth subjects")
     out = Path(args.out)
-    views = [dataclasses.replace(v, size=args.size) for v in DEFAULT_VIEWS[: args.views]]
     t0 = time.perf_counter()
-    manifest = build_cache(out, args.seeds, views, worker_index=args.worker[0], worker_count=args.worker[1],
+    manifest = build_cache(out, args.seeds, DEFAULT_VIEWS[: args.views], worker_index=args.worker[0], worker_count=args.worker[1],
                            size=args.size, spp=args.spp, lighting_size=args.lighting_size, variant=args.variant,
                            threads=args.threads, progress=True)
     seconds = time.perf_counter() - t0
@@ -434,6 +432,6 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     samples = sorted(data.chunk(0, 0), key=lambda s: (s["skin_tone"], s["subject_seed"], s["label"]))
     rate = len(samples) / (time.perf_counter() - t1)
     write_portrait_sheet(samples, out / "contact_sheet.png")
-    print(f"{len(samples)} portraits ({rate:.0f}/s, each with a fresh environment and a field of its own)")
+    print(f"{len(samples)} portraits ({rate:.0f}/s; fields and environments drawn at random, repeats possible)")
     print(f"wrote {out / 'contact_sheet.png'}")
     return 0
