@@ -46,7 +46,9 @@ class ProgressBar:
 def progress(items: Iterable[T], total: int, desc: str, unit: str = "item") -> Iterator[T]:
     """Iterate ``items`` with a :class:`ProgressBar` of ``total`` steps."""
     bar = ProgressBar(total, desc, unit)
-    for item in items:
-        yield item
-        bar.update()
-    bar.close()
+    try:
+        for item in items:
+            yield item
+            bar.update()
+    finally:  # also when the loop stops early
+        bar.close()
