@@ -218,9 +218,10 @@ def bench_images(quick: bool) -> None:
     print("[images] 8 square crops of 4 x 192 x 192 frames resized to 256 x 256")
     frames = torch.rand(8, 4, 192, 192)
     boxes = torch.tensor([[20.0 + k, 25.0, 180.0 + k, 185.0] for k in range(8)])
-    lo, hi = boxes[:, :2], boxes[:, 2:] - 1.0
+    half = (boxes[:, 2] - boxes[:, 0]) / 512  # kornia's corners are pixel centres: the same crops as crop_images
+    lo, hi = boxes[:, :2] + half[:, None] - 0.5, boxes[:, 2:] - half[:, None] - 0.5
     corners = torch.stack([lo, torch.stack([hi[:, 0], lo[:, 1]], -1), hi, torch.stack([lo[:, 0], hi[:, 1]], -1)], 1)
-    base = median_ms(lambda: crop_and_resize(frames, corners, (256, 256)), reps)
+    base = median_ms(lambda: crop_and_resize(frames, corners, (256, 256), align_corners=True), reps)
     row("kornia crop_and_resize (baseline)", base, base)
     row("crop_images (separable grid + grid_sample)", median_ms(lambda: crop_images(frames, boxes, 256), reps), base)
 
