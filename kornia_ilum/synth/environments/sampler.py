@@ -8,7 +8,6 @@ the embedded procedural defaults (:func:`default_sources`), which need no files.
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Callable, Sequence
 
@@ -16,6 +15,7 @@ import torch
 
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.seeding import hashed_generator
 from kornia_ilum.synth.environments.augment import Augment
 from kornia_ilum.synth.environments.base import Environment, EnvironmentSource
 
@@ -80,8 +80,7 @@ def generator_for(seed: int, index: int) -> torch.Generator:
             raise TypeCheckError(f"{name} must be an int, got {type(value).__name__}")
     if index < 0:
         raise ValueCheckError(f"index must be non-negative, got {index}")
-    digest = hashlib.blake2b(f"kornia_ilum.synth:{seed}:{index}".encode(), digest_size=8).digest()
-    return torch.Generator().manual_seed(int.from_bytes(digest, "little"))
+    return hashed_generator(f"kornia_ilum.synth:{seed}:{index}")
 
 
 class EnvironmentSampler:

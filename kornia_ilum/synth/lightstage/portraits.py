@@ -36,7 +36,6 @@ the face box, the background alone (no subject), and pairs of one subject under 
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 import os
 from collections import OrderedDict
@@ -51,6 +50,7 @@ from torch.utils.data import IterableDataset, get_worker_info
 from kornia_ilum.color import encode_srgb8, gamma_encode
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, trusted
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.seeding import hashed_generator
 from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import (
@@ -104,9 +104,7 @@ _INNER = [LANDMARK_NAMES.index(n) for n in DETECTOR_BOX["landmarks"]]
 
 
 def _generator(seed: int, *key: int) -> torch.Generator:
-    text = ":".join(str(int(k)) for k in (seed, *key))
-    digest = hashlib.blake2b(f"kornia_ilum.portraits:{text}".encode(), digest_size=8).digest()
-    return torch.Generator().manual_seed(int.from_bytes(digest, "little"))
+    return hashed_generator("kornia_ilum.portraits:" + ":".join(str(int(k)) for k in (seed, *key)))
 
 
 def _uniform(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:

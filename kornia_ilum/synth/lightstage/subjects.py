@@ -87,7 +87,6 @@ Convention:
 from __future__ import annotations
 
 import colorsys
-import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -96,6 +95,7 @@ import torch
 
 from kornia_ilum.color import srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError
+from kornia_ilum.core.seeding import hashed_seed
 from kornia_ilum.synth.lightstage.sdf import (
     bounded,
     capsule,
@@ -219,8 +219,7 @@ class Subject:
 def _seed_digest(seed: int, salt: str) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
-    digest = hashlib.blake2b(f"kornia_ilum.lightstage.{salt}:{int(seed)}".encode(), digest_size=8).digest()
-    return int.from_bytes(digest, "little")
+    return hashed_seed(f"kornia_ilum.lightstage.{salt}:{int(seed)}")
 
 
 def subject_split(seed: int) -> str:
