@@ -31,7 +31,6 @@ __all__ = [
     "smax",
     "smin",
     "sphere",
-    "torus",
 ]
 
 Array = np.ndarray
@@ -75,12 +74,6 @@ def capsule(
     h = np.clip((px * bx + py * by + pz * bz) / (bx * bx + by * by + bz * bz), 0.0, 1.0)
     d = np.sqrt((px - bx * h) ** 2 + (py - by * h) ** 2 + (pz - bz * h) ** 2)
     return d - (ra + (rb - ra) * h)
-
-
-def torus(x: Array, y: Array, z: Array, c: Sequence[float], big: float, small: float) -> Array:
-    """Exact distance to a torus of centre ``c`` lying in the XZ plane (axis +Y), radii ``big`` and ``small``."""
-    q = np.sqrt((x - c[0]) ** 2 + (z - c[2]) ** 2) - big
-    return np.sqrt(q * q + (y - c[1]) ** 2) - small
 
 
 def mesh_sdf(

@@ -1173,10 +1173,9 @@ def _shirt_sdf(head: _Head, p: dict, x, y, z):
     body = head.body(x, y, z)
     folds = 0.002 * np.sin(18.0 * x + 11.0 * y) * np.sin(14.0 * y - 9.0 * z)
     d = body - 0.005 + folds
-    neck = capsule(x, y, z, head.neck[0], head.neck[1], head.neck_r)
     if p["shirt_style"] == "turtleneck":
         return d
-    hole = neck - 0.010
+    hole = capsule(x, y, z, head.neck[0], head.neck[1], head.neck_r) - 0.010
     if p["shirt_style"] == "vneck":
         vee = np.abs(x) - 0.5 * (y + 0.285)
         hole = np.minimum(hole, np.maximum(vee, -z))
