@@ -24,7 +24,8 @@ from kornia_ilum.synth.lightstage.cache import (
     shard,
     write_field,
 )
-from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, _icosphere
+from kornia_ilum.synth.lightstage.olat import ReflectanceField, _icosphere
+from kornia_ilum.synth.lightstage.scene import Camera
 
 
 def synthetic_field(size: int = 16, s: int = 8, seed: int = 0) -> ReflectanceField:

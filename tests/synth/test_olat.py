@@ -23,18 +23,15 @@ from kornia_ilum.geometry import (
     mirror_ball_valid,
 )
 from kornia_ilum.render import relight
+from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera, camera_transform, project_points
 from kornia_ilum.synth.lightstage.olat import (
     MITSUBA_VARIANTS,
-    PIVOT_RAISE,
     VARIANT_ENV,
-    Camera,
     ReflectanceField,
     _icosphere,
     _session,
-    camera_transform,
     material_bsdf,
     olat_envmap_basis,
-    project_points,
     render_lighting,
     render_olat,
     select_mitsuba_variant,

@@ -25,7 +25,7 @@ from kornia_ilum.synth.lightstage import (
     select_mitsuba_variant,
     subject_split,
 )
-from kornia_ilum.synth.lightstage.olat import PIVOT_RAISE, Camera
+from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
 from kornia_ilum.synth.lightstage.portraits import (
     PortraitDataset,
     auto_exposure,

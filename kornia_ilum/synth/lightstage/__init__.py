@@ -8,12 +8,12 @@ from kornia_ilum.synth.lightstage.cache import (
     write_field,
 )
 from kornia_ilum.synth.lightstage.olat import (
-    Camera,
     ReflectanceField,
     render_lighting,
     render_olat,
     select_mitsuba_variant,
 )
+from kornia_ilum.synth.lightstage.scene import Camera
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields, relight_portraits
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,

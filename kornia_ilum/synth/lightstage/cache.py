@@ -43,7 +43,8 @@ from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
 from kornia_ilum.core.files import atomic_write, sha256_file
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.synth.lightstage.olat import Camera, ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.olat import ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.scene import Camera
 
 __all__ = [
     "DEFAULT_VIEWS",

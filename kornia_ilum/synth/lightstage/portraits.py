@@ -63,7 +63,8 @@ from kornia_ilum.render import BRDFS, SPHERE_SIZES, relight
 from kornia_ilum.render.spheres import _shared_field
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, latlong_grid, lookup_latlong
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
-from kornia_ilum.synth.lightstage.olat import PIVOT_RAISE, Camera, ReflectanceField
+from kornia_ilum.synth.lightstage.olat import ReflectanceField
+from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
 
 __all__ = [

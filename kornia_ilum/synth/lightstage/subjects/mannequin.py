@@ -94,8 +94,6 @@ import numpy as np
 import torch
 
 from kornia_ilum.color import srgb_to_linear
-from kornia_ilum.core.errors import TypeCheckError
-from kornia_ilum.core.seeding import hashed_seed
 from kornia_ilum.synth.lightstage.sdf import (
     bounded,
     capsule,
@@ -106,142 +104,16 @@ from kornia_ilum.synth.lightstage.sdf import (
     smin,
     sphere,
 )
-
-__all__ = [
-    "LANDMARK_NAMES",
-    "MONK_SKIN_TONES_SRGB",
-    "SKIN_ALBEDO",
-    "SKIN_ALBEDO_SCALE",
-    "Material",
-    "MeshPart",
-    "Subject",
-    "make_subject",
-    "subject_params",
-    "subject_split",
-]
-
-#: The Monk Skin Tone scale's published sRGB swatches, tones 1 (lightest) to 10 (darkest).
-MONK_SKIN_TONES_SRGB: tuple[str, ...] = (
-    "f6ede4", "f3e7db", "f7ead0", "eadaba", "d7bd96", "a07e56", "825c43", "604134", "3a312a", "292420",
-)  # fmt: skip
-
-#: The factor from a decoded MST swatch to a diffuse albedo.
-SKIN_ALBEDO_SCALE = 0.8
-
-
-def _srgb_hex_to_linear(code: str) -> tuple[float, float, float]:
-    srgb = torch.tensor([int(code[i : i + 2], 16) / 255.0 for i in (0, 2, 4)], dtype=torch.float64)
-    lin = srgb_to_linear(srgb.view(3, 1, 1)).flatten().tolist()
-    return (lin[0], lin[1], lin[2])
-
-
-#: Linear-RGB skin albedo of each MST tone (index 0 is tone 1): ``SKIN_ALBEDO_SCALE * srgb_to_linear(swatch)``.
-SKIN_ALBEDO: tuple[tuple[float, float, float], ...] = tuple(
-    tuple(round(SKIN_ALBEDO_SCALE * c, 4) for c in _srgb_hex_to_linear(code))  # type: ignore[misc]
-    for code in MONK_SKIN_TONES_SRGB
+from kornia_ilum.synth.lightstage.subjects.base import (
+    SKIN_ALBEDO,
+    Material,
+    MeshPart,
+    Subject,
+    _seed_digest,
+    subject_split,
 )
 
-#: The names of :attr:`Subject.face_landmarks`, in order ("left"/"right" are the subject's own).
-LANDMARK_NAMES: tuple[str, ...] = (
-    "brow_right_top", "brow_left_top", "glabella",
-    "eye_right_outer", "eye_right_inner", "eye_left_inner", "eye_left_outer",
-    "nose_tip", "subnasale", "mouth_right", "mouth_left", "upper_lip", "lower_lip", "chin",
-    "jaw_right", "jaw_left", "cheek_right", "cheek_left", "ear_right", "ear_left",
-)  # fmt: skip
-
-
-@dataclass
-class Material:
-    """How a mesh part is shaded (see the module's *Materials*).
-
-    Args:
-        kind: ``"skin"``, ``"diffuse"``, ``"glossy"``, ``"cornea"`` or ``"hair"``.
-        albedo: the diffuse albedo (the transmittance for ``"cornea"``), linear RGB in ``[0, 1]``.
-        roughness: the GGX alpha of the specular lobe.
-        specular: Mitsuba principled ``specular`` (``F0 = 0.08 specular``; 0.5 is an index of refraction of 1.5).
-    """
-
-    kind: str
-    albedo: tuple[float, float, float]
-    roughness: float = 0.5
-    specular: float = 0.5
-
-
-@dataclass
-class MeshPart:
-    """One mesh with one material.
-
-    Args:
-        name: the part (``"skin"``, ``"lips"``, ``"sclera"``, ``"iris"``, ``"cornea"``, ``"hair"``, ...).
-        vertices: ``(V, 3)`` float32 metres in the SPEC frame.
-        faces: ``(F, 3)`` int32, counter-clockwise seen from outside (normals point out).
-        material: its :class:`Material`.
-        normals: optional ``(V, 3)`` float32 unit outward vertex normals (the SDF's gradient), for smooth
-            shading; ``None`` lets the renderer compute them.
-    """
-
-    name: str
-    vertices: np.ndarray
-    faces: np.ndarray
-    material: Material
-    normals: np.ndarray | None = None
-
-
-@dataclass
-class Subject:
-    """A synthetic subject: its meshes, skin tone, face landmarks and the parameters it was drawn with.
-
-    Args:
-        seed: the seed it was made from.
-        split: ``"train"`` or ``"eval"`` (:func:`subject_split`).
-        parts: its :class:`MeshPart`, each name once.
-        skin_tone: the Monk Skin Tone index, 1 (lightest) to 10 (darkest).
-        face_landmarks: ``(K, 3)`` float32 points on the face named by :data:`LANDMARK_NAMES`, from the top of
-            the brows to the chin and from ear to ear: their projected bounding box is the face box.
-        params: the sampled shape, expression and appearance parameters (JSON-serialisable).
-    """
-
-    seed: int
-    split: str
-    parts: list[MeshPart]
-    skin_tone: int
-    face_landmarks: np.ndarray
-    params: dict = field(default_factory=dict)
-
-    def part(self, name: str) -> MeshPart:
-        """The part called ``name`` (``KeyError`` when the subject has none)."""
-        for p in self.parts:
-            if p.name == name:
-                return p
-        raise KeyError(f"subject {self.seed} has no part {name!r}; it has {[p.name for p in self.parts]}")
-
-
-def _seed_digest(seed: int, salt: str) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
-    return hashed_seed(f"kornia_ilum.lightstage.{salt}:{int(seed)}")
-
-
-def subject_split(seed: int) -> str:
-    """``"eval"`` for about one seed in ten (fixed by a hash of the seed), else ``"train"``.
-
-    Args:
-        seed: the subject's seed (any int).
-
-    Returns:
-        ``"eval"`` when ``blake2b(f"kornia_ilum.lightstage.subject:{seed}")`` is 0 modulo 10, else ``"train"``.
-
-    Raises:
-        TypeCheckError: ``seed`` is not an int.
-
-    Examples:
-        >>> [subject_split(s) for s in range(6)]
-        ['train', 'eval', 'train', 'eval', 'train', 'train']
-        >>> sum(subject_split(s) == "eval" for s in range(10_000))
-        1015
-    """
-    return "eval" if _seed_digest(seed, "subject") % 10 == 0 else "train"
-
+__all__ = ["MannequinSource", "make_subject", "subject_params"]
 
 # --------------------------------------------------------------------------------------------------------
 # Parameters
@@ -1415,3 +1287,23 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
         face_landmarks=(landmarks * s).astype(np.float32),
         params=p,
     )
+
+
+class MannequinSource:
+    """The signed-distance mannequins as a :class:`~kornia_ilum.synth.lightstage.subjects.SubjectSource`.
+
+    They need no assets: the fallback for machines without the MakeHuman data.
+
+    Examples:
+        >>> MannequinSource().sample(7).source
+        'mannequin'
+    """
+
+    name = "mannequin"
+
+    def sample(self, seed: int) -> Subject:
+        """:func:`make_subject` of ``seed``."""
+        return make_subject(seed)
+
+    def __repr__(self) -> str:
+        return "MannequinSource()"

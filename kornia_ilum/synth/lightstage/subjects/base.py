@@ -1,0 +1,198 @@
+r"""What every subject source shares: materials, meshes, :class:`Subject`, skin tones, the split.
+
+A *subject source* turns a seed into a :class:`Subject` (:class:`SubjectSource`): the MakeHuman heads of
+:mod:`~kornia_ilum.synth.lightstage.subjects.makehuman` (photoreal, need the CC0 assets) or the mannequins of
+:mod:`~kornia_ilum.synth.lightstage.subjects.mannequin` (signed-distance heads, need nothing). Renderers see only
+:class:`MeshPart` and :class:`Material`.
+
+Skin tones (Monk Skin Tone scale):
+    The 10 tones of the Monk Skin Tone (MST) scale (Monk 2019; Google's published swatches
+    ``#f6ede4 #f3e7db #f7ead0 #eadaba #d7bd96 #a07e56 #825c43 #604134 #3a312a #292420``). The swatches are sRGB
+    colours of skin as photographed; :data:`SKIN_ALBEDO` decodes them to linear RGB and scales them by
+    :data:`SKIN_ALBEDO_SCALE` = 0.8, so that the lightest tone's red albedo (0.74) stays within measured
+    diffuse skin albedos. This is an approximation: a swatch is a display colour, not a reflectance.
+
+Train / evaluation split:
+    :func:`subject_split` is ``"eval"`` when the first 8 bytes of
+    ``blake2b(f"kornia_ilum.lightstage.subject:{seed}")`` (little-endian) are 0 modulo 10, else ``"train"``:
+    about 10% of seeds, fixed forever, disjoint by construction, the same for every source, and unrelated to
+    the subject's appearance.
+
+Convention:
+    Metres, in the SPEC frame (+X right, +Y up, +Z toward the camera): the subject faces +Z, the eyes are near
+    ``y = 0``. The subject's right eye is at ``-X`` (on the image's left).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import torch
+
+from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.core.errors import TypeCheckError
+from kornia_ilum.core.seeding import hashed_seed
+
+__all__ = [
+    "LANDMARK_NAMES",
+    "MONK_SKIN_TONES_SRGB",
+    "SKIN_ALBEDO",
+    "SKIN_ALBEDO_SCALE",
+    "Material",
+    "MeshPart",
+    "Subject",
+    "SubjectSource",
+    "subject_split",
+]
+
+#: The Monk Skin Tone scale's published sRGB swatches, tones 1 (lightest) to 10 (darkest).
+MONK_SKIN_TONES_SRGB: tuple[str, ...] = (
+    "f6ede4", "f3e7db", "f7ead0", "eadaba", "d7bd96", "a07e56", "825c43", "604134", "3a312a", "292420",
+)  # fmt: skip
+
+#: The factor from a decoded MST swatch to a diffuse albedo.
+SKIN_ALBEDO_SCALE = 0.8
+
+
+def _srgb_hex_to_linear(code: str) -> tuple[float, float, float]:
+    srgb = torch.tensor([int(code[i : i + 2], 16) / 255.0 for i in (0, 2, 4)], dtype=torch.float64)
+    lin = srgb_to_linear(srgb.view(3, 1, 1)).flatten().tolist()
+    return (lin[0], lin[1], lin[2])
+
+
+#: Linear-RGB skin albedo of each MST tone (index 0 is tone 1): ``SKIN_ALBEDO_SCALE * srgb_to_linear(swatch)``.
+SKIN_ALBEDO: tuple[tuple[float, float, float], ...] = tuple(
+    tuple(round(SKIN_ALBEDO_SCALE * c, 4) for c in _srgb_hex_to_linear(code))  # type: ignore[misc]
+    for code in MONK_SKIN_TONES_SRGB
+)
+
+#: The names of :attr:`Subject.face_landmarks`, in order ("left"/"right" are the subject's own).
+LANDMARK_NAMES: tuple[str, ...] = (
+    "brow_right_top", "brow_left_top", "glabella",
+    "eye_right_outer", "eye_right_inner", "eye_left_inner", "eye_left_outer",
+    "nose_tip", "subnasale", "mouth_right", "mouth_left", "upper_lip", "lower_lip", "chin",
+    "jaw_right", "jaw_left", "cheek_right", "cheek_left", "ear_right", "ear_left",
+)  # fmt: skip
+
+
+@dataclass
+class Material:
+    """How a mesh part is shaded (see the module's *Materials*).
+
+    Args:
+        kind: ``"skin"``, ``"diffuse"``, ``"glossy"``, ``"cornea"`` or ``"hair"``.
+        albedo: the diffuse albedo (the transmittance for ``"cornea"``), linear RGB in ``[0, 1]``.
+        roughness: the GGX alpha of the specular lobe.
+        specular: Mitsuba principled ``specular`` (``F0 = 0.08 specular``; 0.5 is an index of refraction of 1.5).
+        albedo_texture: optional ``(H, W, 3)`` float32 linear albedo map, looked up through the part's
+            ``uvs``; it replaces ``albedo`` where given (``albedo`` then holds its mean, for previews).
+        opacity_texture: optional ``(H, W)`` float32 alpha in ``[0, 1]`` (hair cards, brows, lashes): light
+            and camera rays pass where it is 0 (alpha-tested, ``alpha >= 0.5`` is opaque).
+        roughness_texture: optional ``(H, W)`` float32 multiplier of ``roughness`` (oily and dry skin zones).
+        subsurface: whether the renderer's subsurface approximation applies to this part's diffuse light.
+    """
+
+    kind: str
+    albedo: tuple[float, float, float]
+    roughness: float = 0.5
+    specular: float = 0.5
+    albedo_texture: np.ndarray | None = field(default=None, repr=False)
+    opacity_texture: np.ndarray | None = field(default=None, repr=False)
+    roughness_texture: np.ndarray | None = field(default=None, repr=False)
+    subsurface: bool = False
+
+
+@dataclass
+class MeshPart:
+    """One mesh with one material.
+
+    Args:
+        name: the part (``"skin"``, ``"lips"``, ``"sclera"``, ``"iris"``, ``"cornea"``, ``"hair"``, ...).
+        vertices: ``(V, 3)`` float32 metres in the SPEC frame.
+        faces: ``(F, 3)`` int32, counter-clockwise seen from outside (normals point out).
+        material: its :class:`Material`.
+        normals: optional ``(V, 3)`` float32 unit outward vertex normals (the SDF's gradient), for smooth
+            shading; ``None`` lets the renderer compute them.
+        uvs: optional ``(V, 2)`` float32 texture coordinates in ``[0, 1]`` (``v`` up, OBJ convention), needed
+            by the material's textures.
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    material: Material
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+
+
+@dataclass
+class Subject:
+    """A synthetic subject: its meshes, skin tone, face landmarks and the parameters it was drawn with.
+
+    Args:
+        seed: the seed it was made from.
+        split: ``"train"`` or ``"eval"`` (:func:`subject_split`).
+        parts: its :class:`MeshPart`, each name once.
+        skin_tone: the Monk Skin Tone index, 1 (lightest) to 10 (darkest).
+        face_landmarks: ``(K, 3)`` float32 points on the face named by :data:`LANDMARK_NAMES`, from the top of
+            the brows to the chin and from ear to ear: their projected bounding box is the face box.
+        params: the sampled shape, expression and appearance parameters (JSON-serialisable).
+        source: the generator's name (``"mannequin"``, ``"makehuman"``, ...).
+        face_albedo: the mean linear albedo of the face's skin, RGB.
+    """
+
+    seed: int
+    split: str
+    parts: list[MeshPart]
+    skin_tone: int
+    face_landmarks: np.ndarray
+    params: dict = field(default_factory=dict)
+    source: str = "mannequin"
+    face_albedo: tuple[float, float, float] | None = None
+
+    def part(self, name: str) -> MeshPart:
+        """The part called ``name`` (``KeyError`` when the subject has none)."""
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(f"subject {self.seed} has no part {name!r}; it has {[p.name for p in self.parts]}")
+
+
+def _seed_digest(seed: int, salt: str) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
+    return hashed_seed(f"kornia_ilum.lightstage.{salt}:{int(seed)}")
+
+
+def subject_split(seed: int) -> str:
+    """``"eval"`` for about one seed in ten (fixed by a hash of the seed), else ``"train"``.
+
+    Args:
+        seed: the subject's seed (any int).
+
+    Returns:
+        ``"eval"`` when ``blake2b(f"kornia_ilum.lightstage.subject:{seed}")`` is 0 modulo 10, else ``"train"``.
+
+    Raises:
+        TypeCheckError: ``seed`` is not an int.
+
+    Examples:
+        >>> [subject_split(s) for s in range(6)]
+        ['train', 'eval', 'train', 'eval', 'train', 'train']
+        >>> sum(subject_split(s) == "eval" for s in range(10_000))
+        1015
+    """
+    return "eval" if _seed_digest(seed, "subject") % 10 == 0 else "train"
+
+
+@runtime_checkable
+class SubjectSource(Protocol):
+    """Anything that makes subjects from seeds: ``name`` and ``sample(seed) -> Subject``."""
+
+    name: str
+
+    def sample(self, seed: int) -> Subject:
+        """The subject of ``seed`` (the same seed always gives the same subject)."""
+        ...
