@@ -15,9 +15,23 @@ import torch
 
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.seeding import hashed_seed
 from kornia_ilum.synth.background import camera_rotation
 
-__all__ = ["PIVOT_RAISE", "Camera", "camera_transform", "project_points"]
+__all__ = [
+    "FACE_FRACTION",
+    "FOCAL_RANGE_MM",
+    "PIVOT_RAISE",
+    "ROLL_RANGE_DEG",
+    "PITCH_RANGE_DEG",
+    "YAW_RANGE_DEG",
+    "Camera",
+    "camera_transform",
+    "fov_from_focal",
+    "frame_distance",
+    "project_points",
+    "sample_views",
+]
 
 #: The camera aims this fraction of the face-landmark box's height above the box's centre: OpenCV's Haar
 #: detector centres its box 0.19 +- 0.04 landmark-box heights higher (measured on 16 detections in 36
@@ -149,3 +163,162 @@ def project_points(points: np.ndarray | torch.Tensor, camera: Camera, transform:
     x = 0.5 * camera.size + scale * q[:, 0] / depth
     y = 0.5 * camera.size - scale * q[:, 1] / depth
     return torch.from_numpy(np.stack([x, y], axis=-1)).float()
+
+
+# ----------------------------------------------------------------------------------------------
+# random views
+
+#: Half-ranges of the sampled views' orbit, in degrees: yaw within +-35, pitch within +-15, roll within +-10.
+YAW_RANGE_DEG = 35.0
+PITCH_RANGE_DEG = 15.0
+ROLL_RANGE_DEG = 10.0
+
+#: Full-frame-equivalent focal lengths of the sampled lenses, mm: a phone's wide camera (24 mm, 73.7 degrees of
+#: horizontal field of view) to a portrait lens (85 mm, 23.9 degrees); drawn log-uniformly.
+FOCAL_RANGE_MM = (24.0, 85.0)
+
+#: The height of the projected face-landmark box (brow tops to chin, ear to ear), as a fraction of the image
+#: height, that :func:`sample_views` frames every view to: 0.5, so the face box expanded 1.25 x (the crop of
+#: :mod:`~kornia_ilum.synth.lightstage.portraits`, about 1.13 x 1.25 = 0.71 of the image) fits with room for
+#: its jitter, whatever the lens, as :data:`~kornia_ilum.synth.lightstage.cache.DEFAULT_VIEWS` did (0.5 to 0.6).
+FACE_FRACTION = 0.5
+
+_NOMINAL_LANDMARKS = None  # landmarks of a typical face, for views sampled without a subject (lazy)
+
+
+def fov_from_focal(focal_mm: float) -> float:
+    r"""The horizontal field of view, degrees, of a full-frame-equivalent focal length (a 36 mm wide frame).
+
+    Examples:
+        >>> round(fov_from_focal(24.0), 1), round(fov_from_focal(85.0), 1)
+        (73.7, 23.9)
+    """
+    if isinstance(focal_mm, bool) or not isinstance(focal_mm, (int, float)) or not focal_mm > 0:
+        raise ValueCheckError(f"focal_mm must be a positive number, got {focal_mm!r}")
+    return math.degrees(2.0 * math.atan(18.0 / focal_mm))
+
+
+def _box_height(camera: Camera, landmarks: np.ndarray, pivot: np.ndarray) -> float:
+    xy = project_points(landmarks, camera, camera_transform(camera, pivot)).numpy()
+    return float(xy[:, 1].max() - xy[:, 1].min())
+
+
+def frame_distance(camera: Camera, landmarks: np.ndarray, fraction: float = FACE_FRACTION) -> float:
+    r"""The camera distance at which the projected face-landmark box is ``fraction`` of the image height.
+
+    Found by bisection on the projection itself (:func:`project_points` about the pivot of
+    :func:`camera_transform`), so perspective, the lens, pitch and roll are all accounted for: a wide lens
+    stands closer and sees the nose larger, exactly as a phone held close does.
+
+    Args:
+        camera: the camera; its ``distance`` is ignored.
+        landmarks: ``(K, 3)`` face landmarks in subject coordinates (metres).
+        fraction: the target height of the landmark box over the image height, in ``(0, 1)``.
+
+    Returns:
+        the distance in metres (1 mm precision).
+
+    Examples:
+        >>> lm = np.array([[-0.07, -0.08, 0.0], [0.07, 0.08, 0.0]])  # a flat 16 cm tall "face"
+        >>> d = frame_distance(Camera(90.0, 1.0, 0.0, 0.0, size=100), lm, 0.5)
+        >>> round(d, 2)  # tan(45) = 1: 0.16 m spans half of 2 d
+        0.16
+    """
+    if not 0.0 < float(fraction) < 1.0:
+        raise ValueCheckError(f"fraction must be in (0, 1), got {fraction}")
+    lm = np.asarray(landmarks, dtype=np.float64)
+    if lm.ndim != 2 or lm.shape[1] != 3 or len(lm) < 2:
+        raise ShapeError(f"landmarks must have shape (K, 3) with K >= 2, got {tuple(lm.shape)}")
+    lo, hi = lm.min(axis=0), lm.max(axis=0)
+    pivot = 0.5 * (lo + hi) + np.array([0.0, PIVOT_RAISE * (hi[1] - lo[1]), 0.0])
+    reach = float(np.linalg.norm(lm - pivot, axis=1).max())  # nothing may come closer than this
+    target = fraction * camera.size
+    near, far = 1.05 * reach + 1e-3, 100.0
+    for _ in range(40):  # the box shrinks monotonically with the distance
+        mid = math.sqrt(near * far)
+        if _box_height(Camera(camera.fov_deg, mid, camera.yaw_deg, camera.pitch_deg, camera.size, camera.roll_deg),
+                       lm, pivot) > target:
+            near = mid
+        else:
+            far = mid
+        if far - near < 5e-4:
+            break
+    return round(0.5 * (near + far), 3)
+
+
+def _nominal_landmarks() -> np.ndarray:
+    """The landmarks of a typical face (14.5 cm from brow tops to chin, 15 cm ear to ear): a fixed layout."""
+    global _NOMINAL_LANDMARKS
+    if _NOMINAL_LANDMARKS is None:
+        # a coarse face: brows, eyes, nose, mouth, chin, jaw, cheeks and ears (subject frame, eyes near y = 0)
+        _NOMINAL_LANDMARKS = np.array([
+            [-0.035, 0.035, 0.075], [0.035, 0.035, 0.075], [0.0, 0.02, 0.085],
+            [-0.045, 0.0, 0.06], [-0.015, 0.0, 0.07], [0.015, 0.0, 0.07], [0.045, 0.0, 0.06],
+            [0.0, -0.045, 0.1], [0.0, -0.055, 0.085], [-0.025, -0.075, 0.07], [0.025, -0.075, 0.07],
+            [0.0, -0.068, 0.082], [0.0, -0.085, 0.078], [0.0, -0.11, 0.06],
+            [-0.055, -0.085, 0.01], [0.055, -0.085, 0.01], [-0.06, -0.035, 0.045], [0.06, -0.035, 0.045],
+            [-0.075, -0.01, -0.02], [0.075, -0.01, -0.02],
+        ])  # fmt: skip
+    return _NOMINAL_LANDMARKS
+
+
+def sample_views(
+    seed: int,
+    n: int = 4,
+    size: int = 192,
+    *,
+    landmarks: np.ndarray | None = None,
+    fraction: float = FACE_FRACTION,
+) -> tuple[Camera, ...]:
+    r"""``n`` random camera views of the subject of ``seed``: phone-wide to portrait lenses, spread in yaw.
+
+    View ``i`` draws from its own generator, seeded by ``hashed_seed(f"kornia_ilum.lightstage.view:{seed}:{i}")``
+    (:func:`~kornia_ilum.core.seeding.hashed_seed`), so a view depends only on ``(seed, i, n)``:
+
+    - yaw, stratified: the ``n`` views take the ``n`` equal strata of ``[-35, 35]`` degrees in an order
+      shuffled per subject (``hashed_seed(f"kornia_ilum.lightstage.views:{seed}")``), each uniform within its
+      stratum, so every subject is seen from its left, the front and its right, and the yaw is uniform overall;
+    - pitch uniform in ``[-15, 15]``, roll uniform in ``[-10, 10]`` degrees;
+    - focal length log-uniform in :data:`FOCAL_RANGE_MM` (24 to 85 mm full-frame equivalent; 73.7 to 23.9
+      degrees, :func:`fov_from_focal`);
+    - distance from :func:`frame_distance`: the projected face-landmark box is ``fraction`` (:data:`FACE_FRACTION`,
+      0.5) of the image height, for the subject's own ``landmarks`` when given (the cache passes them), else
+      for a typical 14.5 cm face (then the box is 0.5 of the image only for faces of that size).
+
+    Args:
+        seed: the subject's seed.
+        n: views per subject.
+        size: the image side in pixels.
+        landmarks: ``(K, 3)`` face landmarks of the subject (:attr:`~.subjects.Subject.face_landmarks`).
+        fraction: the face-landmark box height over the image height.
+
+    Returns:
+        ``n`` :class:`Camera`.
+
+    Examples:
+        >>> views = sample_views(7, 4, 192)
+        >>> len(views), all(abs(v.yaw_deg) <= 35 for v in views), views == sample_views(7, 4, 192)
+        (4, True, True)
+        >>> sorted(int((v.yaw_deg + 35) // 17.5) for v in views)  # one view per yaw stratum
+        [0, 1, 2, 3]
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
+    check_positive_int(n, "n")
+    check_positive_int(size, "size")
+    lm = _nominal_landmarks() if landmarks is None else np.asarray(landmarks, dtype=np.float64)
+    order = np.random.default_rng(hashed_seed(f"kornia_ilum.lightstage.views:{int(seed)}")).permutation(n)
+    views = []
+    lo_f, hi_f = (math.log(f) for f in FOCAL_RANGE_MM)
+    for i in range(n):
+        rng = np.random.default_rng(hashed_seed(f"kornia_ilum.lightstage.view:{int(seed)}:{i}"))
+        u_yaw, u_pitch, u_roll, u_focal = rng.random(4)
+        yaw = -YAW_RANGE_DEG + 2.0 * YAW_RANGE_DEG * (order[i] + u_yaw) / n
+        pitch = PITCH_RANGE_DEG * (2.0 * u_pitch - 1.0)
+        roll = ROLL_RANGE_DEG * (2.0 * u_roll - 1.0)
+        fov = fov_from_focal(math.exp(lo_f + (hi_f - lo_f) * u_focal))
+        cam = Camera(round(float(fov), 3), 1.0, round(float(yaw), 3), round(float(pitch), 3), size,
+                     round(float(roll), 3))
+        views.append(Camera(cam.fov_deg, frame_distance(cam, lm, fraction), cam.yaw_deg, cam.pitch_deg, size,
+                            cam.roll_deg))
+    return tuple(views)
