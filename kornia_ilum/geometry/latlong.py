@@ -96,7 +96,7 @@ def latlong_solid_angles(
     A pixel spans ``(2 pi / W) (sin el_top - sin el_bottom)`` steradians.
 
     Examples:
-        >>> round(latlong_solid_angles(16, dtype=torch.float64).sum().item(), 12) == round(4 * math.pi, 12)
+        >>> abs(latlong_solid_angles(16, dtype=torch.float64).sum().item() - 4 * math.pi) < 1e-12
         True
     """
     check_positive_int(height, "height")

@@ -155,7 +155,7 @@ def lighting_stats(lighting: torch.Tensor, layout: str = "mirror_ball") -> dict[
 
     Examples:
         >>> s = lighting_stats(torch.ones(3, 32, 32))
-        >>> s["dynamic_range_stops"], round(s["peak_to_mean"], 6), round(s["top1_energy"], 6)
+        >>> round(s["dynamic_range_stops"], 6), round(s["peak_to_mean"], 6), round(s["top1_energy"], 6)
         (0.0, 1.0, 0.01)
     """
     if layout not in ("mirror_ball", "latlong"):
