@@ -14,13 +14,45 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     SubjectSource,
     subject_split,
 )
+from kornia_ilum.synth.lightstage.subjects.makehuman import MakeHumanAssetsNotFoundError, MakeHumanSource
 from kornia_ilum.synth.lightstage.subjects.mannequin import MannequinSource, make_subject, subject_params
+
+
+def subject_source(name: str, assets: str | None = None) -> SubjectSource:
+    """The subject source called ``name``: ``"makehuman"`` (photoreal, needs the assets) or ``"mannequin"``.
+
+    Args:
+        name: ``"makehuman"`` or ``"mannequin"``.
+        assets: the MakeHuman data root for ``"makehuman"`` (default: ``$KORNIA_ILUM_MAKEHUMAN``, else
+            ``$KORNIA_ILUM_SHARED_DATA/makehuman``); unused by ``"mannequin"``.
+
+    Returns:
+        The source (parsing is deferred to its first ``sample``).
+
+    Raises:
+        ValueCheckError: unknown ``name``.
+        MakeHumanAssetsNotFoundError: ``"makehuman"`` without the assets.
+
+    Examples:
+        >>> subject_source("mannequin").name
+        'mannequin'
+    """
+    from kornia_ilum.core.errors import ValueCheckError
+
+    if name == "mannequin":
+        return MannequinSource()
+    if name == "makehuman":
+        return MakeHumanSource.from_assets(assets)
+    raise ValueCheckError(f"unknown subject source {name!r}; expected 'makehuman' or 'mannequin'")
+
 
 __all__ = [
     "LANDMARK_NAMES",
     "MONK_SKIN_TONES_SRGB",
     "SKIN_ALBEDO",
     "SKIN_ALBEDO_SCALE",
+    "MakeHumanAssetsNotFoundError",
+    "MakeHumanSource",
     "MannequinSource",
     "Material",
     "MeshPart",
@@ -28,5 +60,6 @@ __all__ = [
     "SubjectSource",
     "make_subject",
     "subject_params",
+    "subject_source",
     "subject_split",
 ]

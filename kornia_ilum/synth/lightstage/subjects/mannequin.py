@@ -1286,6 +1286,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
         skin_tone=p["skin_tone"],
         face_landmarks=(landmarks * s).astype(np.float32),
         params=p,
+        face_albedo=(float(p["skin_albedo"][0]), float(p["skin_albedo"][1]), float(p["skin_albedo"][2])),
     )
 
 
