@@ -123,63 +123,122 @@ class TestShard:
 VIEWS = (Camera(40.0, 4.0, 0.0, 0.0), Camera(40.0, 4.0, 30.0, 10.0))
 
 
-@pytest.fixture()
-def fake_subjects(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """make_subject replaced by spheres (the cache must not depend on the subject generator's speed); returns
-    the list of seeds that render_olat was called for."""
-    v, f = _icosphere(2)
+class SphereSource:
+    """Subjects that are spheres (picklable, for the worker processes): the cache must not depend on the subject
+    generator's speed. ``face_landmarks`` are a 0.15 m tall box around the sphere's front."""
 
-    def make_subject(seed: int) -> SimpleNamespace:
+    name = "spheres"
+
+    def sample(self, seed: int) -> SimpleNamespace:
+        v, f = _icosphere(2)
+        v = (0.1 * v).astype(np.float32)
         mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), roughness=0.5, specular=0.5)
-        ball = SimpleNamespace(name="ball", vertices=v, faces=f, material=mat)
+        ball = SimpleNamespace(name="ball", vertices=v, faces=f, material=mat, normals=None, uvs=None)
+        lm = np.array([[-0.07, -0.075, 0.05], [0.07, 0.075, 0.05], [0.0, 0.0, 0.1]], np.float32)
         return SimpleNamespace(seed=seed, split="train" if seed % 2 else "eval", skin_tone=1 + seed % 10,
-                               parts=[ball], face_landmarks=v, params={})
+                               parts=[ball], face_landmarks=lm, params={"radius": 0.1, "kind": "ball", "v": [1]},
+                               face_albedo=(0.5, 0.5, 0.5), source="spheres")
 
-    rendered: list[int] = []
+
+@pytest.fixture()
+def rendered(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """render_olat counted (in this process): the list of subject seeds it was called for."""
+    seen: list[int] = []
     render = cache.render_olat
 
     def counting_render(subject, camera, **kw):
-        rendered.append(subject.seed)
+        seen.append(subject.seed)
         return render(subject, camera, **kw)
 
-    monkeypatch.setattr("kornia_ilum.synth.lightstage.subjects.make_subject", make_subject)
     monkeypatch.setattr(cache, "render_olat", counting_render)
-    return rendered
+    return seen
 
 
 class TestBuildCache:
-    kw: ClassVar[dict] = {"size": 16, "spp": 4, "lighting_size": 4, "threads": 1, "progress": False}
+    kw: ClassVar[dict] = {"size": 16, "spp": 1, "lighting_size": 4, "workers": 1, "progress": False}
 
-    def test_sharded_and_resumed(self, tmp_path: Path, fake_subjects: list[int]) -> None:
-        m0 = build_cache(tmp_path, [3, 4], VIEWS, worker_index=0, worker_count=2, **self.kw)
-        assert len(m0["entries"]) == 2 and fake_subjects == [3, 4]
-        manifest = build_cache(tmp_path, [3, 4], VIEWS, worker_index=1, worker_count=2, **self.kw)
-        assert [(e["subject_seed"], e["view_index"]) for e in manifest["entries"]] == [(3, 0), (3, 1), (4, 0), (4, 1)]
-        assert json.loads((tmp_path / "manifest.json").read_text()) == manifest
+    def test_random_views_sharded_and_resumed(self, tmp_path: Path, rendered: list[int]) -> None:
+        src = SphereSource()
+        m0 = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, worker_index=0, worker_count=2, **self.kw)
+        assert len(m0["entries"]) == 4 and rendered == [3, 3, 5, 5]  # a subject's views in one go
+        manifest = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, worker_index=1, worker_count=2,
+                               **self.kw)
+        assert [(e["subject_seed"], e["view_index"]) for e in manifest["entries"]] == [
+            (3, 0), (3, 1), (4, 0), (4, 1), (5, 0), (5, 1)]
+        on_disk = json.loads((tmp_path / "manifest.json").read_text())
+        assert on_disk == {k: v for k, v in manifest.items() if k != "run"}
+        assert on_disk["format"] == "kornia_ilum.olat-cache.v2"
         for e in manifest["entries"]:
             path = tmp_path / e["path"]
             assert path.stat().st_size == e["bytes"] and e["path"] == field_path(e["subject_seed"], e["view_index"])
             assert e["camera"]["size"] == 16 and e["dtype"] == "bfloat16" and e["render_seconds"] > 0
             assert e["split"] == ("train" if e["subject_seed"] % 2 else "eval")
+            assert e["source"] == "spheres" and e["views"] == "sample_views(n=2)" and e["peak_rss_mb"] > 10
+            assert e["face_albedo"] == [0.5, 0.5, 0.5] and e["params"] == {"kind": "ball", "radius": 0.1}
+            assert e["skin_tone"] == 1 + e["subject_seed"] % 10
             rf = read_field(path)
             assert rf.subject_seed == e["subject_seed"] and rf.camera == Camera(**e["camera"])
+            assert rf.meta["source"] == "spheres"
+        cams = [Camera(**e["camera"]) for e in manifest["entries"] if e["subject_seed"] == 3]
+        assert cams[0].yaw_deg * cams[1].yaw_deg < 0  # two views: one left, one right
         assert not list(tmp_path.rglob("*.tmp"))
 
-        fake_subjects.clear()  # resume: everything is intact, nothing renders
-        build_cache(tmp_path, [3, 4], VIEWS, worker_index=0, worker_count=1, **self.kw)
-        assert fake_subjects == []
+        rendered.clear()  # resume: everything is intact, nothing renders
+        again = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, **self.kw)
+        assert rendered == [] and again["run"]["rendered"] == 0
 
         victim = tmp_path / field_path(4, 1)
         victim.write_bytes(victim.read_bytes()[:-1] + b"x")  # corrupt one file: only it renders again
-        build_cache(tmp_path, [3, 4], VIEWS, **self.kw)
-        assert fake_subjects == [4]
+        build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, **self.kw)
+        assert rendered == [4]
         assert read_field(victim).subject_seed == 4
 
-        fake_subjects.clear()  # other settings: rendered again
-        build_cache(tmp_path, [3], VIEWS, **{**self.kw, "spp": 9})
-        assert fake_subjects == [3, 3]
+        rendered.clear()  # other settings: rendered again
+        build_cache(src, [3], tmp_path, views_per_subject=2, **{**self.kw, "spp": 4})
+        assert rendered == [3, 3]
         entries = {(e["subject_seed"], e["view_index"]): e for e in read_manifest(tmp_path)["entries"]}
-        assert entries[(3, 0)]["spp"] == 9 and entries[(4, 0)]["spp"] == 4
+        assert entries[(3, 0)]["spp_requested"] == 4 and entries[(4, 0)]["spp_requested"] == 1
+
+    def test_two_worker_processes(self, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+        """workers=2 spawns two processes; their manifests merge; the summary and progress are printed."""
+        manifest = build_cache(SphereSource(), [0, 1, 2], tmp_path, views_per_subject=2, size=16, spp=1,
+                               lighting_size=4, workers=2, progress=True, summary=True)
+        assert len(manifest["entries"]) == 6 and manifest["run"]["rendered"] == 6
+        assert sorted(p.name for p in tmp_path.glob("manifest.w*")) == ["manifest.w000of002.json",
+                                                                        "manifest.w001of002.json"]
+        assert sorted(e["subject_seed"] for e in cache._read_manifest_file(tmp_path / "manifest.w001of002.json")) \
+            == [1, 1]
+        captured = capsys.readouterr()
+        assert "subject-views: 6/6 (100 %)" in captured.err and "ETA" in captured.err
+        assert "6 subject-views of 3 subjects" in captured.out and "MB on disk" in captured.out
+
+    def test_worker_failure(self, tmp_path: Path) -> None:
+        from kornia_ilum.core.errors import IlumError
+
+        with pytest.raises(IlumError, match="cache worker process failed: AttributeError"):
+            build_cache(BrokenSource(), [0, 1], tmp_path, views_per_subject=1, size=16, spp=1, lighting_size=4,
+                        workers=2, progress=False)
+
+    def test_fixed_views_and_the_v1_call(self, tmp_path: Path, rendered: list[int], monkeypatch) -> None:
+        monkeypatch.setattr("kornia_ilum.synth.lightstage.subjects.make_subject", SphereSource().sample)
+        manifest = build_cache(tmp_path, [3], VIEWS, size=16, spp=1, lighting_size=4, threads=1, progress=False)
+        assert [Camera(**e["camera"]) for e in manifest["entries"]] == [
+            Camera(40.0, 4.0, 0.0, 0.0, size=16), Camera(40.0, 4.0, 30.0, 10.0, size=16)]
+        assert manifest["entries"][0]["source"] == "mannequin" and manifest["entries"][0]["views"] == "fixed"
+        rendered.clear()
+        build_cache("mannequin", [3], tmp_path, views=VIEWS, size=16, spp=1, lighting_size=4, workers=1,
+                    progress=False)
+        assert rendered == []  # the same settings: resumed
+
+    def test_read_v1_field(self, tmp_path: Path) -> None:
+        from safetensors import safe_open
+        from safetensors.torch import save_file
+
+        write_field(tmp_path / "a.safetensors", synthetic_field())
+        with safe_open(str(tmp_path / "a.safetensors"), framework="pt") as fh:
+            meta, tensors = fh.metadata(), {k: fh.get_tensor(k) for k in fh.keys()}  # noqa: SIM118
+        save_file(tensors, str(tmp_path / "v1.safetensors"), metadata={**meta, "format": "kornia_ilum.olat.v1"})
+        assert torch.equal(read_field(tmp_path / "v1.safetensors").field, synthetic_field().field)
 
     def test_read_manifest(self, tmp_path: Path) -> None:
         assert read_manifest(tmp_path)["entries"] == []
@@ -191,9 +250,20 @@ class TestBuildCache:
         with pytest.raises(TypeCheckError, match="views must be a non-empty sequence of Camera"):
             build_cache(tmp_path, [1], [(30.0, 1.0, 0.0, 0.0)], progress=False)
         with pytest.raises(ValueCheckError, match=r"worker_index must be an int in \[0, 2\)"):
-            build_cache(tmp_path, [1], VIEWS, worker_index=5, worker_count=2, progress=False)
+            build_cache("mannequin", [1], tmp_path, worker_index=5, worker_count=2, progress=False)
+        with pytest.raises(TypeCheckError, match="source must be a SubjectSource"):
+            build_cache(3, [1], tmp_path, progress=False)
+        with pytest.raises(ValueCheckError, match="workers must be positive"):
+            build_cache("mannequin", [1], tmp_path, workers=0, progress=False)
 
     def test_default_views(self) -> None:
         assert len(cache.DEFAULT_VIEWS) == 3 and cache.DEFAULT_VIEWS[0].yaw_deg == 0.0
         assert {v.yaw_deg for v in cache.DEFAULT_VIEWS} == {0.0, 25.0, -25.0}
         assert np.ptp([v.fov_deg for v in cache.DEFAULT_VIEWS]) > 0
+
+
+class BrokenSource:
+    name = "broken"
+
+    def sample(self, seed: int):
+        return None  # no face_landmarks: the worker fails
