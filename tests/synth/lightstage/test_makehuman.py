@@ -1,0 +1,222 @@
+"""MakeHuman subjects: the asset readers against the files' text, re-tinting, opacity, and sampled subjects."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from kornia_ilum.synth.lightstage.subjects import (
+    LANDMARK_NAMES,
+    SKIN_ALBEDO,
+    MakeHumanAssetsNotFoundError,
+    MakeHumanSource,
+    subject_source,
+    subject_split,
+)
+from kornia_ilum.synth.lightstage.subjects.makehuman import clean_alpha, clip_mesh_below, retint_skin
+from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
+    bind_proxy,
+    load_texture,
+    macro_target_weights,
+    read_mhclo,
+    read_target,
+)
+
+_SOURCE: dict = {}
+
+
+@pytest.fixture
+def mh(shared_data):
+    """One source per test session (the parse is cached inside it)."""
+    if "src" not in _SOURCE:
+        _SOURCE["src"] = MakeHumanSource.from_assets(shared_data / "makehuman")
+    return _SOURCE["src"]
+
+
+def _base_vertices_from_text(path) -> np.ndarray:
+    rows = [line.split()[1:4] for line in open(path) if line.startswith("v ")]
+    return np.array(rows, dtype=np.float64)
+
+
+def test_target_application_matches_file_text(mh):
+    a = mh.assets
+    path = a.target_files["nose-trans-up"]
+    lines = [ln.split() for ln in open(path) if ln.strip() and not ln.startswith("#")]
+    picks = [lines[0], lines[len(lines) // 2], lines[-1]]
+    idx, d = read_target(path)
+    w = 0.37
+    v = a.base.vertices.copy()
+    v[idx] += w * d
+    base = _base_vertices_from_text(a.root / "3dobjs" / "base.obj")
+    for tok in picks:
+        i = int(tok[0])
+        expected = base[i] + w * np.array([float(t) for t in tok[1:4]])
+        np.testing.assert_allclose(v[i], expected, atol=1e-6)
+    untouched = np.setdiff1d(np.arange(len(base)), idx)[:50]
+    np.testing.assert_array_equal(v[untouched], base[untouched])
+
+
+def test_macro_weight_formula():
+    # age 0.5 (25 y): young only; female 0.3 of gender 0.7; ethnic normalised.
+    w = macro_target_weights((1.0, 1.0, 2.0), 0.7, 0.5, 0.5, 0.5)
+    assert w["caucasian-male-young"] == pytest.approx(0.5 * 0.7)
+    assert w["african-female-young"] == pytest.approx(0.25 * 0.3)
+    assert not any(k.endswith("-old") or k.endswith("-child") for k in w if not k.startswith("universal"))
+    assert w["universal-male-young-averagemuscle-averageweight"] == pytest.approx(0.7)
+    # age 0.75 (57.5 y): old = 0.5, young = 0.5; muscle 0.75 -> average 0.5, max 0.5; weight 0.2 -> min 0.6.
+    w = macro_target_weights((0.0, 1.0, 0.0), 1.0, 0.75, 0.75, 0.2)
+    assert w["asian-male-old"] == pytest.approx(0.5) and w["asian-male-young"] == pytest.approx(0.5)
+    assert w["universal-male-old-maxmuscle-minweight"] == pytest.approx(0.5 * 0.5 * 0.6)
+    assert w["universal-male-young-averagemuscle-averageweight"] == pytest.approx(0.5 * 0.5 * 0.4)
+    # age 0.3 (below 25 y): young = (0.3 - 0.1875) * 3.2 = 0.36, child = min(1, 1.6) - 0.36 = 0.64.
+    w = macro_target_weights((0.0, 0.0, 1.0), 0.0, 0.3)
+    assert w["caucasian-female-young"] == pytest.approx(0.36)
+    assert w["caucasian-female-child"] == pytest.approx(0.64)
+
+
+def test_proxy_binding_formula(mh):
+    a = mh.assets
+    path = a.root / "eyebrows" / "eyebrow001" / "eyebrow001.mhclo"
+    px = read_mhclo(path)
+    v = a.base.vertices
+    bound = bind_proxy(px, v)
+    text = open(path).read().splitlines()
+    sc = {ln.split()[0][0]: ln.split()[1:] for ln in text if ln.startswith(("x_scale", "y_scale", "z_scale"))}
+    rows = text[[i for i, ln in enumerate(text) if ln.startswith("verts")][0] + 1 :]
+    tok = rows[7].split()
+    i, j, k = (int(t) for t in tok[:3])
+    wi, wj, wk, dx, dy, dz = (float(t) for t in tok[3:9])
+    s = [abs(v[int(sc[ax][0]), c] - v[int(sc[ax][1]), c]) / float(sc[ax][2]) for c, ax in enumerate("xyz")]
+    expected = wi * v[i] + wj * v[j] + wk * v[k] + np.array([s[0] * dx, s[1] * dy, s[2] * dz])
+    np.testing.assert_allclose(bound[7], expected, atol=1e-9)
+    # An exact-copy line "i" gives V[i].
+    px.refs[3] = 1234
+    px.weights[3] = (1.0, 0.0, 0.0)
+    px.offsets[3] = 0.0
+    np.testing.assert_allclose(bind_proxy(px, v)[3], v[1234])
+
+
+def test_exact_copy_line_parsed(tmp_path, mh):
+    src = mh.root / "eyebrows" / "eyebrow001"
+    lines = open(src / "eyebrow001.mhclo").read().splitlines()
+    k = [i for i, ln in enumerate(lines) if ln.startswith("verts")][0] + 1
+    lines[k] = "  4321"
+    (tmp_path / "eyebrow001.mhclo").write_text("\n".join(lines))
+    (tmp_path / "eyebrow001.obj").write_text((src / "eyebrow001.obj").read_text())
+    px = read_mhclo(tmp_path / "eyebrow001.mhclo")
+    np.testing.assert_allclose(bind_proxy(px, mh.assets.base.vertices)[0], mh.assets.base.vertices[4321])
+
+
+def test_retint_keeps_detail_and_hits_target(mh):
+    a = mh.assets
+    for tone in (1, 10):
+        fam = "lightskinned" if tone == 1 else "darkskinned"
+        tex, _ = load_texture(next(s for s in a.skins if f"_{fam}_" in s.name))
+        target = SKIN_ALBEDO[tone - 1]
+        out, mean = retint_skin(tex, a.face_mask, target)
+        np.testing.assert_allclose(mean, target, rtol=0.02)
+        assert out.dtype == np.float32 and out.shape == tex.shape and out.max() <= 0.95
+        m = a.face_mask
+        lo, lt = np.log(out[m] + 1e-4), np.log(tex[m] + 1e-4)
+        for c in range(3):
+            assert np.corrcoef(lo[:, c], lt[:, c])[0, 1] > 0.98
+
+
+def test_opacity_textures_binary_without_film(mh):
+    root = mh.root
+    pngs = [root / "hair" / h / f for h in ("short01", "afro01", "bob02") for f in [f"{h}_diffuse.png"]]
+    pngs[1] = root / "hair" / "afro01" / "afro_diffuse.png"
+    pngs += [root / "eyebrows" / "eyebrow003" / "eyebrow003.png", root / "eyelashes" / "eyelashes02" / "eyelashes02.png"]
+    for p in pngs:
+        _, alpha = load_texture(p)
+        op = clean_alpha(alpha)
+        assert set(np.unique(op).tolist()) <= {0.0, 1.0}
+        assert np.all(op[alpha >= 0.7] == 1.0)  # no holes in the strands
+        assert np.all(op[alpha < 0.15] == 0.0)  # no film
+        assert abs(op.mean() - alpha.mean()) < 0.25 * alpha.mean() + 0.01  # coverage kept
+
+
+def test_clip_mesh_below_is_straight():
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    cv, cf, (uv,) = clip_mesh_below(v, f, 0.3, [v[:, :2]])
+    assert cv[:, 1].min() == pytest.approx(0.3)
+    area = 0.5 * np.abs(np.cross(cv[cf[:, 1]] - cv[cf[:, 0]], cv[cf[:, 2]] - cv[cf[:, 0]])[:, 2]).sum()
+    assert area == pytest.approx(0.7)
+    n = np.cross(cv[cf[:, 1]] - cv[cf[:, 0]], cv[cf[:, 2]] - cv[cf[:, 0]])[:, 2]
+    assert np.all(n > 0)  # orientation kept
+    np.testing.assert_allclose(uv, cv[:, :2])
+
+
+def _border_vertices(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Border vertices of the mesh welded by position (UV seams split vertices but are not borders)."""
+    _, first, weld = np.unique(np.round(vertices.astype(np.float64), 6), axis=0, return_index=True, return_inverse=True)
+    faces = weld.reshape(-1)[faces]
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    u, c = np.unique(e, axis=0, return_counts=True)
+    return first[np.unique(u[c == 1])]
+
+
+def test_sampled_subject(mh):
+    s = mh.sample(11)
+    s2 = mh.sample(11)
+    assert s.source == "makehuman" and s.split == subject_split(11)
+    names = {p.name for p in s.parts}
+    need = {"skin", "eyes", "cornea", "brows", "lashes", "teeth"} | ({"hair"} if s.params["hair"] != "bald" else set())
+    assert need <= names
+    for p, q in zip(s.parts, s2.parts):
+        np.testing.assert_array_equal(p.vertices, q.vertices)
+        assert p.vertices.dtype == np.float32 and p.vertices.ndim == 2 and p.vertices.shape[1] == 3
+        assert p.faces.dtype == np.int32 and p.faces.min() >= 0 and p.faces.max() < len(p.vertices)
+        assert np.isfinite(p.vertices).all()
+        if p.normals is not None:
+            np.testing.assert_allclose(np.linalg.norm(p.normals, axis=1), 1.0, atol=1e-4)
+        if p.uvs is not None:
+            assert p.uvs.shape == (len(p.vertices), 2) and p.uvs.min() >= 0 and p.uvs.max() <= 1
+        for t in (p.material.albedo_texture, p.material.opacity_texture, p.material.roughness_texture):
+            assert t is None or (t.dtype == np.float32 and np.isfinite(t).all())
+    json.dumps(s.params)
+    assert 1 <= s.skin_tone <= 10 and len(s.face_albedo) == 3
+    skin = s.part("skin")
+    assert skin.material.kind == "skin" and skin.material.subsurface
+    assert s.part("cornea").material.kind == "cornea"
+    # Landmarks: inside the head's box, the subject's right at -X.
+    lm = dict(zip(LANDMARK_NAMES, s.face_landmarks))
+    assert s.face_landmarks.shape == (20, 3) and s.face_landmarks.dtype == np.float32
+    lo, hi = skin.vertices.min(0), skin.vertices.max(0)
+    assert np.all(s.face_landmarks >= lo - 1e-3) and np.all(s.face_landmarks <= hi + 1e-3)
+    assert lm["eye_right_outer"][0] < lm["eye_right_inner"][0] < lm["eye_left_inner"][0] < lm["eye_left_outer"][0]
+    assert lm["ear_right"][0] < lm["mouth_right"][0] < 0 < lm["mouth_left"][0] < lm["ear_left"][0]
+    assert lm["chin"][1] < lm["lower_lip"][1] < lm["upper_lip"][1] < lm["nose_tip"][1] < lm["glabella"][1]
+    assert abs(0.5 * (lm["eye_right_outer"][1] + lm["eye_left_outer"][1])) < 0.01
+    # The cut: every border vertex of the skin lies on the cut plane (within 1 mm).
+    b = _border_vertices(skin.vertices, skin.faces)
+    assert len(b) > 20
+    np.testing.assert_allclose(skin.vertices[b, 1], s.params["cut_y"], atol=1e-3)
+    # Outward normals: the nose tip's normal points forward.
+    i = np.argmin(np.linalg.norm(skin.vertices - lm["nose_tip"], axis=1))
+    assert skin.normals[i, 2] > 0.5
+
+
+def test_sample_is_cached_and_varied(mh):
+    a = mh.assets
+    before = len(a.targets)
+    mh.sample(11)
+    assert len(a.targets) == before  # no reparse for a seed already seen
+    s = mh.sample(12)
+    assert s.params != mh.sample(11).params
+
+
+def test_missing_assets_error(tmp_path, monkeypatch):
+    monkeypatch.delenv("KORNIA_ILUM_MAKEHUMAN", raising=False)
+    monkeypatch.delenv("KORNIA_ILUM_SHARED_DATA", raising=False)
+    with pytest.raises(MakeHumanAssetsNotFoundError, match="KORNIA_ILUM_MAKEHUMAN"):
+        MakeHumanSource.from_assets()
+    with pytest.raises(FileNotFoundError, match="base.obj"):
+        MakeHumanSource.from_assets(tmp_path)
+    monkeypatch.setenv("KORNIA_ILUM_MAKEHUMAN", str(tmp_path))
+    with pytest.raises(MakeHumanAssetsNotFoundError):
+        subject_source("makehuman")
+    assert subject_source("mannequin").name == "mannequin"
