@@ -71,7 +71,7 @@ def variants() -> list[str]:
 
 @pytest.fixture(scope="module")
 def white_sphere(variant: str) -> ReflectanceField:
-    return render_olat(sphere_subject(), CAM, lighting_size=S, spp=16, variant=variant, threads=1)
+    return render_olat(sphere_subject(), CAM, lighting_size=S, spp=16, variant=variant, threads=1, method="reference")
 
 
 def covered(rf: ReflectanceField) -> torch.Tensor:

@@ -92,7 +92,10 @@ __all__ = [
     "material_bsdf",
     "olat_envmap_basis",
     "render_lighting",
+    "ONEPASS_SPP",
+    "diffuse_twin_bsdf",
     "render_olat",
+    "render_olat_reference",
     "select_mitsuba_variant",
 ]
 
@@ -135,6 +138,8 @@ class ReflectanceField:
             indices of the stored pixels (the others are 0: background), and ``field`` is ``(3, P', N')``.
         light_index: ``None``, or in the compact layout int64 ``(N',)`` indices of the stored lights (the valid
             ones).
+        gbuffer: the renderer's :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer` (one-pass renders), or
+            ``None`` (not cached).
 
     Examples:
         >>> rf = ReflectanceField(torch.zeros(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
@@ -151,6 +156,7 @@ class ReflectanceField:
     meta: dict[str, Any] = dataclass_field(default_factory=dict)
     pixel_index: torch.Tensor | None = None
     light_index: torch.Tensor | None = None
+    gbuffer: Any = dataclass_field(default=None, repr=False, compare=False)
 
     @property
     def size(self) -> int:
@@ -331,29 +337,67 @@ def material_bsdf(material: Material) -> dict[str, Any]:
             },
         }
     albedo = _rgb(getattr(material, "albedo", None), "material.albedo")
+    tex = getattr(material, "albedo_texture", None)
+    if tex is not None:
+        albedo = _bitmap(np.clip(np.asarray(tex, dtype=np.float32), 0.0, 1.0))
+    rough_tex = getattr(material, "roughness_texture", None)
+    if rough_tex is not None:
+        roughness: Any = _bitmap(np.sqrt(np.clip(alpha * np.asarray(rough_tex, dtype=np.float32), 1e-4, 1.0)))
+    else:
+        roughness = math.sqrt(max(alpha, 1e-4))
     if kind == "diffuse":
         inner: dict[str, Any] = {"type": "diffuse", "reflectance": albedo}
     else:  # skin, glossy, hair: a diffuse base under a GGX dielectric specular lobe
         inner = {
             "type": "principled",
             "base_color": albedo,
-            "roughness": math.sqrt(max(alpha, 1e-4)),
+            "roughness": roughness,
             "specular": specular,
             "metallic": 0.0,
         }
     return {"type": "twosided", "bsdf": inner}
 
 
+def _bitmap(data: np.ndarray) -> dict[str, Any]:
+    """A linear (raw) bitmap texture, nearest texel; row 0 of ``data`` is the top of the image."""
+    mi = _import_mitsuba()
+    arr = np.ascontiguousarray(data if data.ndim == 3 else data[..., None], dtype=np.float32)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(arr), "raw": True, "filter_type": "nearest"}
+
+
+def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
+    r"""The diffuse part of :func:`material_bsdf`: the same BSDF with ``specular = 0``.
+
+    Mitsuba's ``principled`` is linear in ``specular`` (its GGX lobe's Fresnel scales with it and the diffuse
+    base does not), so ``material_bsdf - diffuse_twin_bsdf`` is the specular part.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> diffuse_twin_bsdf(SimpleNamespace(kind="skin", albedo=(0.5, 0.5, 0.5)))["bsdf"]["specular"]
+        0.0
+    """
+    bsdf = material_bsdf(material)
+    if bsdf["type"] == "twosided" and bsdf["bsdf"]["type"] == "principled":
+        bsdf = {"type": "twosided", "bsdf": {**bsdf["bsdf"], "specular": 0.0}}
+    return bsdf
+
+
 def _mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
-                  bsdf: dict[str, Any]) -> Any:
+                  bsdf: dict[str, Any], uvs: np.ndarray | None = None) -> Any:
+    """A Mitsuba mesh; ``uvs`` (OBJ convention, ``v`` up) are stored as ``(u, 1 - v)``: image row 0 at ``v = 1``."""
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
-    mesh = mi.Mesh(name, vertex_count=len(vertices), face_count=len(faces), has_vertex_normals=True, props=props)
+    mesh = mi.Mesh(name, vertex_count=len(vertices), face_count=len(faces), has_vertex_normals=True,
+                   has_vertex_texcoords=uvs is not None, props=props)
     params = mi.traverse(mesh)
     params["vertex_positions"] = type(params["vertex_positions"])(vertices.astype(np.float32).ravel())
     params["faces"] = type(params["faces"])(faces.astype(np.uint32).ravel())
     if normals is not None:
         params["vertex_normals"] = type(params["vertex_normals"])(normals.astype(np.float32).ravel())
+    if uvs is not None:
+        uv = np.asarray(uvs, dtype=np.float32).copy()
+        uv[:, 1] = 1.0 - uv[:, 1]
+        params["vertex_texcoords"] = type(params["vertex_texcoords"])(uv.ravel())
     params.update()  # without given normals, Mitsuba computes smooth (area-weighted) vertex normals
     return mesh
 
@@ -462,16 +506,22 @@ def _envmap_data(texels: np.ndarray, height: int, width: int, data_width: int) -
 def _build_scene(mi: Any, subject: Any, camera: Camera, transform: np.ndarray, spp: int, max_depth: int,
                  height: int) -> tuple[Any, str]:
     objects: dict[str, Any] = {}
-    has_cornea = False
+    has_null = False
     for i, part in enumerate(subject.parts):
         v = np.asarray(part.vertices, dtype=np.float64) @ transform[:3, :3].T + transform[:3, 3]
         normals = getattr(part, "normals", None)
         if normals is not None:
             normals = np.asarray(normals, dtype=np.float64) @ transform[:3, :3].T
-        has_cornea |= part.material.kind == "cornea"
+        has_null |= part.material.kind == "cornea"
+        uvs = getattr(part, "uvs", None)
+        bsdf = material_bsdf(part.material)
+        opacity = getattr(part.material, "opacity_texture", None)
+        if opacity is not None and uvs is not None:  # alpha-tested: binary texels, nearest (as the one-pass)
+            bsdf = {"type": "mask", "opacity": _bitmap((np.asarray(opacity) >= 0.5).astype(np.float32)), "bsdf": bsdf}
+            has_null = True
         name = f"part{i:03d}_{getattr(part, 'name', 'mesh')}"
-        objects[name] = _mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, material_bsdf(part.material))
-    integrator = "volpath" if has_cornea else "path"
+        objects[name] = _mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, bsdf, uvs=uvs)
+    integrator = "volpath" if has_null else "path"
     to_world = np.eye(4)
     to_world[:3, :3] = _ENV_TO_WORLD
     scene = mi.load_dict(
@@ -591,6 +641,176 @@ def render_olat(
     camera: Camera,
     *,
     lighting_size: int = 32,
+    spp: int | None = None,
+    variant: str | None = None,
+    max_depth: int | None = None,
+    seed: int = 0,
+    envmap_height: int | None = None,
+    threads: int | None = None,
+    lights: np.ndarray | list[int] | None = None,
+    callback: Callable[[int], Any] | None = None,
+    method: str = "auto",
+    subsurface: bool = True,
+    denoise: bool = True,
+    chunk_lanes: int | None = None,
+) -> ReflectanceField:
+    r"""Render the OLAT reflectance field of a subject seen by a camera.
+
+    Args:
+        subject: a :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (anything with ``parts`` of
+            ``MeshPart`` with ``vertices``, ``faces`` and ``material``, ``face_landmarks`` and ``seed``).
+        camera: the camera; its ``size`` is the image side.
+        lighting_size: the mirror-ball side ``S`` of the lighting basis (``N = S^2`` lights).
+        spp: camera samples per pixel; default :data:`ONEPASS_SPP` for the one-pass renderer, 16 for the
+            reference.
+        variant: the Mitsuba variant, or ``None`` for the first that works (:func:`select_mitsuba_variant`).
+        max_depth: the reference's path depth (default 4); the one-pass renderer is direct light only
+            (``max_depth = 2``; anything else raises).
+        seed: the random seed.
+        envmap_height, lights: the reference's (:func:`render_olat_reference`).
+        threads: if given, sets Dr.Jit's thread count (process-global) before rendering.
+        callback: called with 1 after each light (reference) or with fractions of the work (one-pass).
+        method: ``"onepass"`` (:mod:`~kornia_ilum.synth.lightstage.onepass`, needs a vectorised variant),
+            ``"reference"`` (:func:`render_olat_reference`), or ``"auto"``: one-pass when the variant is
+            vectorised and no reference-only option (``lights``, ``envmap_height``, ``max_depth`` other than 2)
+            is given, else the reference.
+        subsurface: one-pass only: apply ``subsurface.subsurface_scatter`` to the diffuse part when that module
+            exists.
+        denoise: one-pass only: apply ``denoise.denoise_field`` when that module exists.
+        chunk_lanes: one-pass only: light-hit pairs per kernel.
+
+    Returns:
+        the :class:`ReflectanceField`; ``meta`` records the method, settings and timings. The one-pass
+        renderer also sets ``gbuffer`` (:class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer`).
+
+    Raises:
+        ImportError: Mitsuba is not installed.
+        ShapeError, TypeCheckError, ValueCheckError: a malformed subject, camera or setting.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> from kornia_ilum.synth.lightstage.olat import _icosphere  # a unit sphere mesh, for examples
+        >>> v, f = _icosphere(2)
+        >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
+        ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
+        >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
+        >>> rf = render_olat(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), lighting_size=4, spp=4)
+        >>> rf.field.shape, rf.field.dtype
+        (torch.Size([3, 64, 16]), torch.bfloat16)
+    """
+    check_choice(method, "method", ("auto", "onepass", "reference"))
+    reference_only = lights is not None or envmap_height is not None or max_depth not in (None, 2)
+    if method == "reference" or (method == "auto" and (reference_only or not _vectorised(variant))):
+        return render_olat_reference(
+            subject, camera, lighting_size=lighting_size, spp=16 if spp is None else spp, variant=variant,
+            max_depth=4 if max_depth is None else max_depth, seed=seed, envmap_height=envmap_height,
+            threads=threads, lights=lights, callback=callback,
+        )
+    from kornia_ilum.synth.lightstage.onepass import _DEFAULT_LANES, render_olat_onepass
+
+    start = time.perf_counter()
+    if not isinstance(camera, Camera):
+        raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
+    check_positive_int(lighting_size, "lighting_size")
+    spp = ONEPASS_SPP if spp is None else spp
+    check_positive_int(spp, "spp")
+    if max_depth not in (None, 2):
+        raise ValueCheckError(f"the one-pass renderer traces direct light only (max_depth 2), got {max_depth}")
+    if lights is not None:
+        raise ValueCheckError("lights is a reference-renderer option (method='reference')")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueCheckError(f"seed must be a non-negative int, got {seed!r}")
+    _check_subject(subject)
+    for part in subject.parts:
+        material_bsdf(part.material)
+    variant = select_mitsuba_variant(variant)
+    if not variant.startswith(("llvm", "cuda")):
+        raise ValueCheckError(f"method='onepass' needs a vectorised Mitsuba variant (llvm_ad_rgb), got {variant}")
+    mi = _import_mitsuba()
+    if threads is not None:
+        import drjit as dr
+
+        check_positive_int(threads, "threads")
+        dr.set_thread_count(threads)
+    transform = camera_transform(camera, _pivot(subject))
+    res = render_olat_onepass(subject, camera, transform, lighting_size=lighting_size, spp=spp, seed=seed,
+                              chunk_lanes=chunk_lanes or _DEFAULT_LANES,
+                              callback=None if callback is None else (lambda frac: None))
+    t_post = time.perf_counter()
+    diffuse, specular, steps = res.diffuse, res.specular, []
+    size = camera.size
+    if subsurface and _has_module("subsurface") and bool((res.gbuffer.subsurface > 0).any()):
+        from kornia_ilum.synth.lightstage import subsurface as sss_mod
+
+        diffuse = _on_dense(sss_mod.subsurface_scatter, diffuse, res, size)
+        steps.append("subsurface")
+    field = diffuse + specular
+    del diffuse, specular
+    if denoise and _has_module("denoise"):
+        from kornia_ilum.synth.lightstage import denoise as dn_mod
+
+        field = _on_dense(dn_mod.denoise_field, field, res, size)
+        steps.append("denoise")
+    rows = torch.zeros(3, len(res.rows), lighting_size**2, dtype=torch.bfloat16)
+    rows.index_copy_(2, res.cols, field.to(torch.bfloat16))
+    del field
+    out = torch.zeros(3, size * size, lighting_size**2, dtype=torch.bfloat16)
+    out.index_copy_(1, res.rows, rows)
+    del rows
+    box = project_points(subject.face_landmarks, camera, transform)
+    face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
+    meta: dict[str, Any] = {
+        "renderer": f"mitsuba {mi.__version__}",
+        "method": "onepass",
+        "variant": variant,
+        "max_depth": 2,
+        "spp": spp,
+        "seed": seed,
+        "lighting_size": lighting_size,
+        "post": steps,
+        "timings": {**res.timings, "post": round(time.perf_counter() - t_post, 3)},
+        "render_seconds": round(time.perf_counter() - start, 3),
+        "pivot": _pivot(subject).tolist(),
+        "subject_to_camera": transform.tolist(),
+        "lights_rendered": int(len(res.cols)),
+        "landmarks": [[round(float(x), 3) for x in xy] for xy in box.tolist()],
+    }
+    for key in ("split", "skin_tone"):
+        if hasattr(subject, key):
+            meta[key] = getattr(subject, key)
+    if callback is not None:
+        callback(int(len(res.cols)))
+    rf = ReflectanceField(out, res.gbuffer.alpha.clone(), face_box, camera, int(subject.seed), meta)
+    rf.gbuffer = res.gbuffer
+    return rf
+
+
+#: Default camera samples per pixel of the one-pass renderer (``benchmarks/bench_olat.py``).
+ONEPASS_SPP = 4
+
+
+def _vectorised(variant: str | None) -> bool:
+    return select_mitsuba_variant(variant).startswith(("llvm", "cuda"))
+
+
+def _has_module(name: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(f"kornia_ilum.synth.lightstage.{name}") is not None
+
+
+def _on_dense(fn: Callable[..., torch.Tensor], compact: torch.Tensor, res: Any, size: int) -> torch.Tensor:
+    """Apply a field operator that takes a dense ``(3, P, N_v)`` field and a GBuffer; back to the rows."""
+    dense = torch.zeros(3, size * size, compact.shape[-1])
+    dense[:, res.rows] = compact
+    return fn(dense, res.gbuffer)[:, res.rows]
+
+
+def render_olat_reference(
+    subject: Subject,
+    camera: Camera,
+    *,
+    lighting_size: int = 32,
     spp: int = 16,
     variant: str | None = None,
     max_depth: int = 4,
@@ -600,7 +820,7 @@ def render_olat(
     lights: np.ndarray | list[int] | None = None,
     callback: Callable[[int], Any] | None = None,
 ) -> ReflectanceField:
-    r"""Render the OLAT reflectance field of a subject seen by a camera (module docstring for the method).
+    r"""The per-light reference renderer: one Mitsuba render per light (module docstring for the method).
 
     Args:
         subject: a :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (anything with ``parts`` of
@@ -641,7 +861,7 @@ def render_olat(
         >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
-        >>> rf = render_olat(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), lighting_size=4, spp=4,
+        >>> rf = render_olat_reference(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), lighting_size=4, spp=4,
         ...                  variant="scalar_rgb")
         >>> rf.field.shape, rf.field.dtype, rf.meta["lights_rendered"]
         (torch.Size([3, 64, 16]), torch.bfloat16, 12)
