@@ -26,8 +26,13 @@ from kornia_ilum.synth.lightstage import (
     subject_split,
 )
 from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
+from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.lightstage.portraits import (
+    PortraitConfig,
     PortraitDataset,
+    background_pyramid,
+    environment_background,
+    frame_backgrounds,
     auto_exposure,
     crop_images,
     detector_boxes,
@@ -93,11 +98,14 @@ def cache(tmp_path_factory, variant: str):
     return out
 
 
-def small(fields, **kw) -> PortraitDataset:
+OFF = CameraEffects.off()
+
+
+def small(fields, seed: int = 0, **kw) -> PortraitDataset:
     settings = {"size": OUT, "sphere_sizes": (4, 8), "fields_per_chunk": 2, "lightings_per_field": 4,
                 "env_pool": 4, "env_refresh": 1, "shuffle": 2, "environments": EnvironmentSampler(seed=0)}
     settings.update(kw)
-    return PortraitDataset(fields, **settings)
+    return PortraitDataset(fields, PortraitConfig(**settings), seed=seed)
 
 
 class TestRelight:
@@ -135,7 +143,7 @@ class TestAnalytic:
     def test_uniform_environment(self, sphere_field) -> None:
         """A white Lambertian sphere under uniform radiance L over the matching background reads, exposed by g,
         ``g L (a alpha + 1 - alpha)`` (alpha: the cropped matte), and its ground truth is ``g L``."""
-        data = small([sphere_field], split=None, environments=uniform_sampler(), noise=(0.0, 0.0),
+        data = small([sphere_field], split=None, environments=uniform_sampler(), camera=OFF,
                      exposure_key=(0.18, 0.18), flip_probability=0.0, shuffle=1)
         sample = data.chunk(0, 0)[0]
         gain = float(sample["exposure"])
@@ -158,7 +166,7 @@ class TestAnalytic:
         torch.testing.assert_close(centre, expected_sphere.expand_as(centre), rtol=2e-3, atol=0)
 
     def test_exposure_meters_the_key(self, sphere_field) -> None:
-        data = small([sphere_field], split=None, environments=uniform_sampler(radiance=50.0), noise=(0.0, 0.0),
+        data = small([sphere_field], split=None, environments=uniform_sampler(radiance=50.0), camera=OFF,
                      exposure_key=(0.25, 0.25))
         sample = data.chunk(0, 0)[0]
         assert 0.25 / 50.0 < float(sample["exposure"]) < 0.25 / (50.0 * ALBEDO)
@@ -169,7 +177,7 @@ class TestAnalytic:
         checked = 0
         for p in (0.0, 1.0):
             data = small([sphere_field], split=None, environments=uniform_sampler(radiance=0.05, left_light=40.0),
-                         background="black", noise=(0.0, 0.0), flip_probability=p, lightings_per_field=8)
+                         background="black", camera=OFF, flip_probability=p, lightings_per_field=8)
             for sample in data.chunk(0, 0):
                 assert sample["flip"] == bool(p)
                 image = sample["image"].float()
@@ -231,7 +239,7 @@ class TestDataset:
 
     def test_black_background(self, cache) -> None:
         field = load_fields(cache, "train")[0]
-        for sample in small(cache, background="black", noise=(0.0, 0.0), length=4):
+        for sample in small(cache, background="black", camera=OFF, length=4):
             alpha = crop_images(field.alpha[None], sample["crop_box"][None], OUT,
                                 torch.tensor([sample["flip"]]))[0]
             if sample["flip"]:  # crop_box is in the mirrored image
@@ -239,7 +247,7 @@ class TestDataset:
             assert (sample["image"][:, alpha[0] == 0] == 0).all()
 
     def test_background_only(self, cache) -> None:
-        with_subject, without = (small(cache, subject=flag, noise=(0.0, 0.0)).chunk(0, 0) for flag in (True, False))
+        with_subject, without = (small(cache, subject=flag, camera=OFF).chunk(0, 0) for flag in (True, False))
         for a, b in zip(with_subject, without, strict=True):
             torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
             assert not torch.equal(a["image"], b["image"])

@@ -1,0 +1,607 @@
+r"""Phone-camera effects: the augmentations that turn a clean render into the kind of 8-bit photo a phone writes.
+
+The estimators meet portraits taken by phones, not renders encoded with the plain sRGB curve. Each effect here is
+a pure function with a per-image strength (a tensor ``(B,)``; strength 0 is the identity, so a batch mixes affected
+and unaffected images in one vectorised call) and a ``Random*`` module that draws the strengths with a probability
+and a range from a :class:`torch.Generator` (Kornia style). :class:`CameraEffects` chains them in the order of a
+camera pipeline, and is what :class:`~kornia_ilum.synth.lightstage.PortraitDataset` applies:
+
+1. :func:`lens_blur` (linear): a small Gaussian of ``sigma`` pixels, the optics' softness (0 to 1 px).
+2. :func:`vignette` (linear): the lens' fall-off towards the corners, ``1 - strength * r^2`` (``r = 1`` at the
+   corners).
+3. :func:`sensor_noise` (linear, before any tone mapping, as on a sensor): Poisson-Gaussian noise of variance
+   ``shot * x + read^2``. One ISO-like level sets both: ``shot`` is drawn log-uniformly and ``read`` follows it
+   as measured on phone sensors by Brooks et al. 2019 ("Unprocessing images for learned raw denoising", Sec. 3.4:
+   ``log read^2 = 2.18 log shot + 1.2``, without their jitter). The default range, ``shot`` in
+   ``[1e-5, 1e-3]``, gives a noise of 0.04 to 1.3 % of mid-grey's value plus a read noise of at most 0.001
+   (about 3 codes in black): a phone's output after its own denoising, not raw.
+4. :func:`tone_curve` (on the sRGB-encoded values): a gamma ``y = x^gamma`` then a monotone S-curve
+   ``y - c sin(2 pi y) / (2 pi)`` (``c > 0`` adds contrast, ``c < 0`` flattens; ``|c| < 1``); both end points stay
+   fixed. Phones tone-map with curves of their own, not the bare sRGB curve. :func:`encode_tone8` is the fused
+   path: linear to 8-bit codes through one table per image (of the sRGB curve and the tone curve), as fast as
+   :func:`~kornia_ilum.color.encode_srgb8`.
+5. :func:`jpeg_compress` (8-bit): an OpenCV JPEG round trip at a quality of 40 to 95 (4:2:0 chroma subsampling,
+   OpenCV's default), one image at a time (0.3 to 0.5 ms for 256 x 256).
+
+White-balance errors are left out on purpose: the ground-truth lighting of a portrait is in the units of its
+image (SPEC.md), so a colour cast would have to be applied to the truth as well, which is what the environments'
+white-balance augmentation (:class:`~kornia_ilum.synth.environments.Augment`) already does; a cast applied to the
+image alone would teach the estimator to ignore the lighting's colour.
+
+Convention:
+    Images are ``(B, C, H, W)``; linear effects take non-negative linear values (HDR allowed), the tone curve
+    and JPEG take encoded values in ``[0, 1]`` (or ``uint8`` codes for JPEG). Randomness only comes from the
+    generator passed in (or from a given noise tensor), so results are reproducible.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+
+__all__ = [
+    "CameraEffects",
+    "RandomJpeg",
+    "RandomLensBlur",
+    "RandomSensorNoise",
+    "RandomToneCurve",
+    "RandomVignette",
+    "encode_tone8",
+    "jpeg_compress",
+    "lens_blur",
+    "read_noise_for_shot",
+    "sensor_noise",
+    "tone_curve",
+    "vignette",
+]
+
+
+def _per_image(value: torch.Tensor | float, b: int, name: str) -> torch.Tensor:
+    """A ``(B,)`` float tensor from a scalar or a ``(B,)`` tensor."""
+    t = torch.as_tensor(value, dtype=torch.float64)
+    if t.dim() == 0:
+        t = t.expand(b)
+    if t.shape != (b,):
+        raise ShapeError(f"{name} must be a number or have shape ({b},), got {tuple(t.shape)}")
+    if not bool(torch.isfinite(t).all()):
+        raise ValueCheckError(f"{name} must be finite")
+    return t
+
+
+def _check_images(image: torch.Tensor, name: str = "image") -> None:
+    check_tensor(image, name, ["B", "C", "H", "W"])
+    if not image.is_floating_point():
+        raise TypeCheckError(f"{name} must be a float tensor, got {image.dtype}")
+
+
+def _check_generator(generator: object) -> None:
+    if generator is not None and not isinstance(generator, torch.Generator):
+        raise TypeCheckError(f"generator must be a torch.Generator or None, got {type(generator).__name__}")
+
+
+# ----------------------------------------------------------------------------------------------
+# functionals
+
+
+def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
+    r"""Blur each image with its own small Gaussian: the optics' softness.
+
+    Args:
+        image: ``(B, C, H, W)`` float images (linear).
+        sigma: the standard deviation in pixels, a number or ``(B,)``; 0 leaves an image unchanged.
+
+    Returns:
+        ``(B, C, H, W)``; separable, reflected at the borders, radius ``ceil(3 max(sigma))``.
+
+    Examples:
+        >>> x = torch.zeros(2, 1, 9, 9); x[:, :, 4, 4] = 1.0
+        >>> y = lens_blur(x, torch.tensor([0.0, 1.0]))
+        >>> torch.equal(y[0], x[0]), round(y[1].sum().item(), 4), y[1, 0, 4, 4].item() < 1.0
+        (True, 1.0, True)
+    """
+    _check_images(image)
+    b, c, h, w = image.shape
+    s = _per_image(sigma, b, "sigma")
+    if (s < 0).any():
+        raise ValueCheckError("sigma must be non-negative")
+    smax = float(s.max()) if b else 0.0
+    if smax == 0.0:
+        return image.clone()
+    r = min(max(1, math.ceil(3.0 * smax)), (min(h, w) - 1))
+    if r < 1:
+        return image.clone()
+    x = torch.arange(-r, r + 1, dtype=torch.float64)
+    kern = torch.exp(-(x[None] ** 2) / (2.0 * s.clamp(min=1e-6)[:, None] ** 2))
+    kern = torch.where(s[:, None] > 0, kern, (x[None] == 0).double())
+    kern = (kern / kern.sum(-1, keepdim=True)).to(image.dtype).repeat_interleave(c, 0)  # (B C, 2r + 1)
+    flat = image.reshape(1, b * c, h, w)
+    flat = F.conv2d(F.pad(flat, (r, r, 0, 0), mode="reflect"), kern[:, None, None, :], groups=b * c)
+    flat = F.conv2d(F.pad(flat, (0, 0, r, r), mode="reflect"), kern[:, None, :, None], groups=b * c)
+    return flat.reshape(b, c, h, w)
+
+
+@functools.lru_cache(maxsize=8)
+def _radius2(h: int, w: int) -> torch.Tensor:
+    """Squared distance of the pixel centres from the image centre, 1 at the corners, ``(H, W)`` float32."""
+    yy = ((torch.arange(h, dtype=torch.float64) + 0.5) / h - 0.5) ** 2
+    xx = ((torch.arange(w, dtype=torch.float64) + 0.5) / w - 0.5) ** 2
+    return ((yy[:, None] + xx[None]) / 0.5).float()
+
+
+def vignette(image: torch.Tensor, strength: torch.Tensor | float) -> torch.Tensor:
+    r"""Darken towards the corners: multiply by ``1 - strength * r^2``, ``r`` the distance to the centre (1 at a corner).
+
+    Args:
+        image: ``(B, C, H, W)`` float images (linear).
+        strength: in ``[0, 1]``, a number or ``(B,)``; 0 leaves an image unchanged.
+
+    Examples:
+        >>> y = vignette(torch.ones(1, 1, 4, 4), 0.5)
+        >>> round(y[0, 0, 0, 0].item(), 4), round(y[0, 0, 1, 1].item(), 4)  # a corner pixel, an inner pixel
+        (0.7188, 0.9688)
+    """
+    _check_images(image)
+    b, _, h, w = image.shape
+    v = _per_image(strength, b, "strength")
+    if ((v < 0) | (v > 1)).any():
+        raise ValueCheckError("strength must be in [0, 1]")
+    gain = 1.0 - v.to(image.dtype)[:, None, None, None] * _radius2(h, w).to(image)
+    return image * gain
+
+
+def read_noise_for_shot(shot: torch.Tensor | float) -> torch.Tensor:
+    r"""The read-noise standard deviation that goes with a shot-noise gain on phone sensors (Brooks et al. 2019).
+
+    ``log(read^2) = 2.18 log(shot) + 1.2``; ``shot = 0`` gives 0.
+
+    Examples:
+        >>> round(read_noise_for_shot(1e-3).item(), 5)
+        0.00098
+    """
+    s = torch.as_tensor(shot, dtype=torch.float64)
+    return torch.where(s > 0, torch.exp(0.5 * (2.18 * torch.log(s.clamp(min=1e-30)) + 1.2)), torch.zeros_like(s))
+
+
+def sensor_noise(
+    linear: torch.Tensor,
+    shot: torch.Tensor | float,
+    read: torch.Tensor | float | None = None,
+    *,
+    generator: torch.Generator | None = None,
+    noise: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""Signal-dependent sensor noise: ``x + sqrt(shot * max(x, 0) + read^2) n``, ``n`` standard normal.
+
+    The Gaussian approximation of Poisson (shot) noise plus Gaussian read noise, in linear units of the exposed
+    image (1 is the clipping level), before tone mapping, as on a sensor.
+
+    Args:
+        linear: ``(B, C, H, W)`` linear images.
+        shot: the shot-noise gain (variance per unit of signal), a number or ``(B,)``.
+        read: the read-noise standard deviation, a number or ``(B,)``; ``None``: :func:`read_noise_for_shot`.
+        generator: the source of ``n`` when ``noise`` is not given.
+        noise: standard normal samples of the shape of ``linear`` to use as ``n`` (a caller with a cheaper source).
+
+    Returns:
+        ``(B, C, H, W)``; ``shot = read = 0`` returns the input's values.
+
+    Examples:
+        >>> x = torch.full((2, 3, 64, 64), 0.25)
+        >>> y = sensor_noise(x, torch.tensor([0.0, 1e-2]), torch.tensor([0.0, 0.0]),
+        ...                  generator=torch.Generator().manual_seed(0))
+        >>> torch.equal(y[0], x[0]), abs((y[1] - x[1]).std().item() - 0.05) < 0.003  # sqrt(0.01 * 0.25)
+        (True, True)
+    """
+    _check_images(linear, "linear")
+    _check_generator(generator)
+    b = linear.shape[0]
+    a = _per_image(shot, b, "shot")
+    r = read_noise_for_shot(a) if read is None else _per_image(read, b, "read")
+    if (a < 0).any() or (r < 0).any():
+        raise ValueCheckError("shot and read must be non-negative")
+    if noise is None:
+        noise = torch.randn(linear.shape, generator=generator, dtype=linear.dtype, device=linear.device)
+    elif noise.shape != linear.shape:
+        raise ShapeError(f"noise must have the shape of linear {tuple(linear.shape)}, got {tuple(noise.shape)}")
+    a4 = a.to(linear.dtype)[:, None, None, None]
+    r4 = (r**2).to(linear.dtype)[:, None, None, None]
+    std = (linear.clamp(min=0.0) * a4 + r4).sqrt_()
+    return torch.addcmul(linear, std, noise)
+
+
+def tone_curve(image: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0
+               ) -> torch.Tensor:
+    r"""A camera's tone curve on top of sRGB: ``y = x^gamma``, then the S-curve ``y - c sin(2 pi y) / (2 pi)``.
+
+    Args:
+        image: ``(B, C, H, W)`` encoded values in ``[0, 1]`` (values outside are clipped first).
+        contrast: ``c`` in ``(-1, 1)``, a number or ``(B,)`` (positive: more contrast; 0: no S-curve).
+        gamma: a positive number or ``(B,)`` (below 1 brightens the mid-tones; 1: none).
+
+    Returns:
+        ``(B, C, H, W)`` in ``[0, 1]``; monotone, 0 and 1 stay fixed, ``contrast=0, gamma=1`` is the identity.
+
+    Examples:
+        >>> x = torch.tensor([0.0, 0.25, 0.5, 1.0]).reshape(1, 1, 1, 4)
+        >>> tone_curve(x, 0.0).flatten().tolist()
+        [0.0, 0.25, 0.5, 1.0]
+        >>> [round(v, 4) for v in tone_curve(x, 0.5).flatten().tolist()]  # darker shadows, same mid-grey
+        [0.0, 0.1704, 0.5, 1.0]
+    """
+    _check_images(image)
+    b = image.shape[0]
+    c = _per_image(contrast, b, "contrast")
+    g = _per_image(gamma, b, "gamma")
+    if (c.abs() >= 1).any():
+        raise ValueCheckError("contrast must be in (-1, 1) (the curve must stay monotone)")
+    if (g <= 0).any():
+        raise ValueCheckError("gamma must be positive")
+    return _tone(image.clamp(0.0, 1.0), c, g)
+
+
+def _tone(x: torch.Tensor, c: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
+    shape = (-1,) + (1,) * (x.dim() - 1)
+    c, g = c.to(x.dtype).reshape(shape), g.to(x.dtype).reshape(shape)
+    y = torch.where(g == 1, x, x.pow(g))
+    return (y - c * torch.sin((2 * math.pi) * y) / (2 * math.pi)).clamp_(0.0, 1.0)
+
+
+#: Cells of the per-image tables of :func:`encode_tone8`, evenly spaced in ``sqrt(x)`` (as in
+#: :func:`~kornia_ilum.color.encode_srgb8`): fine enough that a value is at most a code off.
+_TONE_CELLS = 4096
+
+
+@functools.lru_cache(maxsize=1)
+def _srgb_cells() -> torch.Tensor:
+    from kornia_ilum.color import linear_to_srgb
+
+    x = ((torch.arange(_TONE_CELLS, dtype=torch.float64) + 0.5) / _TONE_CELLS) ** 2
+    return linear_to_srgb(x.reshape(1, 1, 1, -1).expand(1, 3, 1, -1))[0, 0, 0]
+
+
+def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0
+                 ) -> torch.Tensor:
+    r"""Linear to 8-bit codes through the sRGB curve and :func:`tone_curve`, fused into one table per image.
+
+    Clips to ``[0, 1]``, encodes with sRGB, applies the tone curve and rounds to codes: the result of
+    ``round(255 * tone_curve(linear_to_srgb(clip(x))))`` read from a table of 4096 cells evenly spaced in
+    ``sqrt(x)`` (at most one code off, near code boundaries). Images whose curve is the identity go through
+    :func:`~kornia_ilum.color.encode_srgb8` and are exactly its codes.
+
+    Args:
+        linear: ``(B, C, H, W)`` linear images (float).
+        contrast, gamma: as in :func:`tone_curve`.
+
+    Returns:
+        ``(B, C, H, W)`` ``torch.uint8``.
+
+    Examples:
+        >>> x = torch.tensor([0.0, 0.2140, 1.0, 7.0]).reshape(1, 1, 1, 4)
+        >>> encode_tone8(x, 0.0).flatten().tolist(), encode_tone8(x, 0.5).flatten().tolist()
+        ([0, 127, 255, 255], [0, 127, 255, 255])
+    """
+    from kornia_ilum.color import encode_srgb8
+
+    _check_images(linear, "linear")
+    b = linear.shape[0]
+    c = _per_image(contrast, b, "contrast")
+    g = _per_image(gamma, b, "gamma")
+    if (c.abs() >= 1).any() or (g <= 0).any():
+        raise ValueCheckError("contrast must be in (-1, 1) and gamma positive")
+    out = torch.empty(linear.shape, dtype=torch.uint8, device=linear.device)
+    toned = ((c != 0) | (g != 1)).tolist()
+    if not any(toned):
+        return encode_srgb8(linear)
+    tables = (_tone(_srgb_cells()[None].expand(b, -1), c, g) * 255.0).round_().to(torch.uint8).to(linear.device)
+    n = float(_TONE_CELLS)
+    for k in range(b):
+        if not toned[k]:
+            out[k] = encode_srgb8(linear[k])
+            continue
+        x = linear[k].to(torch.float32, copy=True).mul_(n * n).clamp_(0.0, (n - 0.5) ** 2).sqrt_()
+        out[k] = tables[k].index_select(0, x.to(torch.int32).flatten()).view(x.shape)
+    return out
+
+
+def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> torch.Tensor:
+    r"""A JPEG round trip (OpenCV, 4:2:0), one image at a time, at a quality per image.
+
+    Args:
+        image: ``(B, 3, H, W)`` RGB, ``uint8`` codes or floats in ``[0, 1]`` (rounded to codes first).
+        quality: the JPEG quality in ``[1, 100]``, a number or ``(B,)`` (rounded); 0 or less leaves an image
+            unchanged (no compression).
+
+    Returns:
+        the decoded images, of the dtype of ``image`` (floats: codes / 255).
+
+    Examples:
+        >>> x = (torch.rand(1, 3, 16, 16, generator=torch.Generator().manual_seed(0)) * 255).to(torch.uint8)
+        >>> torch.equal(jpeg_compress(x, 0), x), torch.equal(jpeg_compress(x, 40), x)
+        (True, False)
+    """
+    import cv2
+    import numpy as np
+
+    check_tensor(image, "image", ["B", "3", "H", "W"], floating=False)
+    b = image.shape[0]
+    q = _per_image(quality, b, "quality").round().long().tolist()
+    if any(v > 100 for v in q):
+        raise ValueCheckError(f"quality must be at most 100, got {max(q)}")
+    as_float = image.is_floating_point()
+    if image.dtype != torch.uint8 and not as_float:
+        raise TypeCheckError(f"image must be uint8 or float, got {image.dtype}")
+    codes = (image.clamp(0.0, 1.0) * 255.0).round().to(torch.uint8) if as_float else image
+    out = codes.clone()
+    cpu = codes.cpu()
+    for k in range(b):
+        if q[k] <= 0:
+            continue
+        bgr = np.ascontiguousarray(cpu[k].flip(0).permute(1, 2, 0).numpy())
+        ok, buf = cv2.imencode(".jpg", bgr, [int(cv2.IMWRITE_JPEG_QUALITY), int(q[k])])
+        if not ok:  # pragma: no cover - OpenCV failure
+            raise ValueCheckError("cv2.imencode failed")
+        dec = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        out[k] = torch.from_numpy(dec).permute(2, 0, 1).flip(0).to(out.device)
+    return out.to(image.dtype) / 255.0 if as_float else out
+
+
+# ----------------------------------------------------------------------------------------------
+# random draws and modules
+
+
+def _check_pair(value: Any, name: str, lo: float, hi: float, *, open_hi: bool = False) -> tuple[float, float]:
+    if not (isinstance(value, (tuple, list)) and len(value) == 2):
+        raise TypeCheckError(f"{name} must be a pair (low, high), got {value!r}")
+    a, b = (float(v) for v in value)
+    ok = math.isfinite(a) and math.isfinite(b) and lo <= a <= b and (b < hi if open_hi else b <= hi)
+    if not ok:
+        raise ValueCheckError(f"{name} must satisfy {lo:g} <= low <= high {'<' if open_hi else '<='} {hi:g}, "
+                              f"got {value!r}")
+    return a, b
+
+
+def _check_p(p: Any, name: str) -> float:
+    if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
+        raise ValueCheckError(f"{name} must be a probability in [0, 1], got {p!r}")
+    return float(p)
+
+
+def _draw(n: int, p: float, lo: float, hi: float, generator: torch.Generator | None, *, log: bool = False,
+          off: float = 0.0) -> torch.Tensor:
+    """``n`` values: with probability ``p`` uniform (log-uniform) in ``[lo, hi]``, else ``off``; float64.
+
+    Always draws ``2 n`` uniforms, so the draws that follow do not depend on ``p`` or the range.
+    """
+    u = torch.rand(2, n, generator=generator, dtype=torch.float64)
+    if log:
+        value = torch.exp(math.log(lo) + (math.log(hi) - math.log(lo)) * u[1])
+    else:
+        value = lo + (hi - lo) * u[1]
+    return torch.where(u[0] < p, value, torch.full_like(value, off))
+
+
+class _RandomEffect(nn.Module):
+    """A random effect: ``forward(image, generator)`` draws per-image parameters (:meth:`draw`) and applies them."""
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:  # pragma: no cover
+        raise NotImplementedError
+
+    def extra_repr(self) -> str:
+        return ", ".join(f"{k}={v}" for k, v in vars(self).items() if not k.startswith("_") and k != "training")
+
+
+class RandomLensBlur(_RandomEffect):
+    r"""Random :func:`lens_blur`: with probability ``p``, ``sigma`` uniform in ``sigma``, else none.
+
+    Examples:
+        >>> blur = RandomLensBlur(p=1.0)
+        >>> blur(torch.rand(2, 3, 8, 8), torch.Generator().manual_seed(0)).shape
+        torch.Size([2, 3, 8, 8])
+    """
+
+    def __init__(self, p: float = 0.3, sigma: tuple[float, float] = (0.0, 1.0)) -> None:
+        super().__init__()
+        self.p, self.sigma = _check_p(p, "p"), _check_pair(sigma, "sigma", 0.0, 8.0)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return _draw(n, self.p, *self.sigma, generator)
+
+    def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        return lens_blur(image, self.draw(image.shape[0], generator))
+
+
+class RandomVignette(_RandomEffect):
+    r"""Random :func:`vignette`: with probability ``p``, ``strength`` uniform in ``strength``, else none.
+
+    Examples:
+        >>> RandomVignette(p=1.0)(torch.ones(1, 3, 8, 8), torch.Generator().manual_seed(0)).max().item() <= 1.0
+        True
+    """
+
+    def __init__(self, p: float = 0.3, strength: tuple[float, float] = (0.0, 0.3)) -> None:
+        super().__init__()
+        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", 0.0, 1.0)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return _draw(n, self.p, *self.strength, generator)
+
+    def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        return vignette(image, self.draw(image.shape[0], generator))
+
+
+class RandomSensorNoise(_RandomEffect):
+    r"""Random :func:`sensor_noise`: with probability ``p``, an ISO-like level ``shot`` log-uniform in ``shot``
+    (read noise from :func:`read_noise_for_shot`), else none.
+
+    Examples:
+        >>> x = torch.full((1, 3, 8, 8), 0.5)
+        >>> g = lambda: torch.Generator().manual_seed(0)
+        >>> noisy = RandomSensorNoise(p=1.0)
+        >>> torch.equal(noisy(x, g()), noisy(x, g())), torch.equal(noisy(x, g()), x)
+        (True, False)
+    """
+
+    def __init__(self, p: float = 0.9, shot: tuple[float, float] = (1e-5, 1e-3)) -> None:
+        super().__init__()
+        self.p, self.shot = _check_p(p, "p"), _check_pair(shot, "shot", 1e-12, 1.0)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return _draw(n, self.p, *self.shot, generator, log=True)
+
+    def forward(self, linear: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        return sensor_noise(linear, self.draw(linear.shape[0], generator), generator=generator)
+
+
+class RandomToneCurve(_RandomEffect):
+    r"""Random :func:`tone_curve`: with probability ``p``, ``contrast`` uniform and ``gamma`` log-uniform in their
+    ranges, else the identity. :meth:`draw` returns ``(B, 2)``: contrast, gamma.
+
+    Examples:
+        >>> x = torch.rand(4, 3, 8, 8)
+        >>> torch.equal(RandomToneCurve(p=0.0)(x, torch.Generator().manual_seed(0)), x)
+        True
+    """
+
+    def __init__(self, p: float = 0.7, contrast: tuple[float, float] = (-0.2, 0.6),
+                 gamma: tuple[float, float] = (0.8, 1.25)) -> None:
+        super().__init__()
+        self.p = _check_p(p, "p")
+        c = _check_pair(contrast, "contrast", -1.0, 1.0, open_hi=True)
+        if c[0] <= -1.0:
+            raise ValueCheckError(f"contrast must be in (-1, 1), got {contrast!r}")
+        self.contrast, self.gamma = c, _check_pair(gamma, "gamma", 1e-3, 1e3)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        u = torch.rand(3, n, generator=generator, dtype=torch.float64)
+        on = u[0] < self.p
+        c = self.contrast[0] + (self.contrast[1] - self.contrast[0]) * u[1]
+        lg = math.log(self.gamma[0]) + (math.log(self.gamma[1]) - math.log(self.gamma[0])) * u[2]
+        return torch.stack([torch.where(on, c, 0.0), torch.where(on, torch.exp(lg), 1.0)], -1)
+
+    def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        params = self.draw(image.shape[0], generator)
+        if not ((params[:, 0] != 0) | (params[:, 1] != 1)).any():
+            return image.clone()
+        return tone_curve(image, params[:, 0], params[:, 1])
+
+
+class RandomJpeg(_RandomEffect):
+    r"""Random :func:`jpeg_compress`: with probability ``p``, a quality uniform in ``quality`` (rounded), else none.
+
+    Examples:
+        >>> x = torch.rand(2, 3, 16, 16)
+        >>> torch.equal(RandomJpeg(p=0.0)(x, torch.Generator().manual_seed(0)), x)
+        True
+    """
+
+    def __init__(self, p: float = 0.7, quality: tuple[float, float] = (40.0, 95.0)) -> None:
+        super().__init__()
+        self.p, self.quality = _check_p(p, "p"), _check_pair(quality, "quality", 1.0, 100.0)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return _draw(n, self.p, *self.quality, generator).round()
+
+    def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        quality = self.draw(image.shape[0], generator)
+        if not (quality > 0).any():
+            return image.clone()
+        return jpeg_compress(image, quality)
+
+
+@dataclass(frozen=True)
+class CameraEffects:
+    r"""The phone-camera pipeline (module docstring): probabilities and ranges of each effect.
+
+    :meth:`draw` draws every effect's parameters for a batch, always in the same order and always all of them
+    (so switching an effect off leaves the others' draws unchanged); :meth:`apply` runs the pipeline from exposed
+    linear images to 8-bit codes: lens blur, vignette, sensor noise (linear), tone curve and sRGB (one table per
+    image, :func:`encode_tone8`), JPEG. :meth:`off` has every probability 0: plain sRGB encoding, no noise.
+
+    Args:
+        blur_p, blur_sigma: :class:`RandomLensBlur`.
+        vignette_p, vignette_strength: :class:`RandomVignette`.
+        noise_p, noise_shot: :class:`RandomSensorNoise`.
+        tone_p, tone_contrast, tone_gamma: :class:`RandomToneCurve`.
+        jpeg_p, jpeg_quality: :class:`RandomJpeg`.
+
+    Examples:
+        >>> fx = CameraEffects()
+        >>> params = fx.draw(2, torch.Generator().manual_seed(0))
+        >>> sorted(params)
+        ['blur', 'jpeg', 'noise', 'tone', 'vignette']
+        >>> fx.apply(torch.full((2, 3, 16, 16), 0.18), params, generator=torch.Generator().manual_seed(1)).dtype
+        torch.uint8
+    """
+
+    blur_p: float = 0.3
+    blur_sigma: tuple[float, float] = (0.0, 1.0)
+    vignette_p: float = 0.3
+    vignette_strength: tuple[float, float] = (0.0, 0.3)
+    noise_p: float = 0.9
+    noise_shot: tuple[float, float] = (1e-5, 1e-3)
+    tone_p: float = 0.7
+    tone_contrast: tuple[float, float] = (-0.2, 0.6)
+    tone_gamma: tuple[float, float] = (0.8, 1.25)
+    jpeg_p: float = 0.7
+    jpeg_quality: tuple[float, float] = (40.0, 95.0)
+
+    def __post_init__(self) -> None:
+        self.modules()  # checks every field
+
+    @classmethod
+    def off(cls) -> CameraEffects:
+        """No effect: the plain sRGB encoding of the exposed image, without noise."""
+        return cls(blur_p=0.0, vignette_p=0.0, noise_p=0.0, tone_p=0.0, jpeg_p=0.0)
+
+    def modules(self) -> dict[str, _RandomEffect]:
+        """The effects as modules, in the pipeline's order."""
+        return {
+            "blur": RandomLensBlur(self.blur_p, self.blur_sigma),
+            "vignette": RandomVignette(self.vignette_p, self.vignette_strength),
+            "noise": RandomSensorNoise(self.noise_p, self.noise_shot),
+            "tone": RandomToneCurve(self.tone_p, self.tone_contrast, self.tone_gamma),
+            "jpeg": RandomJpeg(self.jpeg_p, self.jpeg_quality),
+        }
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
+        """Per-image parameters of every effect: ``blur``, ``vignette``, ``noise`` (shot), ``jpeg`` (quality;
+        0: none) ``(n,)`` and ``tone`` ``(n, 2)`` (contrast, gamma); the identity where an effect is not drawn."""
+        _check_generator(generator)
+        return {name: module.draw(n, generator) for name, module in self.modules().items()}
+
+    def apply(self, linear: torch.Tensor, params: dict[str, torch.Tensor], *, generator: torch.Generator | None = None,
+              noise: torch.Tensor | None = None) -> torch.Tensor:
+        """Exposed linear images ``(B, 3, H, W)`` to ``uint8`` codes with the parameters of :meth:`draw`.
+
+        ``noise`` (standard normal, the shape of ``linear``) or ``generator`` is the sensor noise's source.
+        """
+        _check_images(linear, "linear")
+        x = linear
+        blur = params["blur"]
+        if (blur > 0).any():
+            idx = torch.nonzero(blur > 0).flatten()
+            x = x.clone()
+            x[idx] = lens_blur(x[idx], blur[idx])
+        if (params["vignette"] > 0).any():
+            x = vignette(x, params["vignette"])
+        if (params["noise"] > 0).any():
+            x = sensor_noise(x, params["noise"], generator=generator, noise=noise)
+        codes = encode_tone8(x, params["tone"][:, 0], params["tone"][:, 1])
+        quality = params["jpeg"]
+        if (quality > 0).any():
+            codes = jpeg_compress(codes, quality)
+        return codes

@@ -1,0 +1,573 @@
+r"""The pure steps of a training portrait: relight, frame the background, crop, expose, and the targets.
+
+Small functions that :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset` chains (the package
+docstring tells the whole recipe): :func:`relight_portraits` (a reflectance field times mirror-ball lightings),
+the face and detector boxes (:func:`detector_boxes`, :func:`face_crop_boxes`, :func:`random_crop_boxes`),
+:func:`crop_images`, the background as the field's camera sees it (:func:`frame_background` for maps at the
+lighting's resolution, :func:`background_pyramid` and :func:`frame_backgrounds` for full-resolution maps with a
+per-sample depth of field), :func:`auto_exposure` and the ground-truth :func:`sphere_targets`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+
+from kornia_ilum.color import gamma_encode
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import ShapeError, TypeCheckError
+from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
+from kornia_ilum.filters import soft_clip
+from kornia_ilum.geometry import mirror_ball_to_lights, mirror_ball_valid
+from kornia_ilum.render import BRDFS, SPHERE_SIZES, relight
+from kornia_ilum.render.spheres import _shared_field
+from kornia_ilum.synth.background import LUMINANCE, camera_rays, latlong_grid, lookup_latlong
+from kornia_ilum.synth.lightstage.olat import ReflectanceField
+from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
+from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
+
+__all__ = [
+    "DETECTOR_BOX",
+    "auto_exposure",
+    "background_pyramid",
+    "crop_images",
+    "detector_boxes",
+    "face_crop_boxes",
+    "frame_background",
+    "frame_backgrounds",
+    "random_crop_boxes",
+    "relight_portraits",
+    "sphere_targets",
+]
+
+#: The box OpenCV's Haar detector draws around a light-stage face, in terms of the *inner* face landmarks
+#: (brows, outer eye corners, nose tip, mouth corners, chin; ears, cheeks and jaw excluded because they swing
+#: out when the head turns): a square of side ``scale * h`` centred at the inner box's centre raised by
+#: ``raise_ * h``, ``h`` the inner box's height. Fitted on the 16 detections in 36 renders (12 subjects x 3
+#: views, 192 x 192): side 1.13 +- 0.14 h, centre raised 0.19 +- 0.04 h (the cameras aim there:
+#: :data:`~kornia_ilum.synth.lightstage.olat.PIVOT_RAISE`), horizontal offset -0.02 +- 0.03 h.
+DETECTOR_BOX: dict[str, Any] = {
+    "landmarks": (
+        "brow_right_top", "brow_left_top", "eye_right_outer", "eye_left_outer", "nose_tip",
+        "mouth_right", "mouth_left", "chin",
+    ),
+    "scale": 1.13,
+    "raise_": PIVOT_RAISE,
+}  # fmt: skip
+
+_INNER = [LANDMARK_NAMES.index(n) for n in DETECTOR_BOX["landmarks"]]
+
+
+def _uniform(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:
+    return lo + (hi - lo) * torch.rand(n, generator=generator, dtype=torch.float64)
+
+
+# ----------------------------------------------------------------------------------------------
+# boxes
+
+
+def detector_boxes(landmarks: torch.Tensor) -> torch.Tensor:
+    r"""The face box a face detector would draw, from projected face landmarks (:data:`DETECTOR_BOX`).
+
+    Args:
+        landmarks: ``(B, K, 2)`` pixel coordinates ``(x, y)`` of the :data:`LANDMARK_NAMES` landmarks (the
+            ``meta["landmarks"]`` of a reflectance field).
+
+    Returns:
+        ``(B, 4)`` square boxes ``(x0, y0, x1, y1)`` in continuous pixel coordinates.
+
+    Examples:
+        >>> lm = torch.full((1, len(LANDMARK_NAMES), 2), 50.0)
+        >>> lm[0, LANDMARK_NAMES.index("brow_left_top"), 1] = 0.0  # the inner box: 100 tall, centred at y = 50
+        >>> lm[0, LANDMARK_NAMES.index("chin"), 1] = 100.0
+        >>> detector_boxes(lm)  # side 113, centre raised 19
+        tensor([[ -6.5000, -25.5000, 106.5000,  87.5000]])
+    """
+    check_tensor(landmarks, "landmarks", ["B", str(len(LANDMARK_NAMES)), "2"], finite=True)
+    inner = landmarks[:, _INNER].double()
+    lo, hi = inner.amin(1), inner.amax(1)
+    h = hi[:, 1] - lo[:, 1]
+    cx, cy = 0.5 * (lo[:, 0] + hi[:, 0]), 0.5 * (lo[:, 1] + hi[:, 1]) - DETECTOR_BOX["raise_"] * h
+    half = 0.5 * DETECTOR_BOX["scale"] * h
+    return torch.stack([cx - half, cy - half, cx + half, cy + half], -1).to(landmarks.dtype)
+
+
+def _fit_inside(boxes: torch.Tensor, size: int) -> torch.Tensor:
+    """Shrink square boxes to at most the image and shift them inside it."""
+    side = (boxes[:, 2] - boxes[:, 0]).clamp(max=size)
+    x0 = ((boxes[:, 0] + boxes[:, 2] - side) / 2).clamp(0.0, None)
+    y0 = ((boxes[:, 1] + boxes[:, 3] - side) / 2).clamp(0.0, None)
+    x0, y0 = torch.minimum(x0, size - side), torch.minimum(y0, size - side)
+    return torch.stack([x0, y0, x0 + side, y0 + side], -1)
+
+
+def face_crop_boxes(
+    face_boxes: torch.Tensor,
+    size: int,
+    generator: torch.Generator | None = None,
+    *,
+    scale: float = CROP_SCALE,
+    position: float = 0.06,
+    extent: float = 0.15,
+) -> torch.Tensor:
+    r"""Square crops around face boxes: expanded by ``scale``, jittered, and kept inside the image.
+
+    The side is ``scale * side(face_box) * exp(U(-extent, extent))`` and the centre moves by
+    ``U(-position, position)`` times the side along each axis; a crop that leaves the ``size x size`` render
+    is shifted back inside it (and shrunk to the image if larger), so every crop pixel has rendered content.
+
+    Args:
+        face_boxes: ``(B, 4)`` square boxes ``(x0, y0, x1, y1)`` (:func:`detector_boxes`).
+        size: the side of the rendered image, in pixels.
+        generator: the jitter's random source; ``None``: no jitter.
+        scale: the expansion (1.25, as the crops at inference: :func:`kornia_ilum.detection.square_crop_boxes`).
+        position: the largest centre shift, as a fraction of the crop's side.
+        extent: the largest log-scale change of the side.
+
+    Returns:
+        ``(B, 4)`` float64 crop boxes.
+
+    Examples:
+        >>> face_crop_boxes(torch.tensor([[40.0, 40.0, 80.0, 80.0]]), 128)
+        tensor([[35., 35., 85., 85.]], dtype=torch.float64)
+    """
+    check_tensor(face_boxes, "face_boxes", ["B", "4"], finite=True)
+    check_positive_int(size, "size")
+    boxes = square_crop_boxes(face_boxes.double(), scale)  # the crop at inference
+    b = boxes.shape[0]
+    side = boxes[:, 2] - boxes[:, 0]
+    cx, cy = 0.5 * (boxes[:, 0] + boxes[:, 2]), 0.5 * (boxes[:, 1] + boxes[:, 3])
+    if generator is not None:
+        side = side * torch.exp(_uniform(b, -extent, extent, generator))
+        cx = cx + side * _uniform(b, -position, position, generator)
+        cy = cy + side * _uniform(b, -position, position, generator)
+    return _fit_inside(torch.stack([cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2], -1), size)
+
+
+def random_crop_boxes(
+    face_boxes: torch.Tensor,
+    size: int,
+    generator: torch.Generator,
+    *,
+    side: tuple[float, float] = (0.25, 0.5),
+    max_overlap: float = 0.2,
+    tries: int = 32,
+) -> torch.Tensor:
+    r"""Random square crops that miss the face: at most ``max_overlap`` of each face box's area inside.
+
+    Each crop has a side of ``U(side) * size`` and a uniform position in the image; a crop that covers more
+    than ``max_overlap`` of the face box is drawn again, up to ``tries`` times, after which the candidate with
+    the least overlap is kept.
+
+    Returns:
+        ``(B, 4)`` float64 crop boxes inside the image.
+
+    Examples:
+        >>> g = torch.Generator().manual_seed(0)
+        >>> box = random_crop_boxes(torch.tensor([[32.0, 32.0, 96.0, 96.0]]), 128, g)
+        >>> bool(((box[:, 2] - box[:, 0]) <= 64).all())
+        True
+    """
+    check_tensor(face_boxes, "face_boxes", ["B", "4"], finite=True)
+    check_positive_int(size, "size")
+    faces = face_boxes.double()
+    b = faces.shape[0]
+    area = ((faces[:, 2] - faces[:, 0]) * (faces[:, 3] - faces[:, 1])).clamp(min=1e-9)
+    best = torch.zeros(b, 4, dtype=torch.float64)
+    best_overlap = torch.full((b,), math.inf, dtype=torch.float64)
+    for _ in range(tries):
+        s = _uniform(b, side[0] * size, side[1] * size, generator)
+        x0 = torch.rand(b, generator=generator, dtype=torch.float64) * (size - s)
+        y0 = torch.rand(b, generator=generator, dtype=torch.float64) * (size - s)
+        cand = torch.stack([x0, y0, x0 + s, y0 + s], -1)
+        w = (torch.minimum(cand[:, 2], faces[:, 2]) - torch.maximum(cand[:, 0], faces[:, 0])).clamp(min=0)
+        h = (torch.minimum(cand[:, 3], faces[:, 3]) - torch.maximum(cand[:, 1], faces[:, 1])).clamp(min=0)
+        overlap = w * h / area
+        better = (overlap < best_overlap) & (best_overlap > max_overlap)
+        best[better], best_overlap[better] = cand[better], overlap[better]
+    return best
+
+
+# ----------------------------------------------------------------------------------------------
+# images
+
+
+def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Relight one subject-view with a batch of mirror-ball lightings.
+
+    Args:
+        field: the reflectance field, dense or compact (:func:`~kornia_ilum.synth.lightstage.read_field`).
+        lighting: ``(B, 3, S, S)`` mirror-ball radiance in the camera frame, ``S`` the field's lighting size.
+
+    Returns:
+        ``(image, alpha)``: ``(B, 3, H, W)`` float32 linear, premultiplied by ``alpha`` (background 0), and the
+        ``(1, 1, H, W)`` matte (the same for every lighting).
+
+    Convention:
+        SPEC units (:mod:`~kornia_ilum.synth.lightstage.olat`): ``image = sum_n R[:, :, n] L[n]``. One batched
+        product per call: relight many lightings of one field together.
+
+    Examples:
+        >>> rf = ReflectanceField(torch.ones(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> image, alpha = relight_portraits(rf, torch.ones(1, 3, 4, 4) * mirror_ball_valid(4))
+        >>> image[0, :, 0, 0]  # the 12 valid lights of a 4 x 4 mirror ball
+        tensor([12., 12., 12.])
+    """
+    if not isinstance(field, ReflectanceField):
+        raise TypeCheckError(f"field must be a ReflectanceField, got {type(field).__name__}")
+    s = field.lighting_size
+    check_tensor(lighting, "lighting", ["B", "3", str(s), str(s)], finite=True, nonnegative=True)
+    image = _add_relit(lighting.new_zeros(lighting.shape[0], 3, field.size, field.size, dtype=torch.float32),
+                       field, lighting)
+    return image, field.alpha.float().reshape(1, 1, field.size, field.size)
+
+
+def _add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
+    """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels."""
+    lights = mirror_ball_to_lights(lighting.float())
+    if field.light_index is not None:
+        lights = lights[:, field.light_index]
+    image = relight(field.field, lights, (1, field.field.shape[1]))[:, :, 0]  # (B, 3, P')
+    flat = frame.view(frame.shape[0], 3, -1)
+    if field.pixel_index is None:
+        flat.add_(image)
+    else:
+        flat.index_add_(2, field.pixel_index, image)
+    return frame
+
+
+def crop_images(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: torch.Tensor | None = None
+                ) -> torch.Tensor:
+    r"""Crop boxes out of images and resize them to ``size x size`` (bilinear), optionally mirrored.
+
+    Args:
+        images: ``(B, C, H, W)``, or ``(1, C, H, W)`` for one image shared by all boxes.
+        boxes: ``(B, 4)`` ``(x0, y0, x1, y1)`` in continuous pixel coordinates (pixel ``(i, j)`` spans
+            ``[j, j + 1] x [i, i + 1]``); the output pixels tile the box exactly.
+        size: the output side.
+        mirror: ``(B,)`` bool: flip crop ``b`` left-right (free: part of the sampling grid); default none.
+
+    Returns:
+        ``(B, C, size, size)``; outside the image, 0.
+
+    Convention:
+        Bilinear, without antialiasing: meant for enlarging or mild shrinking (the light-stage crops of 130 to
+        190 pixels are enlarged to 256). One separable sampling grid and
+        :func:`~torch.nn.functional.grid_sample`: the same result as
+        :func:`kornia.geometry.transform.crop_and_resize`, which builds a perspective warp and is slower
+        (``benchmarks/bench_ops.py``, section images).
+
+    Examples:
+        >>> crop_images(torch.arange(16.0).reshape(1, 1, 4, 4), torch.tensor([[0.0, 0.0, 2.0, 2.0]]), 2)
+        tensor([[[[0., 1.],
+                  [4., 5.]]]])
+    """
+    check_tensor(images, "images", ["B", "C", "H", "W"])
+    check_tensor(boxes, "boxes", ["B", "4"], finite=True)
+    check_positive_int(size, "size")
+    if images.shape[0] not in (1, boxes.shape[0]):
+        raise ShapeError(f"images must hold 1 or {boxes.shape[0]} images, got {images.shape[0]}")
+    _check_mirror(mirror, len(boxes))
+    grid = _crop_grid(boxes, images.shape[-2:], size, mirror).to(images.dtype)
+    images = images.expand(len(boxes), -1, -1, -1)
+    return F.grid_sample(images, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+
+
+def _check_mirror(mirror: object, n: int) -> None:
+    if mirror is not None and (
+        not isinstance(mirror, torch.Tensor) or mirror.dtype != torch.bool or mirror.shape != (n,)
+    ):
+        raise TypeCheckError(f"mirror must be a bool tensor of shape ({n},), got {mirror!r}")
+
+
+def _crop_grid(boxes: torch.Tensor, hw: Sequence[int], size: int, mirror: torch.Tensor | None) -> torch.Tensor:
+    """The ``grid_sample`` grid (normalised, ``align_corners=False``) of axis-aligned crops of an ``hw`` frame.
+
+    Separable, so built from two 1-D coordinate vectors (6 times faster than
+    :func:`~torch.nn.functional.affine_grid`, which multiplies every output pixel by a matrix).
+    """
+    h, w = hw
+    b = boxes.double()
+    t = (torch.arange(size, dtype=torch.float64) + 0.5) / size  # output pixel centres in [0, 1]
+    x0, x1 = b[:, :1], b[:, 2:3]
+    if mirror is not None:
+        x0, x1 = torch.where(mirror[:, None], x1, x0), torch.where(mirror[:, None], x0, x1)
+    gx = (2.0 * (x0 + t * (x1 - x0)) / w - 1.0).float()  # (B, size)
+    gy = (2.0 * (b[:, 1:2] + t * (b[:, 3:4] - b[:, 1:2])) / h - 1.0).float()
+    return torch.stack(torch.broadcast_tensors(gx[:, None, :], gy[:, :, None]), -1)
+
+
+def frame_background(latlong: torch.Tensor, camera: Camera, mirror: torch.Tensor | None = None) -> torch.Tensor:
+    r"""What the camera sees of each environment, linear, one ray per pixel of its frame.
+
+    The pixels' rays of the pinhole ``camera`` (:func:`~kornia_ilum.synth.background.camera_rays`: SPEC frame,
+    looking along -Z; the environment is in the camera frame, so no rotation) looked up bilinearly in the
+    lat-long maps (:func:`~kornia_ilum.synth.background.lookup_latlong`). The rays' lat-long coordinates are
+    computed once per camera and cached (:func:`~kornia_ilum.synth.background.latlong_grid`), so a frame costs
+    one :func:`~torch.nn.functional.grid_sample`.
+
+    Args:
+        latlong: ``(B, 3, H, 2H)`` linear lat-long maps in the camera frame.
+        camera: the render's camera (its ``fov_deg`` and ``size``; the frame is square).
+        mirror: ``(B,)`` bool: view the mirrored environment (``x -> -x``,
+            :func:`~kornia_ilum.geometry.flip_lighting_horizontal`) for these maps, by mirroring the rays.
+
+    Returns:
+        ``(B, 3, size, size)`` linear.
+
+    Examples:
+        >>> frame_background(torch.ones(2, 3, 8, 16), Camera(30.0, 1.0, 0.0, 0.0, size=64)).shape
+        torch.Size([2, 3, 64, 64])
+    """
+    check_tensor(latlong, "latlong", ["B", "3", "H", "2H"], nonnegative=True)
+    if latlong.shape[-1] != 2 * latlong.shape[-2]:
+        raise ShapeError(f"latlong must have shape (B, 3, H, 2H), got {tuple(latlong.shape)}")
+    if not isinstance(camera, Camera):
+        raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
+    _check_mirror(mirror, len(latlong))
+    rows = latlong.shape[-2]
+    grid = _frame_grid(float(camera.fov_deg), camera.size, rows, False)
+    if mirror is not None and bool(mirror.any()):
+        grid = torch.where(mirror[:, None, None, None], _frame_grid(float(camera.fov_deg), camera.size, rows, True),
+                           grid)
+    return lookup_latlong(latlong, grid)
+
+
+@functools.lru_cache(maxsize=32)
+def _frame_grid(fov_deg: float, size: int, rows: int, mirrored: bool) -> torch.Tensor:
+    """The :func:`lookup_latlong` grid ``(1, size, size, 2)`` of a square camera's rays (float32)."""
+    rays = camera_rays((size, size), fov_deg, torch.eye(3, dtype=torch.float64))
+    if mirrored:
+        rays[..., 0] = -rays[..., 0]
+    return latlong_grid(rays, rows)[None].float()
+
+
+def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18) -> torch.Tensor:
+    r"""A camera's centre-weighted metering: the gain that maps the weighted mean luminance to ``key``.
+
+    The weights are a Gaussian of standard deviation 0.25 of the image side around its centre (where the
+    face is); the luminance is Rec. 709 ``Y``. A black image gets a gain of 1.
+
+    Args:
+        linear: ``(B, 3, H, W)`` linear images.
+        key: the target mean, a float or ``(B,)`` (0.18: middle grey).
+
+    Returns:
+        ``(B,)`` gains (float64).
+
+    Examples:
+        >>> auto_exposure(torch.full((1, 3, 8, 8), 0.5)).tolist()
+        [0.36]
+    """
+    check_tensor(linear, "linear", ["B", "3", "H", "W"], finite=True, nonnegative=True)
+    h, w = linear.shape[-2:]
+    yy = (torch.arange(h, dtype=torch.float64) + 0.5) / h - 0.5
+    xx = (torch.arange(w, dtype=torch.float64) + 0.5) / w - 0.5
+    weight = torch.exp(-(yy[:, None] ** 2 + xx[None] ** 2) / (2 * 0.25**2))
+    lum = torch.einsum("bchw,c->bhw", linear.double(), torch.tensor(LUMINANCE, dtype=torch.float64))
+    mean = (lum * weight).sum((1, 2)) / weight.sum()
+    key = torch.as_tensor(key, dtype=torch.float64).expand_as(mean)
+    return torch.where(mean > 0, key / mean.clamp(min=1e-30), torch.ones_like(mean))
+
+
+def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 32)) -> dict[str, torch.Tensor]:
+    r"""The reference spheres as the loss sees them: ``softclip(render)^(1/2.2)`` at each size.
+
+    Args:
+        mirror_ball: ``(B, 3, S, S)`` linear lighting in image units.
+        sizes: sphere sides (:data:`~kornia_ilum.render.SPHERE_SIZES`).
+
+    Returns:
+        ``{f"{brdf}_{size}": (B, 3, size, size)}`` for each of :data:`~kornia_ilum.render.BRDFS`; off-sphere
+        pixels are 0. Exactly what :func:`~kornia_ilum.metrics.reconstruction_loss` compares.
+
+    Examples:
+        >>> sorted(sphere_targets(torch.ones(1, 3, 32, 32), sizes=(4,)))
+        ['diffuse_4', 'matte_silver_4', 'mirror_4']
+    """
+    check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"], nonnegative=True)
+    b, _, s_l = mirror_ball.shape[:3]
+    if mirror_ball.shape[-1] != s_l or s_l not in SPHERE_SIZES:
+        raise ShapeError(f"mirror_ball must be (B, 3, S, S) with S in {SPHERE_SIZES}, got {tuple(mirror_ball.shape)}")
+    lights = mirror_ball_to_lights(mirror_ball)
+    keys, masks, parts = [], [], []
+    for s in sizes:  # render the on-sphere pixels only, then encode all the renders in one pass
+        check_positive_int(s, "sizes", allowed=SPHERE_SIZES)
+        for brdf in BRDFS:
+            field = _shared_field(brdf, s, s_l, mirror_ball.device, mirror_ball.dtype, on_sphere=True)
+            keys.append(f"{brdf}_{s}")
+            masks.append(mirror_ball_valid(s, device=mirror_ball.device).flatten())
+            parts.append(relight(field, lights, (1, field.shape[0]))[:, :, 0])
+    if not parts:
+        return {}
+    encoded = gamma_encode(soft_clip(torch.cat(parts, -1)), 2.2)
+    out, start = {}, 0
+    for key, mask, part in zip(keys, masks, parts, strict=True):
+        image = encoded.new_zeros(b, 3, mask.numel())
+        image[:, :, mask] = encoded[:, :, start : start + part.shape[-1]]
+        start += part.shape[-1]
+        side = math.isqrt(mask.numel())
+        out[key] = image.reshape(b, 3, side, side)
+    return out
+
+
+
+# ----------------------------------------------------------------------------------------------
+# full-resolution backgrounds with depth of field
+
+
+def background_pyramid(latlong: torch.Tensor, levels: int = 4) -> tuple[torch.Tensor, ...]:
+    r"""A lat-long map and its 2 x 2 averages, each padded for :func:`frame_backgrounds`.
+
+    Level ``k`` is the map averaged over ``2^k x 2^k`` pixels (kept while it has at least 8 rows); each is padded
+    by one pixel on every side as :func:`~kornia_ilum.synth.background.lookup_latlong` pads (the azimuth wraps,
+    the row beyond a pole is the same row half a turn on), so a lookup is one
+    :func:`~torch.nn.functional.grid_sample` without a copy of the map. Build it once per environment.
+
+    Args:
+        latlong: ``(3, H, 2H)`` linear lat-long map, ``H`` even at every level that is kept.
+        levels: the most levels.
+
+    Returns:
+        ``levels`` (or fewer) padded maps ``(1, 3, H / 2^k + 2, 2 H / 2^k + 2)``, float32.
+
+    Examples:
+        >>> [tuple(m.shape) for m in background_pyramid(torch.ones(3, 32, 64), levels=3)]
+        [(1, 3, 34, 66), (1, 3, 18, 34), (1, 3, 10, 18)]
+    """
+    check_tensor(latlong, "latlong", ["3", "H", "2H"], nonnegative=True)
+    if latlong.shape[-1] != 2 * latlong.shape[-2]:
+        raise ShapeError(f"latlong must have shape (3, H, 2H), got {tuple(latlong.shape)}")
+    check_positive_int(levels, "levels")
+    x = latlong.float()[None]
+    out = []
+    for k in range(levels):
+        if k:
+            if x.shape[-2] % 2 or x.shape[-2] < 16:
+                break
+            x = F.avg_pool2d(x, 2)
+        w = x.shape[-1]
+        top, bottom = x[..., :1, :].roll(w // 2, dims=-1), x[..., -1:, :].roll(w // 2, dims=-1)
+        padded = torch.cat([top, x, bottom], dim=-2)
+        out.append(torch.cat([padded[..., -1:], padded, padded[..., :1]], dim=-1).contiguous())
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=64)
+def _frame_angles(fov_deg: float, size: int, mirrored: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    """The camera's rays as lat-long fractions ``(u, t)`` in ``[0, 1]`` (column and row), ``(size, size)``."""
+    from kornia_ilum.geometry import direction_to_latlong
+
+    rays = camera_rays((size, size), fov_deg, torch.eye(3, dtype=torch.float64))
+    if mirrored:
+        rays[..., 0] = -rays[..., 0]
+    phi, el = direction_to_latlong(rays)
+    return ((phi + math.pi) / (2 * math.pi)).float(), ((math.pi / 2 - el) / math.pi).float()
+
+
+def _pyramid_grid(u: torch.Tensor, t: torch.Tensor, rows: int, turn: float) -> torch.Tensor:
+    """The padded map's ``grid_sample`` grid (``align_corners=True``) of ``(u - turn, t)``, ``(1, h, w, 2)``."""
+    w = 2 * rows
+    gx = torch.remainder(u - turn, 1.0).mul_(w).add_(0.5).mul_(2.0 / (w + 1)).sub_(1.0)
+    gy = t.mul(rows).add_(0.5).mul_(2.0 / (rows + 1)).sub_(1.0)
+    return torch.stack([gx, gy], -1)[None]
+
+
+#: The largest Gaussian standard deviation (pixels of its level) blurred at one level; larger blurs go to a
+#: coarser level of :func:`background_pyramid` (a frame of half the side), blurred there and enlarged.
+_LEVEL_SIGMA = 1.0
+
+
+def frame_backgrounds(
+    pyramids: Sequence[Sequence[torch.Tensor]],
+    camera: Camera,
+    mirror: torch.Tensor | None = None,
+    turn: torch.Tensor | None = None,
+    sigma: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""The camera's view of each environment from full-resolution maps, turned, mirrored, with depth of field.
+
+    Sample ``b`` sees environment ``pyramids[b]`` (:func:`background_pyramid`) turned about the vertical axis by
+    ``turn[b]`` of a full turn (what rolling the lat-long map by ``turn * W`` columns does:
+    ``x.roll(k, -1)`` is ``turn = k / W``) and mirrored (``x -> -x``) when ``mirror[b]``, exactly as
+    :func:`frame_background` would see the rolled map (the lookups are the same up to float rounding).
+
+    Depth of field: the background is blurred by a Gaussian of ``sigma[b]`` pixels of the frame (0: sharp). A
+    blur of more than 1 pixel is made at a coarser level ``k = ceil(log2 sigma)`` of the pyramid: the view is
+    looked up at ``size / 2^k`` in the map averaged ``2^k`` times, blurred by the rest
+    (:func:`kornia.filters.gaussian_blur2d`, ``sqrt((sigma / 2^k)^2 - 1/6)``, the bilinear enlargement's own
+    spread subtracted) and enlarged to ``size`` (bilinear): a strong blur costs less than a sharp frame.
+    The widths are approximate (the averaged map and the enlargement blur a little in their own ways); the
+    blur is the same everywhere (a distant background).
+
+    Args:
+        pyramids: ``B`` pyramids of padded maps (the same map may appear several times).
+        camera: the render's camera (``fov_deg``, ``size``).
+        mirror: ``(B,)`` bool, default none.
+        turn: ``(B,)`` fractions of a turn, default 0.
+        sigma: ``(B,)`` blur in frame pixels, default 0.
+
+    Returns:
+        ``(B, 3, size, size)`` linear float32.
+
+    Examples:
+        >>> maps = [background_pyramid(torch.ones(3, 32, 64))] * 2
+        >>> view = frame_backgrounds(maps, Camera(40.0, 1.0, 0.0, 0.0, size=16), sigma=torch.tensor([0.0, 5.0]))
+        >>> tuple(view.shape), bool(torch.allclose(view, torch.ones(())))
+        ((2, 3, 16, 16), True)
+    """
+    from kornia.filters import gaussian_blur2d
+
+    if not isinstance(camera, Camera):
+        raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
+    b = len(pyramids)
+    _check_mirror(mirror, b)
+    size, fov = camera.size, float(camera.fov_deg)
+    mirror_l = [False] * b if mirror is None else mirror.tolist()
+    turn_l = [0.0] * b if turn is None else [float(x) for x in turn.tolist()]
+    sigma_l = [0.0] * b if sigma is None else [max(0.0, float(x)) for x in sigma.tolist()]
+    if len(turn_l) != b or len(sigma_l) != b:
+        raise ShapeError(f"turn and sigma must have shape ({b},)")
+    out = torch.empty(b, 3, size, size)
+    groups: dict[int, list[int]] = {}
+    for j, s in enumerate(sigma_l):
+        k = 0 if s <= _LEVEL_SIGMA else math.ceil(math.log2(s / _LEVEL_SIGMA))
+        k = min(k, len(pyramids[j]) - 1, max(0, int(math.log2(size / 4))))
+        groups.setdefault(k, []).append(j)
+    for k, members in sorted(groups.items()):
+        side = max(1, round(size / 2**k))
+        frames = torch.empty(len(members), 3, side, side) if k else out[members[0] : members[0]]
+        for n, j in enumerate(members):
+            level = pyramids[j][k]
+            u, t = _frame_angles(fov, side, bool(mirror_l[j]))
+            grid = _pyramid_grid(u, t, level.shape[-2] - 2, turn_l[j])
+            view = F.grid_sample(level, grid, mode="bilinear", padding_mode="border", align_corners=True)[0]
+            if k:
+                frames[n] = view
+            else:
+                out[j] = view
+        scale = 2**k
+        rest = [math.sqrt(max((sigma_l[j] / scale) ** 2 - (1 / 6 if k else 0.0), 0.0)) for j in members]
+        blurred = [j for j, r in zip(members, rest, strict=True) if r >= 0.3]
+        if k == 0:
+            if blurred:
+                sig = torch.tensor([[sigma_l[j]] * 2 for j in blurred])
+                radius = math.ceil(3 * float(sig.max()))
+                if radius < size:
+                    out[blurred] = gaussian_blur2d(out[blurred], 2 * radius + 1, sig, border_type="reflect")
+            continue
+        if blurred:
+            sel = [n for n, r in enumerate(rest) if r >= 0.3]
+            sig = torch.tensor([[rest[n]] * 2 for n in sel])
+            radius = math.ceil(3 * float(sig.max()))
+            if radius < side:
+                frames[sel] = gaussian_blur2d(frames[sel], 2 * radius + 1, sig, border_type="reflect")
+        out[members] = F.interpolate(frames, size=(size, size), mode="bilinear", align_corners=False)
+    return out
