@@ -13,11 +13,11 @@ installed, else a counter on stderr), and writes into ``--out``:
 :func:`add_synth_environments_parser` adds the subcommand to an ``argparse`` subparsers action;
 :func:`run_synth_environments` runs it from the parsed arguments.
 
-``synth subjects`` renders the OLAT reflectance fields of light-stage subjects into a cache folder
-(:func:`~kornia_ilum.synth.lightstage.build_cache`: resumable, sharded with ``--worker I/N``, with a progress
-bar), then writes ``contact_sheet.png``: portraits synthesised from the cache
-(:class:`~kornia_ilum.synth.lightstage.PortraitDataset`) with their ground-truth spheres
-(:func:`write_portrait_sheet`). :func:`add_synth_subjects_parser` and :func:`run_synth_subjects` as above.
+``synth subjects`` renders the OLAT reflectance fields of light-stage subjects (MakeHuman or mannequins) into
+a cache folder (:func:`~kornia_ilum.synth.lightstage.build_cache`: random views, worker processes, resumable,
+sharded with ``--worker I/N``, a progress bar with an ETA), then writes ``contact_sheet.png``: training
+portraits composited from the cache with their ground-truth spheres
+(:func:`~kornia_ilum.synth.lightstage.preview.training_sheet`). :func:`add_synth_subjects_parser` and :func:`run_synth_subjects` as above.
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ __all__ = [
     "run_synth_subjects",
     "tone_map_tile",
     "write_contact_sheet",
-    "write_portrait_sheet",
 ]
 
 
@@ -279,17 +278,21 @@ def run_synth_environments(args: argparse.Namespace) -> int:
 # synth subjects
 
 _SUBJECTS_HELP = """\
-Render the OLAT reflectance fields of light-stage subjects (one Mitsuba render per light of the 32 x 32
-mirror-ball basis, per subject and view) into --out, resumably: fields already on disk with the same
-settings are skipped, so rerun the same command after an interruption. --worker I/N renders share I of N
-(round robin over subject x view), so N machines can fill one cache. Then write --out/contact_sheet.png:
---sheet portraits synthesised from the cache (relit, composited over their environment, cropped and encoded
-as training samples) with their ground-truth reference spheres. Needs the lightstage extra (Mitsuba 3).
+Render the OLAT reflectance fields of light-stage subjects (one render per light of the 32 x 32 mirror-ball
+basis) into --out: --views random views per subject (yaw spread over +-35 degrees, pitch +-15, roll +-10,
+lenses from a phone's 24 mm to an 85 mm portrait lens, the face framed at half the image height), each
+subject built once, in --workers one-thread processes. Resumable: fields already on disk with the same
+settings are skipped, so rerun the same command after an interruption. --worker I/N renders the subjects of
+share I of N, so N machines can fill one cache. Then write --out/contact_sheet.png: --sheet training portraits
+(relit, composited over their environment, exposed, cropped, 8-bit sRGB) with their ground-truth spheres.
+Sources: makehuman (photoreal heads, needs the CC0 assets: --assets, $KORNIA_ILUM_MAKEHUMAN or
+$KORNIA_ILUM_SHARED_DATA/makehuman) or mannequin (signed-distance heads, no assets); the default is makehuman
+when its assets are found, else mannequin. Needs the lightstage extra (Mitsuba 3).
 
 examples:
-  kornia-ilum synth subjects --seeds 0-9 --out lightstage/
-  kornia-ilum synth subjects --seeds 0-99 --worker 3/8 --sheet 0 --out /shared/lightstage/
-  kornia-ilum synth subjects --seeds 0-2 --size 64 --spp 4 --lighting-size 8 --out tiny/
+  kornia-ilum synth subjects --seeds 0-59 --views 4 --out lightstage/
+  kornia-ilum synth subjects --source makehuman --assets ~/makehuman --seeds 0-99 --worker 3/8 --sheet 0 --out /shared/ls/
+  kornia-ilum synth subjects --source mannequin --seeds 0-2 --size 64 --spp 4 --lighting-size 8 --out tiny/
 """
 
 
@@ -329,8 +332,8 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     Examples:
         >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
         >>> args = add_synth_subjects_parser(parser.add_subparsers(dest="command")).parse_args(["--seeds", "0-2"])
-        >>> args.seeds, args.worker, args.size, args.func.__name__
-        ([0, 1, 2], (0, 1), 192, 'run_synth_subjects')
+        >>> args.seeds, args.worker, args.size, args.views, args.workers, args.source, args.func.__name__
+        ([0, 1, 2], (0, 1), 192, 4, 2, None, 'run_synth_subjects')
     """
     sub = _synth_subparsers(subparsers)
     cmd = sub.add_parser(
@@ -342,15 +345,19 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     cmd.add_argument("--out", default="lightstage", metavar="DIR", help="the cache folder (lightstage)")
     cmd.add_argument("--seeds", type=parse_seeds, default=parse_seeds("0-9"), metavar="SEEDS",
                      help="subject seeds, e.g. 0-9 or 1,4,7 (0-9); about one in ten is an eval subject")
-    cmd.add_argument("--views", type=_positive_int, default=3, metavar="N",
-                     help="the first N of the default camera views (3)")
+    cmd.add_argument("--source", choices=("makehuman", "mannequin"), default=None,
+                     help="subject source (makehuman when its assets are found, else mannequin)")
+    cmd.add_argument("--assets", metavar="DIR", default=None, help="the MakeHuman assets folder")
+    cmd.add_argument("--views", type=_positive_int, default=4, metavar="N", help="random views per subject (4)")
     cmd.add_argument("--size", type=_positive_int, default=192, metavar="PX", help="render side in pixels (192)")
     cmd.add_argument("--spp", type=_positive_int, default=16, metavar="N", help="samples per pixel per light (16)")
     cmd.add_argument("--lighting-size", type=_positive_int, default=32, metavar="S",
                      help="side of the mirror-ball lighting basis (32: 812 lights)")
+    cmd.add_argument("--workers", type=_positive_int, default=2, metavar="N",
+                     help="render processes, one thread each (2)")
     cmd.add_argument("--worker", type=_worker, default=(0, 1), metavar="I/N", help="render share I of N (0/1)")
     cmd.add_argument("--threads", type=_positive_int, default=None, metavar="N",
-                     help="render threads (default: all cores)")
+                     help="render threads with --workers 1 (default: Dr.Jit's, all cores)")
     cmd.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_rgb, else scalar_rgb)")
     cmd.add_argument("--sheet", type=_nonnegative_int, default=64, metavar="N",
                      help="portraits in contact_sheet.png (64; 0: none)")
@@ -362,31 +369,35 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     return cmd
 
 
-def write_portrait_sheet(samples: Sequence[dict], path: str | Path, columns: int = 8, dpi: int = 100,
-                         palette: bool = True) -> None:
-    """A PNG grid of portraits (samples of :class:`~kornia_ilum.synth.lightstage.PortraitDataset`), each
-    above its ground-truth diffuse, matte-silver and mirror spheres at their largest size (as the loss sees them:
-    ``softclip(I)^(1/2.2)``), captioned with the subject seed, Monk skin tone, view and environment. With
-    ``palette``, a dithered 256-colour PNG: 64 portraits in about 0.75 MB instead of 1.7 MB."""
-    import torch.nn.functional as F
+def _subject_source(name: str | None, assets: str | None):
+    """The source of ``--source`` / ``--assets``; without ``--source``, makehuman when its assets are found."""
+    import sys
 
-    tiles, captions = [], []
-    for sample in samples:
-        portrait = F.interpolate(sample["image"][None].float() / 255.0, size=(120, 120), mode="area")[0]
-        largest = max(int(k.rsplit("_", 1)[1]) for k in sample["spheres"])
-        spheres = [F.interpolate(sample["spheres"][f"{b}_{largest}"][None], size=(38, 38), mode="nearest")[0]
-                   for b in ("diffuse", "matte_silver", "mirror")]
-        gap = torch.ones(3, 38, 3)
-        strip = torch.cat([spheres[0], gap, spheres[1], gap, spheres[2]], -1)
-        tile = torch.ones(3, 120 + 3 + 38, 120)
-        tile[:, :120] = portrait
-        left = (120 - strip.shape[-1]) // 2
-        tile[:, 123:, left : left + strip.shape[-1]] = strip
-        tiles.append(tile)
-        captions.append(f"s{sample['subject_seed']} MST {sample['skin_tone']} v{sample['view_index']}\n"
-                        f"{sample['label']}: {sample['source'].split(':')[-1]}")
-    title = "light-stage portraits (256 x 256, shown at 120) | ground truth: diffuse, matte silver, mirror"
-    _write_grid(tiles, captions, title, path, columns, (1.45, 2.3), 5.5, dpi, palette)
+    from kornia_ilum.core.errors import IlumError
+
+    try:
+        from kornia_ilum.synth.lightstage.subjects import subject_source
+    except ImportError:
+        subject_source = None
+    if name == "mannequin" or (name is None and subject_source is None):
+        if name is None:
+            print("kornia-ilum: notice: the MakeHuman source is not in this build; using the mannequins",
+                  file=sys.stderr)
+        from kornia_ilum.synth.lightstage.subjects import MannequinSource
+
+        return MannequinSource()
+    if subject_source is None:
+        raise IlumError("the makehuman subject source is not in this build; use --source mannequin")
+    try:
+        return subject_source("makehuman", assets=assets)
+    except Exception as exc:  # noqa: BLE001 - missing or broken assets, whichever error the source raises
+        if name == "makehuman":
+            raise IlumError(f"cannot load the MakeHuman assets: {exc}") from exc
+        print(f"kornia-ilum: notice: MakeHuman assets not found ({' '.join(str(exc).split())}); "
+              "using the mannequins (--source mannequin)", file=sys.stderr)
+        from kornia_ilum.synth.lightstage.subjects import MannequinSource
+
+        return MannequinSource()
 
 
 def run_synth_subjects(args: argparse.Namespace) -> int:
@@ -394,44 +405,28 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
 
     Raises:
         ImportError: Mitsuba (the ``lightstage`` extra) is not installed.
-        IlumError: matplotlib is not installed and a sheet is asked for.
-        ValueCheckError: more views than :data:`~kornia_ilum.synth.lightstage.DEFAULT_VIEWS` holds.
+        IlumError: matplotlib is not installed and a sheet is asked for; ``--source makehuman`` without its
+            assets (exit status 1).
     """
-    import statistics
+    from kornia_ilum.synth.lightstage.cache import build_cache, cache_summary
+    from kornia_ilum.synth.lightstage.preview import training_sheet
 
-    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-    from kornia_ilum.synth.lightstage import DEFAULT_VIEWS, PortraitDataset, build_cache
-
-    if args.views > len(DEFAULT_VIEWS):
-        from kornia_ilum.core.errors import ValueCheckError
-
-        raise ValueCheckError(f"--views must be at most {len(DEFAULT_VIEWS)} (the default views), got {args.views}")
     if args.sheet:
         _require_matplotlib("synth subjects")
+    source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None))
     out = Path(args.out)
-    t0 = time.perf_counter()
-    manifest = build_cache(out, args.seeds, DEFAULT_VIEWS[: args.views], worker_index=args.worker[0], worker_count=args.worker[1],
-                           size=args.size, spp=args.spp, lighting_size=args.lighting_size, variant=args.variant,
+    manifest = build_cache(source, args.seeds, out, views_per_subject=args.views, size=args.size, spp=args.spp,
+                           lighting_size=args.lighting_size, workers=getattr(args, "workers", 2),
+                           worker_index=args.worker[0], worker_count=args.worker[1], variant=args.variant,
                            threads=args.threads, progress=True)
-    seconds = time.perf_counter() - t0
-    entries = manifest["entries"]
-    subjects = sorted({e["subject_seed"] for e in entries})
-    print(f"cache {out}: {len(entries)} fields of {len(subjects)} subjects "
-          f"({sum(e.get('split') == 'eval' for e in entries)} fields of eval subjects); this run {seconds:.0f} s")
-    if entries:
-        print(f"per field: median {statistics.median(e['render_seconds'] for e in entries):.0f} s to render, "
-              f"{statistics.median(e['bytes'] for e in entries) / 1e6:.1f} MB on disk")
+    print(f"cache {out} (source {source.name}):")
+    print(cache_summary(manifest))
     if not args.sheet:
         return 0
     split = None if args.split == "all" else args.split
-    environments = EnvironmentSampler(default_sources(args.folder), seed=args.seed)
-    sizes = tuple(s for s in (4, 8, 16, 32) if s <= args.lighting_size)
-    data = PortraitDataset(out, split, environments, args.seed, fields_per_chunk=args.sheet, lightings_per_field=1,
-                           env_pool=args.sheet, env_refresh=args.sheet, shuffle=1, sphere_sizes=sizes)
     t1 = time.perf_counter()
-    samples = sorted(data.chunk(0, 0), key=lambda s: (s["skin_tone"], s["subject_seed"], s["label"]))
-    rate = len(samples) / (time.perf_counter() - t1)
-    write_portrait_sheet(samples, out / "contact_sheet.png")
-    print(f"{len(samples)} portraits ({rate:.0f}/s; fields and environments drawn at random, repeats possible)")
+    count = training_sheet(out, out / "contact_sheet.png", count=args.sheet, split=split, folder=args.folder,
+                           seed=args.seed)
+    print(f"{count} portraits in {time.perf_counter() - t1:.1f} s")
     print(f"wrote {out / 'contact_sheet.png'}")
     return 0

@@ -127,43 +127,65 @@ class TestSubjects:
     def test_defaults_and_options(self):
         args = self.parser().parse_args(["synth", "subjects"])
         assert (args.out, args.seeds, args.views, args.size, args.spp, args.lighting_size, args.worker) == (
-            "lightstage", list(range(10)), 3, 192, 16, 32, (0, 1),
+            "lightstage", list(range(10)), 4, 192, 16, 32, (0, 1),
         )  # fmt: skip
+        assert (args.source, args.assets, args.workers) == (None, None, 2)
         assert (args.sheet, args.split, args.folder, args.func) == (64, "train", None, run_synth_subjects)
-        args = self.parser().parse_args(["synth", "subjects", "--seeds", "4,1-2,4", "--worker", "2/3"])
-        assert args.seeds == [4, 1, 2] and args.worker == (2, 3)
+        args = self.parser().parse_args(["synth", "subjects", "--seeds", "4,1-2,4", "--worker", "2/3",
+                                         "--source", "mannequin", "--workers", "1"])
+        assert args.seeds == [4, 1, 2] and args.worker == (2, 3) and args.source == "mannequin"
 
     def test_bad_values(self, capsys):
-        for bad in (["--seeds", "a-b"], ["--seeds", ""], ["--worker", "3/3"], ["--worker", "1"], ["--size", "0"]):
+        for bad in (["--seeds", "a-b"], ["--seeds", ""], ["--worker", "3/3"], ["--worker", "1"], ["--size", "0"],
+                    ["--source", "clay"], ["--workers", "0"]):
             with pytest.raises(SystemExit):
                 self.parser().parse_args(["synth", "subjects", *bad])
         err = capsys.readouterr().err
-        assert "seeds must look like" in err and "worker must be I/N" in err
+        assert "seeds must look like" in err and "worker must be I/N" in err and "invalid choice" in err
 
-    def test_too_many_views(self, tmp_path):
-        from kornia_ilum.core.errors import ValueCheckError
+    def test_main_exit_status(self, tmp_path, capsys, monkeypatch):
+        """Bad options exit 2 with one line; missing MakeHuman assets exit 1 with one line."""
+        from kornia_ilum.cli import main
 
-        args = self.parser().parse_args(["synth", "subjects", "--views", "4", "--out", str(tmp_path)])
-        with pytest.raises(ValueCheckError, match="--views must be at most 3"):
-            args.func(args)
-        assert not any(tmp_path.iterdir())
+        assert main(["synth", "subjects", "--source", "clay", "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("kornia-ilum: error:") and err.count("\n") == 1
+        monkeypatch.setenv("KORNIA_ILUM_MAKEHUMAN", str(tmp_path / "nowhere"))
+        monkeypatch.setenv("KORNIA_ILUM_SHARED_DATA", str(tmp_path / "nowhere"))
+        status = main(["synth", "subjects", "--source", "makehuman", "--assets", str(tmp_path / "nowhere"),
+                       "--sheet", "0", "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert status == 1 and err.startswith("kornia-ilum: error:") and err.count("\n") == 1
+        assert "makehuman" in err.lower()
 
     def test_parse_seeds(self):
         assert parse_seeds("7") == [7] and parse_seeds("0-2, 5") == [0, 1, 2, 5]
 
     def test_renders_resumes_and_writes_the_sheet(self, tmp_path, capsys):
-        argv = ["synth", "subjects", "--seeds", "0-1", "--views", "1", "--size", "32", "--spp", "2",
-                "--lighting-size", "8", "--threads", "1", "--sheet", "4", "--split", "all", "--out", str(tmp_path)]
+        argv = ["synth", "subjects", "--source", "mannequin", "--seeds", "0-1", "--views", "2", "--size", "16",
+                "--spp", "1", "--lighting-size", "4", "--workers", "1", "--threads", "1", "--sheet", "3",
+                "--split", "all", "--out", str(tmp_path)]
         args = self.parser().parse_args(argv)
         assert args.func(args) == 0
         captured = capsys.readouterr()
-        assert "OLAT renders" in captured.err  # the progress bar
-        assert "2 fields of 2 subjects (1 fields of eval subjects)" in captured.out
+        assert "subject-views: 4/4 (100 %)" in captured.err and "ETA" in captured.err  # the progress bar
+        assert "4 subject-views of 2 subjects (1 eval subjects)" in captured.out
+        assert "source mannequin" in captured.out and "3 portraits" in captured.out
         assert (tmp_path / "contact_sheet.png").read_bytes()[:8] == PNG
-        assert sorted(p.name for p in (tmp_path / "fields").iterdir()) == ["s000000_v00.safetensors",
-                                                                           "s000001_v00.safetensors"]
+        assert sorted(p.name for p in (tmp_path / "fields").iterdir()) == [
+            "s000000_v00.safetensors", "s000000_v01.safetensors", "s000001_v00.safetensors",
+            "s000001_v01.safetensors"]
         stamp = (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns
         args = self.parser().parse_args([*argv[:-4], "--sheet", "0", "--out", str(tmp_path)])
         assert args.func(args) == 0  # resumed: nothing left to render
         assert (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns == stamp
-        assert "this run" in capsys.readouterr().out
+        assert "this run rendered 0" in capsys.readouterr().out
+
+    def test_default_source_falls_back_to_mannequins(self, tmp_path, capsys, monkeypatch):
+        from kornia_ilum.synth.cli import _subject_source
+
+        monkeypatch.setenv("KORNIA_ILUM_MAKEHUMAN", str(tmp_path / "nowhere"))
+        monkeypatch.setenv("KORNIA_ILUM_SHARED_DATA", str(tmp_path / "nowhere"))
+        assert _subject_source(None, None).name == "mannequin"
+        assert "using the mannequins" in capsys.readouterr().err
+        assert _subject_source("mannequin", None).name == "mannequin"

@@ -1,8 +1,15 @@
-"""The virtual light stage: synthetic subjects, their OLAT reflectance fields, and portraits relit from them."""
+"""The virtual light stage: synthetic subjects, their OLAT reflectance fields, and portraits relit from them.
+
+The portrait names (:class:`PortraitDataset`, :func:`load_fields`, :func:`relight_portraits`) are imported on
+first use, so importing the cache or the subjects does not import the portrait pipeline.
+"""
+
+from typing import Any
 
 from kornia_ilum.synth.lightstage.cache import (
     DEFAULT_VIEWS,
     build_cache,
+    cache_summary,
     read_field,
     read_manifest,
     write_field,
@@ -13,8 +20,7 @@ from kornia_ilum.synth.lightstage.olat import (
     render_olat,
     select_mitsuba_variant,
 )
-from kornia_ilum.synth.lightstage.scene import Camera
-from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields, relight_portraits
+from kornia_ilum.synth.lightstage.scene import Camera, sample_views
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -25,6 +31,17 @@ from kornia_ilum.synth.lightstage.subjects import (
     subject_params,
     subject_split,
 )
+
+_PORTRAIT_NAMES = ("PortraitDataset", "load_fields", "relight_portraits")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PORTRAIT_NAMES:
+        from kornia_ilum.synth.lightstage import portraits
+
+        return getattr(portraits, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "DEFAULT_VIEWS",
@@ -37,6 +54,7 @@ __all__ = [
     "ReflectanceField",
     "Subject",
     "build_cache",
+    "cache_summary",
     "load_fields",
     "make_subject",
     "read_field",
@@ -44,6 +62,7 @@ __all__ = [
     "relight_portraits",
     "render_lighting",
     "render_olat",
+    "sample_views",
     "select_mitsuba_variant",
     "subject_params",
     "subject_split",

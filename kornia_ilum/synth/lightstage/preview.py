@@ -1,7 +1,14 @@
-r"""Quick looks at synthetic subjects: a Mitsuba 3 render under a key light and a contact sheet.
+r"""Quick looks at synthetic subjects and at the training portraits of a cache.
 
-For eyeballing the subjects of :func:`kornia_ilum.synth.lightstage.make_subject`, not for training data (the
-light-stage renderer is :mod:`kornia_ilum.synth.lightstage.olat`). Needs Mitsuba 3 (``pip install mitsuba``).
+:func:`render_preview` and :func:`contact_sheet`: a Mitsuba 3 render of subjects (any source: textured
+MakeHuman heads or mannequins) under a studio light, for eyeballing, not for training data (the light-stage
+renderer is :mod:`kornia_ilum.synth.lightstage.olat`). Textures: the material's ``albedo_texture`` and
+``roughness_texture`` through :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf`, looked up with the
+part's ``uvs``; its ``opacity_texture`` (hair cards, brows, lashes) as a Mitsuba ``mask`` BSDF around it.
+
+:func:`compose_portrait` and :func:`training_sheet`: training portraits from cached reflectance fields, made
+as the training data is (relit by an environment, composited over the environment seen through the view's
+camera, auto-exposed, 8-bit sRGB, cropped to the face box expanded 1.25 x), with their ground-truth spheres.
 
 Convention:
     A pinhole camera on the +Z axis looks at the face (SPEC frame); ``yaw_deg`` turns it about +Y around the
@@ -18,15 +25,89 @@ from pathlib import Path
 
 import numpy as np
 
+import torch
+
 from kornia_ilum.synth.lightstage.olat import (
     _import_mitsuba,
-    _mitsuba_mesh,
     material_bsdf,
     select_mitsuba_variant,
 )
+from kornia_ilum.synth.lightstage.scene import Camera, _pivot, camera_transform
 from kornia_ilum.synth.lightstage.subjects import Subject
 
-__all__ = ["contact_sheet", "render_preview"]
+__all__ = ["compose_portrait", "contact_sheet", "preview_bsdf", "render_preview", "training_sheet"]
+
+
+def _bitmap(data: np.ndarray) -> dict:
+    """A raw (linear) bilinear bitmap texture; row 0 of ``data`` is the top of the image (``v = 1``)."""
+    mi = _import_mitsuba()
+    arr = np.ascontiguousarray(data if data.ndim == 3 else data[..., None], dtype=np.float32)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(arr), "raw": True}
+
+
+def _has_bitmap(d: object) -> bool:
+    if isinstance(d, dict):
+        return d.get("type") == "bitmap" or any(_has_bitmap(v) for v in d.values())
+    return False
+
+
+def preview_bsdf(material, textured: bool = True) -> dict:
+    """The Mitsuba BSDF dict of a :class:`~.subjects.Material` with its textures.
+
+    :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf` (which maps ``albedo_texture`` and
+    ``roughness_texture``; where it does not, the albedo texture is added here), wrapped in a ``mask`` of the
+    ``opacity_texture`` when there is one. ``textured=False`` (a part without ``uvs``) gives the plain BSDF.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), opacity_texture=np.ones((2, 2), np.float32))
+        >>> preview_bsdf(mat)["type"]
+        'mask'
+    """
+    bsdf = material_bsdf(material)
+    if not textured:
+        return material_bsdf(_untextured(material))
+    tex = getattr(material, "albedo_texture", None)
+    if tex is not None and not _has_bitmap(bsdf) and bsdf.get("type") == "twosided":
+        inner = dict(bsdf["bsdf"])
+        key = "reflectance" if inner["type"] == "diffuse" else "base_color"
+        inner[key] = _bitmap(np.clip(np.asarray(tex, np.float32), 0.0, 1.0))
+        bsdf = {"type": "twosided", "bsdf": inner}
+    opacity = getattr(material, "opacity_texture", None)
+    if opacity is not None:
+        bsdf = {"type": "mask", "opacity": _bitmap(np.clip(np.asarray(opacity, np.float32), 0.0, 1.0)),
+                "bsdf": bsdf}
+    return bsdf
+
+
+def _untextured(material):
+    import dataclasses
+
+    if dataclasses.is_dataclass(material):
+        return dataclasses.replace(material, albedo_texture=None, opacity_texture=None, roughness_texture=None)
+    return material
+
+
+def _preview_mesh(mi, part) -> object:
+    """A Mitsuba mesh of a :class:`~.subjects.MeshPart`, with its texture coordinates (stored ``(u, 1 - v)``)."""
+    uvs = getattr(part, "uvs", None)
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(preview_bsdf(part.material, textured=uvs is not None))
+    v, f = np.asarray(part.vertices, np.float32), np.asarray(part.faces, np.uint32)
+    mesh = mi.Mesh(part.name, vertex_count=len(v), face_count=len(f), has_vertex_normals=True,
+                   has_vertex_texcoords=uvs is not None, props=props)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = type(params["vertex_positions"])(v.ravel())
+    params["faces"] = type(params["faces"])(f.ravel())
+    normals = getattr(part, "normals", None)
+    if normals is not None:
+        params["vertex_normals"] = type(params["vertex_normals"])(np.asarray(normals, np.float32).ravel())
+    if uvs is not None:
+        uv = np.asarray(uvs, dtype=np.float32).copy()
+        uv[:, 1] = 1.0 - uv[:, 1]
+        params["vertex_texcoords"] = type(params["vertex_texcoords"])(uv.ravel())
+    params.update()
+    return mesh
 
 
 def _studio_envmap(height: int = 128) -> np.ndarray:
@@ -66,8 +147,13 @@ def render_preview(
     spp: int = 32,
     distance: float = 0.9,
     variant: str | None = None,
+    camera: Camera | None = None,
 ) -> np.ndarray:
     """Render ``subject`` (linear RGB, ``(size, size, 3)`` float32, exposure 1) under a key and a fill light.
+
+    Textured materials show their textures (:func:`preview_bsdf`). With ``camera`` (a light-stage
+    :class:`~.scene.Camera`, e.g. of :func:`~.scene.sample_views`) the subject is framed exactly as the light
+    stage frames it, and ``size``, ``yaw_deg``, ``fov_deg`` and ``distance`` are ignored.
 
     Examples:
         >>> from kornia_ilum.synth.lightstage import make_subject
@@ -83,8 +169,18 @@ def render_preview(
         "env": {"type": "envmap", "bitmap": mi.Bitmap(_studio_envmap())},
     }
     for i, part in enumerate(subject.parts):
-        bsdf = material_bsdf(part.material)
-        scene[f"part{i}"] = _mitsuba_mesh(mi, part.name, part.vertices, part.faces, part.normals, bsdf)
+        scene[f"part{i}"] = _preview_mesh(mi, part)
+    if camera is not None:
+        t = camera_transform(camera, _pivot(subject))
+        inv = np.linalg.inv(t)  # camera -> subject: the camera sits at the origin looking along -Z
+        to_world = mi.ScalarTransform4f(inv.tolist()) @ mi.ScalarTransform4f().scale([-1.0, 1.0, -1.0])
+        scene["sensor"] = {
+            "type": "perspective", "fov": camera.fov_deg, "fov_axis": "x", "to_world": to_world,
+            "film": {"type": "hdrfilm", "width": camera.size, "height": camera.size,
+                     "rfilter": {"type": "gaussian"}},
+            "sampler": {"type": "independent", "sample_count": spp},
+        }
+        return np.asarray(mi.render(mi.load_dict(scene), seed=0), dtype=np.float32)[..., :3]
     yaw = math.radians(yaw_deg)
     target = np.array([0.0, -0.02, 0.02])
     origin = target + distance * np.array([math.sin(yaw), 0.0, math.cos(yaw)])
@@ -145,3 +241,146 @@ def contact_sheet(
     if path is not None:
         Image.fromarray(sheet).save(str(path), optimize=True)
     return sheet
+
+
+# ----------------------------------------------------------------------------------------------
+# training portraits from a cache
+
+
+def _lighting_for(env, size: int) -> torch.Tensor:
+    """The environment's mirror ball at the field's lighting size ``(1, 3, size, size)``."""
+    if env.mirror_ball.shape[-1] == size:
+        return env.mirror_ball[None].float()
+    from kornia_ilum.geometry import latlong_to_mirror_ball
+
+    return latlong_to_mirror_ball(env.latlong[None].float(), size).clamp(min=0.0)
+
+
+def compose_portrait(field, env, *, key: float = 0.18) -> dict:
+    r"""One full-frame training portrait: a cached field relit by ``env`` over its background, 8-bit sRGB.
+
+    Relight (:func:`~kornia_ilum.synth.lightstage.portraits.relight_portraits`), composite over what the
+    view's camera sees of the environment (:func:`~kornia_ilum.synth.lightstage.portraits.frame_background`,
+    ``I + (1 - alpha) B``), auto-expose (:func:`~kornia_ilum.synth.lightstage.portraits.auto_exposure`, key
+    ``key``) and encode (:func:`~kornia_ilum.color.encode_srgb8`).
+
+    Args:
+        field: a :class:`~kornia_ilum.synth.lightstage.ReflectanceField` (dense or compact).
+        env: an :class:`~kornia_ilum.synth.environments.Environment` (in the camera frame).
+        key: the exposure's target mean.
+
+    Returns:
+        ``{"image": (3, H, W) uint8, "lighting": (3, 32, 32) mirror ball in image units (times the exposure),
+        "gain": float, "face_box": (4,) landmark box}``.
+    """
+    from kornia_ilum.color import encode_srgb8
+    from kornia_ilum.synth.lightstage.portraits import auto_exposure, frame_background, relight_portraits
+
+    lighting = _lighting_for(env, field.lighting_size)
+    image, alpha = relight_portraits(field, lighting)
+    linear = image + (1.0 - alpha) * frame_background(env.latlong[None].float(), field.camera)
+    gain = float(auto_exposure(linear, key)[0])
+    return {
+        "image": encode_srgb8((linear[0] * gain).clamp(min=0.0)),
+        "lighting": env.mirror_ball.float() * gain,
+        "gain": gain,
+        "face_box": field.face_box.float(),
+    }
+
+
+def _crop(image: torch.Tensor, box: torch.Tensor, size: int) -> torch.Tensor:
+    """The square crop (face box expanded 1.25 x) of a ``(3, H, W)`` float image, resized to ``size``."""
+    from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
+
+    square = square_crop_boxes(box[None].float(), CROP_SCALE)
+    return crop_faces(image[None], square, size)[0]
+
+
+def _sphere_strip(lighting: torch.Tensor, side: int) -> torch.Tensor:
+    """The diffuse, matte-silver and mirror spheres of ``lighting`` as the loss sees them
+    (``softclip(I)^(1/2.2)``), side by side, 3-pixel white gaps."""
+    import torch.nn.functional as F
+
+    from kornia_ilum.color import gamma_encode
+    from kornia_ilum.filters import soft_clip
+    from kornia_ilum.render import BRDFS, render_spheres
+
+    spheres = render_spheres(lighting[None], size=32)
+    gap = torch.ones(3, side, 3)
+    parts = []
+    for brdf in BRDFS:
+        s = gamma_encode(soft_clip(spheres[brdf]), 2.2).clamp(0, 1)
+        parts += [F.interpolate(s, size=(side, side), mode="area")[0], gap]
+    return torch.cat(parts[:-1], -1)
+
+
+def training_sheet(
+    cache_dir: str | Path,
+    path: str | Path,
+    *,
+    count: int = 64,
+    split: str | None = "train",
+    folder: str | Path | Sequence[str | Path] | None = None,
+    seed: int = 0,
+    columns: int = 8,
+    size: int = 120,
+) -> int:
+    r"""A PNG of ``count`` training portraits from a cache, each above its ground-truth spheres.
+
+    Portraits as training makes them (:func:`compose_portrait`: relit by a random environment of
+    :class:`~kornia_ilum.synth.environments.EnvironmentSampler`, procedural skies and rooms plus the real maps
+    of ``folder``, randomly rotated; composited, exposed, 8-bit sRGB), cropped to the face box expanded 1.25 x
+    and shown at ``size``; under each, the diffuse, matte-silver and mirror spheres of its lighting in the
+    image's units. Fields are taken in a shuffled order (``seed``), cycling when ``count`` exceeds them;
+    captions: seed, Monk skin tone, view yaw, environment.
+
+    Args:
+        cache_dir: a cache folder (:func:`~kornia_ilum.synth.lightstage.build_cache`).
+        path: the PNG to write.
+        count: portraits.
+        split: ``"train"``, ``"eval"`` or ``None`` (all); falls back to all when the split has no field.
+        folder: one or more folders of real HDR maps to add to the environments.
+        seed: the environments' and the order's seed.
+        columns: portraits per row.
+        size: portrait side on the sheet, pixels.
+
+    Returns:
+        the number of portraits drawn.
+    """
+    from kornia_ilum.synth.cli import _write_grid
+    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+    from kornia_ilum.synth.environments.real import HDRFolderSource
+    from kornia_ilum.synth.lightstage.cache import read_field, read_manifest
+
+    entries = read_manifest(cache_dir)["entries"]
+    chosen = [e for e in entries if split is None or e.get("split") == split] or entries
+    if not chosen:
+        from kornia_ilum.core.errors import ValueCheckError
+
+        raise ValueCheckError(f"the cache {cache_dir} has no field")
+    order = np.random.default_rng(seed).permutation(len(chosen))
+    sources = default_sources()
+    folders = [] if folder is None else [folder] if isinstance(folder, (str, Path)) else list(folder)
+    sources += [HDRFolderSource(f) for f in folders]
+    sampler = EnvironmentSampler(sources, seed=seed)
+    tiles, captions = [], []
+    side = (size - 6) // 3
+    for i in range(count):
+        entry = chosen[order[i % len(chosen)]]
+        field = read_field(Path(cache_dir) / entry["path"], dense=False)
+        env = sampler.sample(i)
+        out = compose_portrait(field, env)
+        portrait = _crop(out["image"].float() / 255.0, out["face_box"], size)
+        tile = torch.ones(3, size + 3 + side, size)
+        tile[:, :size] = portrait.clamp(0, 1)
+        strip = _sphere_strip(out["lighting"], side)
+        left = (size - strip.shape[-1]) // 2
+        tile[:, size + 3 :, left : left + strip.shape[-1]] = strip
+        tiles.append(tile)
+        captions.append(f"s{entry['subject_seed']} MST {entry.get('skin_tone')} "
+                        f"yaw {entry['camera']['yaw_deg']:+.0f}\n{env.label}: {env.source.split(':')[-1]}")
+    title = (f"light-stage training portraits (face crop 1.25 x, shown at {size}) | ground truth: diffuse, "
+             "matte silver, mirror")
+    _write_grid(tiles, captions, title, path, columns, (1.45, 1.45 * (size + 3 + side) / size + 0.3), 5.5, 100,
+                True)
+    return count
