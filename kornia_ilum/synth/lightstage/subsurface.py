@@ -182,18 +182,21 @@ def subsurface_operator(
             idx, valid = neighbours(size, pixels[srcs], offsets, pixels)  # (b, K): receivers of each source
             d2 = ((pts[idx] - pts[srcs, None, :]) ** 2).sum(-1)
             valid &= d2 <= cut_mm**2
-            recv = torch.where(valid, s[idx], torch.zeros((), dtype=torch.float64, device=dev))
+            local, k = torch.nonzero(valid, as_tuple=True)  # the (source, receiver) pairs within reach
+            dst = idx[local, k]
+            d2 = d2[local, k]
+            recv = s[dst]
             w = torch.zeros_like(d2)
             for var, weight in SKIN_PROFILE:
                 g = torch.exp(-d2 / (2.0 * var * scale**2)) * recv
-                w += weight * g / g.sum(1, keepdim=True)  # the source pixel itself is a receiver: sum > 0
+                z = torch.zeros(srcs.numel(), dtype=g.dtype, device=dev).index_add_(0, local, g)
+                w += weight * g / z[local]  # the source pixel itself is a receiver: z > 0
             w = w / sum(wt for _, wt in SKIN_PROFILE)
-            keep = valid & (w > 0)
-            src = srcs[:, None].expand_as(idx)[keep]
-            dst = idx[keep]
+            keep = w > 0
+            src, dst, w = srcs[local[keep]], dst[keep], w[keep]
             rows.append(dst)
             cols.append(src)
-            vals.append(w[keep] * m[dst] * share[src] / m[src])
+            vals.append(w * m[dst] * share[src] / m[src])
         rows, cols, vals = torch.cat(rows), torch.cat(cols), torch.cat(vals)
         mats.append([csr(rows, cols, vals, n)])
     return PixelOperator(pixels, mats, size)
