@@ -373,3 +373,79 @@ class TestImageOps:
                 torch.testing.assert_close(targets[f"{brdf}_{size}"], gamma_encode(soft_clip(render), 2.2))
         with pytest.raises(ShapeError):
             sphere_targets(torch.ones(1, 3, 12, 12))
+
+
+class TestFullResolutionBackgrounds:
+    def test_pyramid_lookup_is_the_rolled_frame_background(self) -> None:
+        """Turning by k columns and mirroring in the padded full map is what the rolled low-res path saw."""
+        latlong = torch.rand(3, 3, 16, 32, generator=torch.Generator().manual_seed(0))
+        camera = Camera(50.0, 1.0, 0.0, 0.0, size=12)
+        shifts, mirror = [0, 5, 31], torch.tensor([False, True, True])
+        rolled = torch.stack([x.roll(k, -1) for x, k in zip(latlong, shifts, strict=True)])
+        expected = frame_background(rolled, camera, mirror)
+        view = frame_backgrounds([background_pyramid(x) for x in latlong], camera, mirror,
+                                 torch.tensor(shifts, dtype=torch.float64) / 32)
+        torch.testing.assert_close(view, expected, atol=1e-5, rtol=1e-5)
+
+    def test_depth_of_field_blurs_more_with_sigma(self) -> None:
+        latlong = torch.rand(3, 64, 128, generator=torch.Generator().manual_seed(1))
+        pyramid = background_pyramid(latlong)
+        assert len(pyramid) == 4 and pyramid[-1].shape[-2] == 8 + 2
+        camera = Camera(60.0, 1.0, 0.0, 0.0, size=64)
+        sigma = torch.tensor([0.0, 1.0, 2.5, 5.0, 8.0])
+        views = frame_backgrounds([pyramid] * 5, camera, sigma=sigma)
+        detail = (views[..., 1:] - views[..., :-1]).abs().mean((1, 2, 3))
+        assert (detail[1:] < detail[:-1]).all()  # measured 0.067, 0.039, 0.021, 0.011, 0.007
+        torch.testing.assert_close(views.mean((1, 2, 3)), views[0].mean().expand(5), rtol=0.05, atol=0)
+
+    def test_environment_background_is_the_environment_at_higher_resolution(self) -> None:
+        from kornia_ilum.synth.environments import SkySource, resize_latlong
+
+        sampler = EnvironmentSampler([SkySource(height=32)], seed=0)
+        env = sampler.sample(3)
+        full = environment_background(env, sampler, procedural_height=64)
+        assert full.shape == (3, 64, 128)
+        small_again = resize_latlong(full, 32)
+        err = (small_again - env.latlong).abs().mean() / env.latlong.abs().mean()
+        assert err < 0.15  # the same sky, turned and white-balanced alike (measured 0.03)
+        assert environment_background(env, sampler, procedural_height=32) is not None
+        torch.testing.assert_close(environment_background(env, sampler, procedural_height=16), env.latlong)
+
+    def test_real_map_background_at_full_resolution(self, shared_data) -> None:
+        from kornia_ilum.synth.environments import HDRFolderSource, resize_latlong
+
+        sampler = EnvironmentSampler([HDRFolderSource(shared_data / "hdri", height=32)], seed=0)
+        env = sampler.sample(1)
+        full = environment_background(env, sampler, height=256)
+        assert full.shape == (3, 256, 512)
+        err = (resize_latlong(full, 32) - env.latlong).abs().mean() / env.latlong.abs().mean()
+        assert err < 0.15
+
+
+class TestConfig:
+    def test_frozen_replace_and_overrides(self, cache) -> None:
+        config = PortraitConfig(size=OUT, sphere_sizes=(4, 8))
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            config.size = 32  # type: ignore[misc]
+        assert dataclasses.replace(config, crop="random").crop == "random" and config.crop == "face"
+        data = PortraitDataset(cache, config, seed=1, split=None, env_pool=4)
+        assert data.config.env_pool == 4 and data.config.size == OUT and data.seed == 1
+        with pytest.raises(TypeCheckError, match="PortraitConfig"):
+            PortraitDataset(cache, {"size": 32})
+        with pytest.raises(ValueCheckError, match="background_blur"):
+            PortraitConfig(background_blur=(3.0, 1.0))
+        with pytest.raises(TypeCheckError, match="CameraEffects"):
+            PortraitConfig(camera="phone")
+
+    def test_samples_record_the_effects(self, cache) -> None:
+        with_fx = small(cache).chunk(0, 0)
+        without = small(cache, camera=OFF, background_sharp_probability=1.0).chunk(0, 0)
+        assert all(s["background_blur"] == 0 for s in without)
+        assert any(s["background_blur"] > 0 for s in with_fx)
+        assert sorted(with_fx[0]["camera"]) == ["blur", "jpeg", "noise", "tone", "vignette"]
+        assert any(s["camera"]["jpeg"] > 0 for s in with_fx)
+        # the lighting and crops are drawn before the effects: the same with and without them (the exposure
+        # meters the blurred or sharp background, so it differs)
+        for a, b in zip(with_fx, without, strict=True):
+            torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
+            assert torch.equal(a["crop_box"], b["crop_box"])

@@ -1,0 +1,137 @@
+"""Phone-camera effects: shapes, ranges, determinism, identity at zero strength, and what each one does."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from kornia_ilum.color import encode_srgb8, linear_to_srgb
+from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.synth.camera_effects import (
+    CameraEffects,
+    RandomJpeg,
+    RandomLensBlur,
+    RandomSensorNoise,
+    RandomToneCurve,
+    RandomVignette,
+    encode_tone8,
+    jpeg_compress,
+    lens_blur,
+    sensor_noise,
+    tone_curve,
+    vignette,
+)
+
+
+def gen(seed: int = 0) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+@pytest.fixture
+def linear() -> torch.Tensor:
+    """Smooth linear images with edges (a photo-like mix), in [0, 1.5]."""
+    y, x = torch.meshgrid(torch.linspace(0, 1, 32), torch.linspace(0, 1, 32), indexing="ij")
+    base = torch.stack([x, y, (x + y) / 2]) * 1.5
+    base[:, 8:20, 8:20] = 0.05
+    return torch.stack([base, base.flip(-1), base * 0.3, base.flip(-2)])
+
+
+MODULES = [RandomLensBlur(p=1.0), RandomVignette(p=1.0), RandomSensorNoise(p=1.0), RandomToneCurve(p=1.0),
+           RandomJpeg(p=1.0)]
+
+
+@pytest.mark.parametrize("module", MODULES, ids=lambda m: type(m).__name__)
+def test_modules_shape_determinism_and_identity(module, linear) -> None:
+    x = linear.clamp(0, 1)
+    a, b = module(x, gen(1)), module(x, gen(1))
+    assert a.shape == x.shape and a.dtype == x.dtype and torch.isfinite(a).all()
+    assert torch.equal(a, b)  # the generator decides everything
+    assert not torch.equal(a, x)
+    off = type(module)(p=0.0)
+    assert torch.equal(off(x, gen(1)), x)  # probability 0: the identity
+
+
+def test_functionals_identity_at_zero(linear) -> None:
+    zero = torch.zeros(4)
+    assert torch.equal(lens_blur(linear, zero), linear)
+    assert torch.equal(vignette(linear, zero), linear)
+    assert torch.equal(sensor_noise(linear, zero, zero, generator=gen()), linear)
+    x = linear.clamp(0, 1)
+    assert torch.equal(tone_curve(x, zero, torch.ones(4)), x)
+    codes = encode_srgb8(linear)
+    assert torch.equal(jpeg_compress(codes, zero), codes)
+    assert torch.equal(encode_tone8(linear, zero, torch.ones(4)), codes)
+
+
+def test_lens_blur_keeps_the_mean_and_smooths(linear) -> None:
+    out = lens_blur(linear, torch.tensor([0.0, 0.5, 1.0, 1.0]))
+    torch.testing.assert_close(out.mean((1, 2, 3)), linear.mean((1, 2, 3)), rtol=2e-3, atol=0)
+    grad = lambda t: (t[..., 1:] - t[..., :-1]).abs().mean((1, 2, 3))  # noqa: E731
+    assert (grad(out)[1:] < grad(linear)[1:]).all() and grad(out)[2] < grad(out)[1]
+    with pytest.raises(ValueCheckError):
+        lens_blur(linear, -1.0)
+
+
+def test_vignette_darkens_the_corners_only() -> None:
+    out = vignette(torch.ones(2, 3, 16, 16), torch.tensor([0.0, 0.3]))
+    assert out[1, :, 0, 0].max() < 0.75 and out[1, :, 7:9, 7:9].min() > 0.99
+    assert (out <= 1).all() and (out > 0).all()
+    with pytest.raises(ValueCheckError):
+        vignette(torch.ones(1, 3, 4, 4), 1.5)
+
+
+def test_sensor_noise_is_signal_dependent() -> None:
+    x = torch.cat([torch.full((1, 3, 64, 64), 0.01), torch.full((1, 3, 64, 64), 0.5)])
+    out = sensor_noise(x, 1e-3, 0.0, generator=gen())
+    std = (out - x).std((1, 2, 3))
+    torch.testing.assert_close(std, torch.tensor([0.01, 0.5]).mul(1e-3).sqrt(), rtol=0.05, atol=0)
+    given = torch.randn(x.shape, generator=gen(3))
+    torch.testing.assert_close(sensor_noise(x, 1e-3, 0.0, noise=given), x + (x * 1e-3).sqrt() * given)
+    with pytest.raises(ShapeError):
+        sensor_noise(x, 1e-3, noise=torch.zeros(1, 3, 4, 4))
+
+
+def test_tone_curve_is_monotone_with_fixed_ends() -> None:
+    x = torch.linspace(0, 1, 257).reshape(1, 1, 1, -1).expand(3, 1, 1, -1)
+    y = tone_curve(x, torch.tensor([0.6, -0.2, 0.9]), torch.tensor([0.8, 1.25, 1.0]))
+    assert (y[..., 1:] >= y[..., :-1]).all() and (y[..., 0] == 0).all() and (y[..., -1] == 1).all()
+    with pytest.raises(ValueCheckError, match="monotone"):
+        tone_curve(x, 1.0)
+
+
+def test_encode_tone8_matches_the_curve_on_srgb(linear) -> None:
+    c, g = torch.tensor([0.5, -0.2, 0.0, 0.3]), torch.tensor([1.0, 1.2, 0.8, 1.0])
+    codes = encode_tone8(linear, c, g)
+    expected = (tone_curve(linear_to_srgb(linear.clamp(0, 1)), c, g) * 255).round()
+    diff = (codes.float() - expected).abs()
+    assert codes.dtype == torch.uint8 and diff.max() <= 1 and (diff > 0).float().mean() < 0.01
+
+
+def test_jpeg_changes_bytes_more_at_low_quality(linear) -> None:
+    codes = encode_srgb8(sensor_noise(linear, 1e-3, generator=gen()))
+    low, high = jpeg_compress(codes, 40), jpeg_compress(codes, 95)
+    assert low.dtype == torch.uint8 and low.shape == codes.shape
+    err = lambda t: (t.float() - codes.float()).abs().mean()  # noqa: E731
+    assert err(low) > err(high) > 0
+    as_float = jpeg_compress(codes.float() / 255, torch.tensor([40, 40, 40, 40]))
+    torch.testing.assert_close(as_float, low.float() / 255)
+    with pytest.raises(ValueCheckError):
+        jpeg_compress(codes, 101)
+
+
+def test_camera_effects_pipeline(linear) -> None:
+    fx = CameraEffects()
+    p1, p2 = fx.draw(16, gen(5)), fx.draw(16, gen(5))
+    assert all(torch.equal(p1[k], p2[k]) for k in p1)
+    x = linear.repeat(4, 1, 1, 1)
+    a = fx.apply(x, p1, generator=gen(6))
+    assert a.dtype == torch.uint8 and a.shape == x.shape
+    assert torch.equal(a, fx.apply(x, p2, generator=gen(6)))
+    assert not torch.equal(a, encode_srgb8(x))
+    off = CameraEffects.off()
+    assert torch.equal(off.apply(x, off.draw(16, gen(5))), encode_srgb8(x))
+    # switching one effect off leaves the other effects' draws unchanged
+    q = CameraEffects(jpeg_p=0.0).draw(16, gen(5))
+    assert torch.equal(q["noise"], p1["noise"]) and (q["jpeg"] == 0).all()
+    with pytest.raises(ValueCheckError):
+        CameraEffects(tone_contrast=(-0.5, 1.0))
