@@ -1,0 +1,200 @@
+"""Benchmark: how often the face detectors find the light stage's eval subjects in composited portraits.
+
+Run: ``python benchmarks/bench_detection.py --cache DIR [--count 120] [--upscale 512] [--render-eval K]``
+
+For ``--count`` renders (cycling over the cache's EVAL-split subject-views, :func:`subject_split`) it relights
+the field under an environment of :class:`EnvironmentSampler` (procedural skies and rooms plus the real maps
+of ``--hdri`` folders, default ``$KORNIA_ILUM_SHARED_DATA/{hdri,hdri_more}``; random rotation, flip, exposure
+and white balance), composites it over that environment seen through the view's camera, auto-exposes and
+encodes 8-bit sRGB (:func:`kornia_ilum.synth.lightstage.preview.compose_portrait`), upscales the frame to
+``--upscale`` pixels (bilinear with antialiasing; 0 keeps it: Haar's smallest window is 30 px and YuNet was
+trained on larger faces, so 192-pixel frames with 96-pixel faces are upscaled by default), and runs YuNet and
+OpenCV's Haar cascade on the full frame. A detection counts when one of its boxes overlaps the true face box
+(the projected face landmarks' box, brow tops to chin and ear to ear) with IoU >= 0.3, or has its centre inside
+it. Prints the detection rate per |yaw| bin (< 10, 10-20, 20-30, 30-35 degrees) and overall, and Haar's within
++-30 degrees. Targets: YuNet >= 95 %, Haar >= 85 % within +-30 degrees.
+
+With fewer than ``--min-subjects`` eval subjects in the cache it says so; ``--render-eval K`` then renders the
+first ``K`` eval seeds missing from it into the cache (``--source``, ``--views``, ``--size``, ``--spp``,
+``--lighting-size``; resumable) before measuring.
+
+This is a benchmark, not a test: it prints numbers and asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import torch
+import torch.nn.functional as F
+
+BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 35.01))
+
+
+def iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """IoU of boxes ``a`` ``(N, 4)`` with one box ``b`` ``(4,)``."""
+    lo = torch.maximum(a[:, :2], b[:2])
+    hi = torch.minimum(a[:, 2:4], b[2:4])
+    inter = (hi - lo).clamp(min=0).prod(-1)
+    area = lambda x: (x[..., 2] - x[..., 0]) * (x[..., 3] - x[..., 1])  # noqa: E731
+    return inter / (area(a) + area(b) - inter)
+
+
+def is_hit(dets: torch.Tensor, box: torch.Tensor, min_iou: float = 0.3) -> bool:
+    """Whether a detection overlaps ``box`` with IoU >= ``min_iou`` or has its centre inside it."""
+    if len(dets) == 0:
+        return False
+    cx, cy = (dets[:, 0] + dets[:, 2]) / 2, (dets[:, 1] + dets[:, 3]) / 2
+    inside = (cx >= box[0]) & (cx <= box[2]) & (cy >= box[1]) & (cy <= box[3])
+    return bool((iou(dets[:, :4], box) >= min_iou).any() or inside.any())
+
+
+def yaw_bin(yaw: float) -> int:
+    return next(i for i, (lo, hi) in enumerate(BINS) if lo <= abs(yaw) < hi)
+
+
+def format_table(rows: list[dict], names: list[str]) -> str:
+    """Detection rate per |yaw| bin and overall, per detector; Haar (opencv) also within +-30 degrees."""
+    head = f"{'|yaw| (deg)':<14}{'renders':>8}" + "".join(f"{n:>10}" for n in names)
+    lines = [head, "-" * len(head)]
+
+    def line(label: str, sel: list[dict]) -> str:
+        cells = "".join(f"{100 * sum(r[n] for r in sel) / len(sel):>9.1f}%" if sel else f"{'-':>10}" for n in names)
+        return f"{label:<14}{len(sel):>8}" + cells
+
+    for i, (lo, hi) in enumerate(BINS):
+        lines.append(line(f"{lo:.0f}-{min(hi, 35):.0f}", [r for r in rows if r["bin"] == i]))
+    lines.append(line("all", rows))
+    lines.append(line("within +-30", [r for r in rows if abs(r["yaw"]) <= 30]))
+    return "\n".join(lines)
+
+
+def eval_entries(cache: Path) -> list[dict]:
+    from kornia_ilum.synth.lightstage.cache import read_manifest
+
+    return [e for e in read_manifest(cache)["entries"] if e.get("split") == "eval"]
+
+
+def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
+    from kornia_ilum.synth.lightstage.cache import build_cache
+    from kornia_ilum.synth.lightstage.subjects import subject_split
+
+    seeds, s = [], 0
+    while len(seeds) < args.render_eval:
+        if subject_split(s) == "eval" and s not in have:
+            seeds.append(s)
+        s += 1
+    print(f"rendering eval seeds {seeds} into {args.cache} ({args.views} views, {args.size} px, spp {args.spp}, "
+          f"lighting {args.lighting_size})")
+    build_cache(args.source, seeds, args.cache, views_per_subject=args.views, size=args.size, spp=args.spp,
+                lighting_size=args.lighting_size, workers=args.workers, summary=True)
+
+
+def _shared() -> Path:
+    return Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", "/work/shared/data"))
+
+
+def default_yunet_weights() -> str | None:
+    """``$KORNIA_ILUM_YUNET_WEIGHTS`` or the shared data's ``weights/yunet_final.pth`` (None: the detector's
+    own search)."""
+    env = os.environ.get("KORNIA_ILUM_YUNET_WEIGHTS")
+    path = Path(env) if env else _shared() / "weights" / "yunet_final.pth"
+    return str(path) if path.is_file() else None
+
+
+def default_hdri() -> list[str]:
+    root = _shared()
+    return [str(root / d) for d in ("hdri", "hdri_more") if (root / d).is_dir()]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cache", required=True, type=Path, help="the reflectance-field cache")
+    p.add_argument("--count", type=int, default=120, help="renders (120)")
+    p.add_argument("--upscale", type=int, default=512, help="frame side before detection (512; 0: as rendered)")
+    p.add_argument("--hdri", nargs="*", default=None, help="folders of real maps (default: shared hdri, hdri_more)")
+    p.add_argument("--detectors", nargs="+", default=["yunet", "opencv"], choices=("yunet", "opencv"))
+    p.add_argument("--yunet-weights", default=None, help="YuNet weights (default: $KORNIA_ILUM_YUNET_WEIGHTS, else the shared data's)")
+    p.add_argument("--seed", type=int, default=0, help="environment seed (0)")
+    p.add_argument("--min-subjects", type=int, default=10, help="eval subjects wanted (10)")
+    p.add_argument("--render-eval", type=int, default=0, metavar="K", help="render K more eval seeds first")
+    p.add_argument("--source", default="mannequin", help="subject source for --render-eval (mannequin)")
+    p.add_argument("--views", type=int, default=4)
+    p.add_argument("--size", type=int, default=192)
+    p.add_argument("--spp", type=int, default=4)
+    p.add_argument("--lighting-size", type=int, default=32)
+    p.add_argument("--workers", type=int, default=2)
+    args = p.parse_args(argv)
+    torch.set_num_threads(1)
+
+    from kornia_ilum.detection import create_detector
+    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+    from kornia_ilum.synth.environments.real import HDRFolderSource
+    from kornia_ilum.synth.lightstage.cache import read_field
+    from kornia_ilum.synth.lightstage.preview import compose_portrait
+
+    entries = eval_entries(args.cache)
+    subjects = {e["subject_seed"] for e in entries}
+    if args.render_eval:
+        render_missing_eval(args, subjects)
+        entries = eval_entries(args.cache)
+        subjects = {e["subject_seed"] for e in entries}
+    if len(subjects) < args.min_subjects:
+        print(f"note: the cache has {len(subjects)} eval subjects ({len(entries)} subject-views), fewer than "
+              f"{args.min_subjects}: renders repeat subject-views; add some with --render-eval K")
+    if not entries:
+        print("no eval subject-view in the cache: nothing to measure", file=sys.stderr)
+        return 1
+    folders = default_hdri() if args.hdri is None else args.hdri
+    sources = default_sources() + [HDRFolderSource(f) for f in folders]
+    sampler = EnvironmentSampler(sources, seed=args.seed)
+    detectors = {}
+    for name in args.detectors:
+        weights = args.yunet_weights or default_yunet_weights()
+        kw = {"weights_path": weights} if name == "yunet" and weights else {}
+        detectors[name] = create_detector(name, **kw)
+
+    rows, t0, fields = [], time.perf_counter(), {}
+    seconds = {n: 0.0 for n in detectors}
+    for i in range(args.count):
+        e = entries[i % len(entries)]
+        if e["path"] not in fields:
+            fields[e["path"]] = read_field(args.cache / e["path"], dense=False)
+        field = fields[e["path"]]
+        env = sampler.sample(i)
+        out = compose_portrait(field, env)
+        image = out["image"].float()[None] / 255.0
+        box = out["face_box"].clone()
+        side = image.shape[-1]
+        if args.upscale and args.upscale != side:
+            image = F.interpolate(image, size=(args.upscale, args.upscale), mode="bilinear", antialias=True,
+                                  align_corners=False).clamp(0, 1)
+            box = box * (args.upscale / side)
+        row = {"seed": e["subject_seed"], "view": e["view_index"], "yaw": e["camera"]["yaw_deg"],
+               "bin": yaw_bin(e["camera"]["yaw_deg"]), "env": env.source}
+        for name, det in detectors.items():
+            t = time.perf_counter()
+            row[name] = is_hit(det.detect(image)[0], box)
+            seconds[name] += time.perf_counter() - t
+        rows.append(row)
+    wall = time.perf_counter() - t0
+    print(f"{len(rows)} renders of {len(subjects)} eval subjects ({len(entries)} subject-views) under "
+          f"{len({r['env'] for r in rows})} kinds of environment ({', '.join(Path(f).name for f in folders) or 'procedural'}"
+          f" + procedural); frames {side} px"
+          + (f" upscaled to {args.upscale}" if args.upscale and args.upscale != side else "")
+          + f"; {wall:.1f} s (" + ", ".join(f"{n} {1e3 * s / len(rows):.0f} ms/frame" for n, s in seconds.items())
+          + ")")
+    print("hit: IoU >= 0.3 with the face-landmark box, or the detection's centre inside it")
+    print(format_table(rows, list(detectors)))
+    missed = [f"s{r['seed']}v{r['view']} yaw {r['yaw']:+.0f}" for r in rows if not all(r[n] for n in detectors)]
+    if missed:
+        print(f"missed by some detector ({len(missed)}): {', '.join(missed[:12])}{' ...' if len(missed) > 12 else ''}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
