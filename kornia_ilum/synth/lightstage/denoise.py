@@ -72,7 +72,7 @@ def denoise_operator(
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,
-    sigma_normal: float = 0.3,
+    sigma_normal: float = 0.2,
     sigma_depth: float = 0.02,
     iterations: int = 1,
     demodulate: bool = True,
@@ -134,7 +134,7 @@ def denoise_field(
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,
-    sigma_normal: float = 0.3,
+    sigma_normal: float = 0.2,
     sigma_depth: float = 0.02,
     iterations: int = 1,
     demodulate: bool = True,
@@ -151,7 +151,7 @@ def denoise_field(
         radius: window radius in taps (``(2 radius + 1)^2`` taps; 0 returns the field unchanged).
         sigma_spatial: spatial standard deviation, in taps.
         sigma_albedo: albedo difference (RGB, Euclidean) at one standard deviation.
-        sigma_normal: normal difference (Euclidean, unit normals: 0.3 is about 17 degrees).
+        sigma_normal: normal difference (Euclidean, unit normals: 0.2 is about 11.5 degrees).
         sigma_depth: depth difference relative to the output pixel's depth.
         iterations: a-trous iterations; iteration ``i`` spaces its taps ``2^i`` pixels apart.
         demodulate: divide by the albedo before filtering and multiply after (always by ``alpha``).
@@ -194,7 +194,7 @@ class DenoiseField(nn.Module):
         radius: int = 2,
         sigma_spatial: float = 1.5,
         sigma_albedo: float = 0.1,
-        sigma_normal: float = 0.3,
+        sigma_normal: float = 0.2,
         sigma_depth: float = 0.02,
         iterations: int = 1,
         demodulate: bool = True,
@@ -247,7 +247,7 @@ def _denoise_reference(
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,
-    sigma_normal: float = 0.3,
+    sigma_normal: float = 0.2,
     sigma_depth: float = 0.02,
     iterations: int = 1,
     demodulate: bool = True,
