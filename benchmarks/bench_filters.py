@@ -8,7 +8,8 @@ iterations) it prints the median of 3 of: building the sparse operator, applying
 the direct per-light references (``_subsurface_reference``, ``_denoise_reference``: shifted whole images,
 weights recomputed per light) timed on a few lights in the same process, extrapolated to all lights, with the
 ratio. The G-buffer is a synthetic head: a skin ellipsoid (a nose bump on it) 0.4 m from a 30-degree camera in
-front of a background, with a hair cap of another albedo, so about half of the pixels are covered and 40 % are skin.
+front of a background, with a hair cap of another albedo, so about half of the pixels are covered and 40 %
+are skin.
 It also prints the peak resident memory above what the input field and the G-buffer took.
 
 This is a benchmark, not a test: it prints numbers and asserts nothing.
@@ -27,7 +28,11 @@ import torch
 
 from kornia_ilum.synth.lightstage.denoise import _denoise_reference, denoise_field, denoise_operator
 from kornia_ilum.synth.lightstage.gbuffer import GBuffer
-from kornia_ilum.synth.lightstage.subsurface import _subsurface_reference, subsurface_operator, subsurface_scatter
+from kornia_ilum.synth.lightstage.subsurface import (
+    _subsurface_reference,
+    subsurface_operator,
+    subsurface_scatter,
+)
 
 
 def synthetic_head(size: int = 192, fov_deg: float = 30.0, distance: float = 0.4) -> GBuffer:
@@ -117,7 +122,8 @@ def main() -> None:
               f"({nnz / 3 / max(1, op.pixels.numel()):.0f} nnz/row)  reference ~{t_ref:8.1f} s  "
               f"-> {t_ref / t_call:5.0f}x faster; max |fast - ref| {err:.1e}")
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - rss0
-    print(f"peak resident memory above the input: {rss:.0f} MiB (one output field is {field.numel() * 4 / 2**20:.0f} MiB)")
+    out_mib = field.numel() * 4 / 2**20
+    print(f"peak resident memory above the input: {rss:.0f} MiB (one output field is {out_mib:.0f} MiB)")
 
 
 if __name__ == "__main__":

@@ -49,7 +49,8 @@ def check_field(field: torch.Tensor, gbuffer: GBuffer, name: str) -> int:
         raise ShapeError(f"{name} must have shape (3, P, N), got {tuple(field.shape)}")
     if field.dtype not in FIELD_DTYPES:
         raise TypeCheckError(
-            f"{name} must be float32 or float64, got dtype {field.dtype} (convert a bfloat16 field with .float())"
+            f"{name} must be float32 or float64, got dtype {field.dtype} "
+            "(convert a bfloat16 field with .float())"
         )
     if field.shape[1] != size * size:
         raise ShapeError(
@@ -58,7 +59,8 @@ def check_field(field: torch.Tensor, gbuffer: GBuffer, name: str) -> int:
     if checks_active():
         check_tensor(field, name, ["3", "P", "N"])
         if gbuffer.albedo.device != field.device:
-            raise ValueCheckError(f"{name} is on {field.device} but the gbuffer is on {gbuffer.albedo.device}")
+            dev = gbuffer.albedo.device
+            raise ValueCheckError(f"{name} is on {field.device} but the gbuffer is on {dev}")
     return size
 
 

