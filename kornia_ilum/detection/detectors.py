@@ -20,7 +20,6 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import ClassVar
 
-import cv2
 import numpy as np
 import torch
 from torch import nn
@@ -208,6 +207,8 @@ class OpenCVFaceDetector(FaceDetector):
             raise ValueCheckError(f"min_neighbors must be a non-negative int, got {min_neighbors!r}")
         if not (isinstance(min_face, (int, float)) and 0 <= min_face <= 1):
             raise ValueCheckError(f"min_face must be a fraction in [0, 1], got {min_face!r}")
+        import cv2  # here, not at module level: OpenCV costs ~60 ms of `import kornia_ilum`
+
         path = Path(cascade)
         if not path.is_file():
             path = Path(cv2.data.haarcascades) / cascade
@@ -231,6 +232,8 @@ class OpenCVFaceDetector(FaceDetector):
         self._threshold = _last_stage_threshold(path)
 
     def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+        import cv2
+
         rgb8 = (image.float() * 255).round_().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
         out = []
         for rgb in rgb8:

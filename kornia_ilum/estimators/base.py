@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Self
 
-import safetensors.torch
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
@@ -475,6 +474,8 @@ class LightingEstimator(nn.Module):
             if not info.needs_weights:
                 return cls(**kw).eval()
             raise MissingWeightsError(_no_weights_message(info))
+        import safetensors.torch  # here: a weight file is read only when asked for
+
         folder = Path(os.fspath(weights_dir)) if weights_dir is not None else cls.default_weights_dir()
         state: dict[str, Tensor] = {}
         for weight in info.weights:

@@ -26,6 +26,7 @@ from functools import lru_cache
 import torch
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError
 
 __all__ = [
@@ -290,7 +291,7 @@ def _solid_angles_f64(size: int) -> torch.Tensor:
     return (4.0 * omega).reshape(size, size)
 
 
-@torch.compiler.disable
+@compiler_disable
 def mirror_ball_solid_angles(
     size: int, *, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32
 ) -> torch.Tensor:

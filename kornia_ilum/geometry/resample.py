@@ -76,6 +76,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.geometry.latlong import (
     angles_to_latlong_pixel,
@@ -331,7 +332,7 @@ def _area_operator_f64(src: tuple[str, int], tgt: tuple[str, int]) -> tuple[torc
     return _csr(t, s, vals, (n_tgt, n_src)), _csr(s, t, vals, (n_src, n_tgt))
 
 
-@torch.compiler.disable
+@compiler_disable
 def _apply_sparse(x: torch.Tensor, mat: torch.Tensor, mat_t: torch.Tensor) -> torch.Tensor:
     """``(B, C, N) -> (B, C, T)`` through the CSR operator (kept out of ``torch.compile`` graphs)."""
     return _SparseLinear.apply(x.reshape(-1, x.shape[-1]), mat, mat_t).reshape(*x.shape[:2], -1)
@@ -415,7 +416,7 @@ def _check_lighting(x: torch.Tensor, name: str, layout: str) -> None:
 _CONSTANTS: dict[tuple, tuple] = {}
 
 
-@torch.compiler.disable
+@compiler_disable
 def _constants(
     src: tuple[str, int], tgt: tuple[str, int], mode: str, dtype: torch.dtype, device: torch.device
 ):

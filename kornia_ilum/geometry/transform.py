@@ -12,6 +12,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_same_device, check_tensor, checks_active
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.resample import (
     _PER_CALL,
@@ -53,7 +54,7 @@ def _check_rotation(rotation: torch.Tensor, batch: int | None = None) -> None:
         )
 
 
-@torch.compiler.disable
+@compiler_disable
 def _rotation_tables(
     grid: tuple[str, int], rotation: torch.Tensor, dtype: torch.dtype, device: torch.device
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

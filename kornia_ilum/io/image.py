@@ -29,14 +29,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import OpenImageIO as oiio
 import torch
 
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import HDRIOError, ShapeError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
+
+if TYPE_CHECKING:
+    import OpenImageIO as oiio
 
 __all__ = ["HALF_MAX", "read_hdr", "read_ldr", "write_hdr", "write_ldr"]
 
@@ -45,8 +48,6 @@ HALF_MAX = 65504.0
 
 _HDR_WRITE_EXTENSIONS = (".exr", ".hdr")
 _LDR_WRITE_EXTENSIONS = (".png", ".jpg", ".jpeg")
-_FLOAT_TYPES = (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
-_LDR_TYPES = (oiio.UINT8, oiio.UINT16)
 
 
 def _as_path(path: str | os.PathLike[str]) -> Path:
@@ -58,6 +59,8 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
 
     ``hdr`` selects the pixel types accepted: floating point (HDR) or 8/16-bit integers (LDR).
     """
+    import OpenImageIO as oiio  # here, not at module level: it costs ~50 ms of `import kornia_ilum`
+
     if not path.exists():
         raise HDRIOError(f"cannot read {path}: no such file")
     if path.is_dir():
@@ -72,12 +75,12 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
             raise HDRIOError(f"cannot read {path}: {oiio.geterror() or 'unknown or unsupported format'}")
         try:
             spec = inp.spec()
-            if hdr and spec.format.basetype not in _FLOAT_TYPES:
+            if hdr and spec.format.basetype not in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE):
                 raise HDRIOError(
                     f"cannot read {path} as HDR: it holds {spec.format} (display-referred LDR) pixels; "
                     "use read_ldr"
                 )
-            if not hdr and spec.format.basetype not in _LDR_TYPES:
+            if not hdr and spec.format.basetype not in (oiio.UINT8, oiio.UINT16):
                 raise HDRIOError(
                     f"cannot read {path} as LDR: it holds {spec.format} pixels, not 8-bit or 16-bit "
                     "integers; use read_hdr for floating-point (HDR) files"
@@ -227,6 +230,8 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
         raise HDRIOError(f"cannot write {path}: it is a directory")
     if not path.parent.is_dir():
         raise HDRIOError(f"cannot write {path}: the folder {path.parent} does not exist")
+
+    import OpenImageIO as oiio
 
     def write(tmp: Path) -> None:
         out = oiio.ImageOutput.create(str(tmp))

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_pixel_index,
@@ -245,7 +246,7 @@ def sphere_reflectance_field(
     return _field_f64(brdf, size, lighting_size).to(device=device, dtype=dtype, copy=True)
 
 
-@torch.compiler.disable  # called eagerly from compiled code: Dynamo would otherwise trace the build itself
+@compiler_disable  # called eagerly from compiled code: Dynamo would otherwise trace the build itself
 @lru_cache(maxsize=64)
 def _shared_field(
     brdf: str,

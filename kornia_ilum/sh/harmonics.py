@@ -66,6 +66,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_choice, check_positive_int, check_same_device, check_tensor
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.latlong import latlong_directions, latlong_solid_angles
 from kornia_ilum.geometry.mirror_ball import mirror_ball_directions, mirror_ball_solid_angles
@@ -164,7 +165,7 @@ def sh_basis(directions: torch.Tensor) -> torch.Tensor:
 # fixed matrices of a grid (float64, cached on the CPU)
 
 
-@torch.compiler.disable  # a cached constant: compiled graphs call it eagerly instead of tracing it
+@compiler_disable  # a cached constant: compiled graphs call it eagerly instead of tracing it
 @lru_cache(maxsize=32)
 def _grid_f64(layout: str, size: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Basis at the pixel centres ``(N, 9)`` (zero at invalid pixels) and solid angles ``(N,)``."""
@@ -179,7 +180,7 @@ def _grid_f64(layout: str, size: int) -> tuple[torch.Tensor, torch.Tensor]:
     return basis.reshape(-1, 9), omega.reshape(-1)
 
 
-@torch.compiler.disable
+@compiler_disable
 @lru_cache(maxsize=32)
 def _projection_f64(layout: str, size: int) -> torch.Tensor:
     """The least-squares projection ``(Y^T W Y)^{-1} Y^T W``, ``(9, N)``."""

@@ -66,6 +66,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import (
     angles_to_latlong_pixel,
@@ -132,7 +133,7 @@ def lighting_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0) -> torch.Ten
     return _axis_rotation(0, pitch_deg) @ _axis_rotation(1, yaw_deg)
 
 
-@torch.compiler.disable
+@compiler_disable
 def rotate_latlong(latlong: torch.Tensor, rotation: torch.Tensor) -> torch.Tensor:
     r"""Rotate a lat-long map fast, conserving energy: ``L'(d) = L(R^T d)`` (module docstring, "Rotation").
 

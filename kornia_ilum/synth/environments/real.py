@@ -30,6 +30,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import HDRIOError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
@@ -92,7 +93,7 @@ def guess_label(name: str) -> Label:
     return "indoor" if any(k in lower for k in INDOOR_KEYWORDS) else "outdoor"
 
 
-@torch.compiler.disable
+@compiler_disable
 @lru_cache(maxsize=32)
 def _overlap_matrices(h_src: int, h_tgt: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Row ``(h_tgt, h_src)`` and column ``(2 h_tgt, 2 h_src)`` area-weight matrices, float64.

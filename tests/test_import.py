@@ -1,0 +1,76 @@
+"""``import kornia_ilum`` stays cheap: no Dynamo, no heavy optional modules, no files written anywhere."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import torch
+
+from kornia_ilum.core.compiler import compiler_disable
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _run(code_or_args: list[str], tmp_path: Path) -> subprocess.CompletedProcess[str]:
+    """Run Python in a fresh process whose TMPDIR and CWD are empty folders of ``tmp_path``."""
+    tmp, cwd = tmp_path / "tmp", tmp_path / "cwd"
+    tmp.mkdir(exist_ok=True)
+    cwd.mkdir(exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("TORCHINDUCTOR_CACHE_DIR", "TRITON_CACHE_DIR")}
+    env.update(TMPDIR=str(tmp), TEMP=str(tmp), TMP=str(tmp))
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env["PYTHONDONTWRITEBYTECODE"] = "1"  # the check is about what kornia_ilum writes, not Python's caches
+    return subprocess.run([sys.executable, *code_or_args], capture_output=True, text=True, env=env, cwd=cwd,
+                          timeout=300, check=False)
+
+
+def _assert_nothing_written(tmp_path: Path) -> None:
+    assert sorted(os.listdir(tmp_path / "tmp")) == [], "TMPDIR"
+    assert sorted(os.listdir(tmp_path / "cwd")) == [], "CWD"
+
+
+def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
+    probe = (
+        "import sys, kornia_ilum\n"
+        "heavy = ('torch._dynamo', 'torch._inductor', 'sympy', 'scipy', 'matplotlib', 'mitsuba', 'cv2',\n"
+        "         'OpenImageIO', 'safetensors', 'skimage')\n"
+        "print(','.join(m for m in heavy if m in sys.modules))\n"
+    )
+    result = _run(["-c", probe], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "", f"import kornia_ilum loaded {result.stdout.strip()}"
+    _assert_nothing_written(tmp_path)
+
+
+def test_cli_list_writes_nothing(tmp_path):
+    result = _run(["-m", "kornia_ilum", "list"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "ours" in result.stdout
+    _assert_nothing_written(tmp_path)
+
+
+@compiler_disable
+@lru_cache(maxsize=4)
+def _table(n: int) -> torch.Tensor:
+    x = torch.arange(n, dtype=torch.float64)
+    return x + float(x.sum())  # a host sync: a graph break if Dynamo traced it
+
+
+def test_compiler_disable_keeps_the_function():
+    assert _table.__name__ == "_table" and hasattr(_table, "cache_info")  # functools.wraps
+    assert _table._torchdynamo_disable  # what Dynamo reads: never inlined
+    assert torch.equal(_table(3), torch.tensor([3.0, 4.0, 5.0], dtype=torch.float64))
+
+
+def test_compiler_disable_under_compile():
+    def f(x: torch.Tensor, n: int) -> torch.Tensor:
+        return x * _table(n).to(x.dtype) + 1
+
+    compiled = torch.compile(f, backend="eager")
+    for n in (4, 4, 5):
+        x = torch.rand(n)
+        torch.testing.assert_close(compiled(x, n), f(x, n))
