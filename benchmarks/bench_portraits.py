@@ -24,6 +24,7 @@ This is a benchmark, not a test: it prints numbers and asserts nothing.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import time
 
@@ -31,6 +32,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.environments import EnvironmentSampler
 from kornia_ilum.synth.lightstage import (
     LANDMARK_NAMES,
@@ -39,6 +41,7 @@ from kornia_ilum.synth.lightstage import (
     ReflectanceField,
     read_manifest,
 )
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig
 
 
 def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:
@@ -79,6 +82,71 @@ def rate(data: PortraitDataset, chunks: int, repeats: int) -> tuple[float, int]:
     return statistics.median(rates), per_chunk
 
 
+def median_ms(fn, repeats: int) -> float:
+    fn()
+    times = []
+    for _ in range(max(3, repeats)):
+        start = time.perf_counter()
+        fn()
+        times.append(1000 * (time.perf_counter() - start))
+    return statistics.median(times)
+
+
+def effect_costs(repeats: int) -> None:
+    """Each camera effect and the background steps, per 256 x 256 sample (batches of 16, always on)."""
+    from kornia_ilum.color import encode_srgb8
+    from kornia_ilum.synth import camera_effects as fx
+    from kornia_ilum.synth.lightstage.portraits import background_pyramid, frame_background, frame_backgrounds
+
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(16, 3, 256, 256, generator=g) * 0.8
+    codes = encode_srgb8(x)
+    ones = torch.ones(16)
+    noise = torch.randn(x.shape, generator=g)
+    rows = {
+        "encode_srgb8 (reference)": lambda: encode_srgb8(x),
+        "lens blur (sigma 1)": lambda: fx.lens_blur(x, ones),
+        "vignette": lambda: fx.vignette(x, 0.3 * ones),
+        "sensor noise (given normals)": lambda: fx.sensor_noise(x, 1e-4 * ones, noise=noise),
+        "tone curve + sRGB + 8 bit (encode_tone8)": lambda: fx.encode_tone8(x, 0.3 * ones, 1.1 * ones),
+        "JPEG round trip (quality 70)": lambda: fx.jpeg_compress(codes, 70 * ones),
+    }
+    print("\nper-sample costs (ms, median, one 256 x 256 image out of a batch of 16):")
+    for name, fn in rows.items():
+        print(f"  {name:44s} {median_ms(fn, repeats) / 16:6.3f}")
+    camera = Camera(30.0, 0.56, 0.0, 0.0, size=192)
+    big = torch.rand(3, 256, 512, generator=g)
+    pyramids = [background_pyramid(big)] * 16
+    turn = torch.rand(16, generator=g, dtype=torch.float64)
+    small = torch.rand(16, 3, 128, 256, generator=g)
+    print("background at 192 x 192 (ms per sample):")
+    print(f"  {'frame_background, 128-row maps (before)':44s} {median_ms(lambda: frame_background(small, camera), repeats) / 16:6.3f}")
+    for sigma in (0.0, 0.8, 2.0, 8.0):
+        ms = median_ms(lambda: frame_backgrounds(pyramids, camera, None, turn, torch.full((16,), sigma)), repeats)
+        print(f"  {f'frame_backgrounds, 256-row map, sigma {sigma:g}':44s} {ms / 16:6.3f}")
+    print(f"  {'background_pyramid (per environment)':44s} {median_ms(lambda: background_pyramid(big), repeats):6.3f}")
+
+
+def interleaved_rates(datasets: list[PortraitDataset], chunks: int, repeats: int) -> tuple[list[float], int]:
+    """Median samples per second of each dataset, timed in turns (one run of ``chunks`` chunks each, ``repeats``
+    rounds), so that a change of the machine's load hits all of them alike."""
+    for data in datasets:
+        for field in data.fields:
+            field.field.view(torch.int16).amax()
+        data.chunk(0, 0)
+    per_chunk = len(datasets[0].chunk(0, 0))
+    rates: list[list[float]] = [[] for _ in datasets]
+    index = 1
+    for _ in range(repeats):
+        for data, out in zip(datasets, rates, strict=True):
+            start = time.perf_counter()
+            for c in range(chunks):
+                data.chunk(0, index + c)
+            out.append(chunks * per_chunk / (time.perf_counter() - start))
+        index += chunks
+    return [statistics.median(r) for r in rates], per_chunk
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cache", help="a light-stage cache folder (default: stand-in fields)")
@@ -90,8 +158,8 @@ def main() -> int:
     torch.set_num_threads(args.threads)
 
     fields = args.cache if args.cache else stand_in_fields()
-    split = None
-    batched = PortraitDataset(fields, split, EnvironmentSampler(seed=0), seed=0)
+    config = PortraitConfig(split=None, environments=EnvironmentSampler(seed=0))
+    batched = PortraitDataset(fields, config, seed=0)
     print(f"{batched!r}\n{torch.get_num_threads()} torch thread(s); 256 x 256 portraits")
     if args.cache:
         entries = read_manifest(args.cache)["entries"]
@@ -103,14 +171,22 @@ def main() -> int:
     else:
         print("stand-in fields: 4 random fields shaped like 192 x 192 light-stage views")
 
-    fast, per_chunk = rate(batched, args.chunks, args.repeats)
-    single = PortraitDataset(batched.fields, split, EnvironmentSampler(seed=0), seed=0, fields_per_chunk=1,
-                             lightings_per_field=1, env_pool=1, env_refresh=1)
+    plain = PortraitDataset(batched.fields, dataclasses.replace(config, camera=CameraEffects.off(),
+                                                                background_sharp_probability=1.0), seed=0)
+    low = PortraitDataset(batched.fields, dataclasses.replace(config, camera=CameraEffects.off(),
+                                                              background_sharp_probability=1.0,
+                                                              procedural_background_height=128), seed=0)
+    (fast, bare, old), per_chunk = interleaved_rates([batched, plain, low], args.chunks, args.repeats)
+    single = PortraitDataset(batched.fields, dataclasses.replace(config, fields_per_chunk=1, lightings_per_field=1,
+                                                                 env_pool=1, env_refresh=1), seed=0)
     slow, _ = rate(single, args.chunks * 8, args.repeats)
     print(f"\nbatched (defaults, {per_chunk} samples per chunk): {fast:7.1f} samples/s ({1000 / fast:.2f} ms each)")
+    print(f"  without camera effects and depth of field:      {bare:7.1f} samples/s ({1000 / bare:.2f} ms each)")
+    print(f"  ... and backgrounds at the lighting's 128 rows:  {old:7.1f} samples/s ({1000 / old:.2f} ms each)")
     print(f"one sample at a time (baseline: a new environment per sample): {slow:5.1f} samples/s "
           f"({1000 / slow:.2f} ms each)")
     print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: {'PASS' if fast >= 200 else 'FAIL'}")
+    effect_costs(args.repeats)
     if args.loader_workers:
         loader = DataLoader(batched, batch_size=32, num_workers=args.loader_workers)
         batches = iter(loader)

@@ -100,7 +100,8 @@ def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
         sigma: the standard deviation in pixels, a number or ``(B,)``; 0 leaves an image unchanged.
 
     Returns:
-        ``(B, C, H, W)``; separable, reflected at the borders, radius ``ceil(3 max(sigma))``.
+        ``(B, C, H, W)``; separable, reflected at the borders, truncated at ``ceil(2 max(sigma))`` pixels and
+        normalised (a kernel per image: one grouped convolution per axis).
 
     Examples:
         >>> x = torch.zeros(2, 1, 9, 9); x[:, :, 4, 4] = 1.0
@@ -116,7 +117,7 @@ def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
     smax = float(s.max()) if b else 0.0
     if smax == 0.0:
         return image.clone()
-    r = min(max(1, math.ceil(3.0 * smax)), (min(h, w) - 1))
+    r = min(max(1, math.ceil(2.0 * smax)), (min(h, w) - 1))
     if r < 1:
         return image.clone()
     x = torch.arange(-r, r + 1, dtype=torch.float64)
@@ -214,8 +215,8 @@ def sensor_noise(
         raise ShapeError(f"noise must have the shape of linear {tuple(linear.shape)}, got {tuple(noise.shape)}")
     a4 = a.to(linear.dtype)[:, None, None, None]
     r4 = (r**2).to(linear.dtype)[:, None, None, None]
-    std = (linear.clamp(min=0.0) * a4 + r4).sqrt_()
-    return torch.addcmul(linear, std, noise)
+    std = torch.addcmul(r4, linear.clamp(min=0.0), a4).sqrt_()
+    return std.mul_(noise).add_(linear)
 
 
 def tone_curve(image: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0
@@ -408,7 +409,7 @@ class RandomLensBlur(_RandomEffect):
         torch.Size([2, 3, 8, 8])
     """
 
-    def __init__(self, p: float = 0.3, sigma: tuple[float, float] = (0.0, 1.0)) -> None:
+    def __init__(self, p: float = 0.2, sigma: tuple[float, float] = (0.0, 1.0)) -> None:
         super().__init__()
         self.p, self.sigma = _check_p(p, "p"), _check_pair(sigma, "sigma", 0.0, 8.0)
 
@@ -507,7 +508,7 @@ class RandomJpeg(_RandomEffect):
         True
     """
 
-    def __init__(self, p: float = 0.7, quality: tuple[float, float] = (40.0, 95.0)) -> None:
+    def __init__(self, p: float = 0.5, quality: tuple[float, float] = (40.0, 95.0)) -> None:
         super().__init__()
         self.p, self.quality = _check_p(p, "p"), _check_pair(quality, "quality", 1.0, 100.0)
 
@@ -547,7 +548,7 @@ class CameraEffects:
         torch.uint8
     """
 
-    blur_p: float = 0.3
+    blur_p: float = 0.2
     blur_sigma: tuple[float, float] = (0.0, 1.0)
     vignette_p: float = 0.3
     vignette_strength: tuple[float, float] = (0.0, 0.3)
@@ -556,7 +557,7 @@ class CameraEffects:
     tone_p: float = 0.7
     tone_contrast: tuple[float, float] = (-0.2, 0.6)
     tone_gamma: tuple[float, float] = (0.8, 1.25)
-    jpeg_p: float = 0.7
+    jpeg_p: float = 0.5
     jpeg_quality: tuple[float, float] = (40.0, 95.0)
 
     def __post_init__(self) -> None:
@@ -584,20 +585,21 @@ class CameraEffects:
         return {name: module.draw(n, generator) for name, module in self.modules().items()}
 
     def apply(self, linear: torch.Tensor, params: dict[str, torch.Tensor], *, generator: torch.Generator | None = None,
-              noise: torch.Tensor | None = None) -> torch.Tensor:
+              noise: torch.Tensor | None = None, inplace: bool = False) -> torch.Tensor:
         """Exposed linear images ``(B, 3, H, W)`` to ``uint8`` codes with the parameters of :meth:`draw`.
 
-        ``noise`` (standard normal, the shape of ``linear``) or ``generator`` is the sensor noise's source.
+        ``noise`` (standard normal, the shape of ``linear``) or ``generator`` is the sensor noise's source;
+        ``inplace`` lets the blur and the vignette overwrite ``linear`` (no copy).
         """
         _check_images(linear, "linear")
         x = linear
-        blur = params["blur"]
-        if (blur > 0).any():
-            idx = torch.nonzero(blur > 0).flatten()
-            x = x.clone()
-            x[idx] = lens_blur(x[idx], blur[idx])
-        if (params["vignette"] > 0).any():
-            x = vignette(x, params["vignette"])
+        for name, effect in (("blur", lens_blur), ("vignette", vignette)):
+            value = params[name]
+            if (value > 0).any():
+                idx = torch.nonzero(value > 0).flatten()
+                if x is linear and not inplace:
+                    x = x.clone()
+                x[idx] = effect(x[idx], value[idx])
         if (params["noise"] > 0).any():
             x = sensor_noise(x, params["noise"], generator=generator, noise=noise)
         codes = encode_tone8(x, params["tone"][:, 0], params["tone"][:, 1])
