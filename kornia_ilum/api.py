@@ -229,7 +229,8 @@ def estimate_lighting(
         ValueCheckError: a float ``image`` has values outside ``[0, 1]``; ``faces``, ``fallback`` or
             ``bgr`` has an invalid value; an estimator instance is on another device.
         ValueError: ``estimator`` or ``detector`` is an unknown name (the message lists the valid ones).
-        HDRIOError: the image file is missing or unreadable (the message names the path).
+        HDRIOError: the image file is missing or unreadable (the message names the path); its subclass
+            :class:`~kornia_ilum.core.errors.TruncatedImageError` when the file ends before its image data do.
         NoFaceError: no face in an image and ``fallback=None``; the message names the image and the
             detector, and suggests ``detector="yunet"`` or ``fallback="full_image"``.
         MissingWeightsError: the named estimator is registered but ships no trained weights yet.

@@ -20,6 +20,7 @@ from kornia_ilum.core.errors import (
     NoFaceError,
     NonFiniteError,
     ShapeError,
+    TruncatedImageError,
     TypeCheckError,
     ValueCheckError,
 )
@@ -310,6 +311,34 @@ class TestInputs:
         (tmp_path / "bad.png").write_text("not a png")
         with pytest.raises(HDRIOError, match=r"cannot read .*bad.png"):
             estimate_lighting(tmp_path / "bad.png")
+
+
+    @staticmethod
+    def _truncated(astronaut: np.ndarray, tmp_path, name: str):
+        """The astronaut written as ``name`` (a valid file), then cut in half."""
+        write_ldr(tmp_path / ("whole_" + name), _tensor(astronaut))
+        data = (tmp_path / ("whole_" + name)).read_bytes()
+        (tmp_path / name).write_bytes(data[: len(data) // 2])
+        (tmp_path / ("whole_" + name)).unlink()
+        return tmp_path / name
+
+    @pytest.mark.parametrize("name", ["half.jpg", "half.png"])
+    def test_truncated_file(self, astronaut, tmp_path, name):
+        path = self._truncated(astronaut, tmp_path, name)
+        with pytest.raises(TruncatedImageError, match=rf"cannot read .*{name[:-4]}\.{name[-3:]}: the file is truncated"):
+            estimate_lighting(path)
+
+    @pytest.mark.parametrize("name", ["half.jpg", "half.png"])
+    def test_truncated_file_cli(self, astronaut, tmp_path, capsys, name):
+        from kornia_ilum.cli import main
+
+        path = self._truncated(astronaut, tmp_path, name)
+        assert main(["estimate", str(path), "-o", str(tmp_path / "light.exr"), "--preview", str(tmp_path / "p.png")]) == 1
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+        assert lines[0].startswith(f"kornia-ilum: error: cannot read {path}: the file is truncated"), lines[0]
+        assert sorted(p.name for p in tmp_path.iterdir()) == [name]  # no lighting, no preview, no temporary
 
 
 class TestOutputs:

@@ -18,6 +18,7 @@ __all__ = [
     "EmptyTensorError",
     "IlumError",
     "HDRIOError",
+    "TruncatedImageError",
     "MissingWeightsError",
     "WeightsChecksumError",
     "NoFaceError",
@@ -40,6 +41,14 @@ class HDRIOError(IlumError, OSError):
     """An image file is missing, unreadable, corrupt, or cannot be written as asked.
 
     The message always names the path.
+    """
+
+
+class TruncatedImageError(HDRIOError):
+    """An image file ends before its data does (an interrupted download, copy or write).
+
+    Raised instead of returning a partly decoded image. The message says the file is truncated and names
+    the path.
     """
 
 

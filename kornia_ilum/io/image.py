@@ -8,7 +8,11 @@ display-referred, in ``[0, 1]``). No colour management happens: decode LDR pixel
 Every failure caused by a file (missing, a directory, empty, corrupt, truncated, an unknown or unsuitable
 format, NaN/Inf inside, a value that the format cannot hold) raises
 :class:`~kornia_ilum.core.errors.HDRIOError`, an :class:`OSError` whose message names the path; OpenImageIO's
-own messages are appended, never raised raw. Bad tensors given to the writers raise the usual typed
+own messages are appended, never raised raw. A file that ends before its image data does raises the
+subclass :class:`~kornia_ilum.core.errors.TruncatedImageError`, also where OpenImageIO would return the
+pixels it could decode: a PNG whose chunks stop before ``IEND``, a JPEG whose data stop early (libjpeg's
+"Premature end of JPEG file", which OpenImageIO reports but does not fail on). Truncated EXR, HDR and TIFF
+files fail to decode and raise :class:`~kornia_ilum.core.errors.HDRIOError`. Bad tensors given to the writers raise the usual typed
 input errors (:class:`~kornia_ilum.core.errors.ShapeError`, :class:`~kornia_ilum.core.errors.NonFiniteError`,
 :class:`~kornia_ilum.core.errors.ValueCheckError`) naming the argument.
 
@@ -35,7 +39,7 @@ import numpy as np
 import torch
 
 from kornia_ilum.core.check import check_tensor
-from kornia_ilum.core.errors import HDRIOError, ShapeError, ValueCheckError
+from kornia_ilum.core.errors import HDRIOError, ShapeError, TruncatedImageError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
 
 if TYPE_CHECKING:
@@ -54,6 +58,42 @@ def _as_path(path: str | os.PathLike[str]) -> Path:
     return Path(os.fspath(path))
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: libjpeg's warning for data that stop before the image does (JWRN_JPEG_EOF); OpenImageIO records it as
+#: the reader's error but still returns the pixels, the missing part filled in (grey, or a blurred last scan).
+_JPEG_EOF_MESSAGE = "Premature end of JPEG file"
+
+
+def _png_truncation(path: Path) -> str | None:
+    """Why the PNG ``path`` is truncated (its chunks stop before ``IEND``), or ``None``.
+
+    Walks the chunk headers (length, type) without reading the data. ``None`` also for a file that is not
+    a PNG, or whose chunk list is corrupt rather than cut short (a chunk type that is not 4 letters): those
+    are left to OpenImageIO. Bytes after ``IEND`` are allowed.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        if f.read(8) != _PNG_SIGNATURE:
+            return None
+        pos = 8
+        while True:
+            header = f.read(8)
+            if len(header) < 8:
+                return f"it ends after {size} bytes, before the PNG's IEND chunk"
+            length, kind = int.from_bytes(header[:4], "big"), header[4:]
+            if not kind.isalpha():
+                return None  # corrupt, not truncated
+            if kind == b"IEND":
+                return None if pos + 12 <= size else f"it ends after {size} bytes, inside the PNG's IEND chunk"
+            pos += 12 + length  # header, data, CRC
+            if pos > size:
+                return (
+                    f"its {kind.decode('ascii')} chunk needs {pos} bytes, the file has {size}, "
+                    "and the IEND chunk is missing"
+                )
+            f.seek(pos)
+
+
 def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
     """Read subimage 0 of ``path`` as float ``(H, W, C)``, upright, and its spec; file errors -> HDRIOError.
 
@@ -67,12 +107,23 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
         raise HDRIOError(f"cannot read {path}: it is a directory, not an image file")
     if path.stat().st_size == 0:
         raise HDRIOError(f"cannot read {path}: the file is empty")
+    try:
+        cut = _png_truncation(path)
+    except OSError as e:
+        raise HDRIOError(f"cannot read {path}: {e}") from e
+    if cut is not None:
+        raise TruncatedImageError(f"cannot read {path}: the file is truncated ({cut})")
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)  # colours as stored: do not premultiply PNG alpha
     try:
         inp = oiio.ImageInput.open(str(path), config)
         if inp is None:
-            raise HDRIOError(f"cannot read {path}: {oiio.geterror() or 'unknown or unsupported format'}")
+            err = oiio.geterror()
+            if _JPEG_EOF_MESSAGE in err:
+                raise TruncatedImageError(
+                    f"cannot read {path}: the file is truncated (OpenImageIO: {' '.join(err.split())})"
+                )
+            raise HDRIOError(f"cannot read {path}: {err or 'unknown or unsupported format'}")
         try:
             spec = inp.spec()
             if hdr and spec.format.basetype not in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE):
@@ -94,6 +145,11 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
         raise
     except (OSError, RuntimeError, ValueError, TypeError) as e:  # the file system's or OpenImageIO's errors
         raise HDRIOError(f"cannot read {path}: {e}") from e
+    if _JPEG_EOF_MESSAGE in err:  # pixels came back, partly made up: refuse them
+        raise TruncatedImageError(
+            f"cannot read {path}: the file is truncated, its JPEG data end before the image does "
+            f"(OpenImageIO: {' '.join(err.split())})"
+        )
     if pixels is None:
         raise HDRIOError(f"cannot read {path}: the file is corrupt or truncated ({err or 'no pixels'})")
     pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
@@ -182,6 +238,8 @@ def read_ldr(path: str | os.PathLike[str]) -> torch.Tensor:
     Raises:
         HDRIOError: the file is missing, a directory, empty, corrupt or truncated, not an image format
             OpenImageIO knows, or holds floating-point (HDR) pixels (use :func:`read_hdr`).
+        TruncatedImageError: (an :class:`HDRIOError`) a PNG or JPEG file ends before its image data do;
+            never a partly decoded image.
 
     Shape:
         - Output: :math:`(3, H, W)`

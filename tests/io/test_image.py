@@ -19,6 +19,7 @@ from kornia_ilum.core.errors import (
     HDRIOError,
     NonFiniteError,
     ShapeError,
+    TruncatedImageError,
     TypeCheckError,
     ValueCheckError,
 )
@@ -402,6 +403,65 @@ class TestReadLdr:
         write_hdr(tmp_path / name, torch.ones(3, 2, 2))
         with pytest.raises(HDRIOError, match=rf"{name[0]}\.{name[2:]} as LDR.*use read_hdr"):
             read_ldr(tmp_path / name)
+
+
+def astronaut_file(folder: Path, name: str) -> Path:
+    """The bundled astronaut (512 x 512) written to ``folder / name`` (JPEG or PNG)."""
+    import skimage.data
+
+    image = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1) / 255
+    write_ldr(folder / name, image)
+    return folder / name
+
+
+def cut(path: Path, keep: int | float, name: str) -> Path:
+    """A copy of ``path`` holding its first ``keep`` bytes (a fraction of the file for a float)."""
+    data = path.read_bytes()
+    n = int(len(data) * keep) if isinstance(keep, float) else (keep if keep >= 0 else len(data) + keep)
+    (path.parent / name).write_bytes(data[:n])
+    return path.parent / name
+
+
+class TestTruncated:
+    """A file cut short raises TruncatedImageError, never a partly decoded image (libjpeg only warns)."""
+
+    # the half of the brief; all but the EOI marker; the headers only; just after the first scan's start
+    @pytest.mark.parametrize("keep", [0.5, -2, 200, 0.05, 0.99])
+    def test_jpeg(self, tmp_path, keep):
+        whole = astronaut_file(tmp_path, "astronaut.jpg")
+        assert read_ldr(whole).shape == (3, 512, 512)
+        path = cut(whole, keep, "half.jpg")
+        with pytest.raises(TruncatedImageError, match=r"cannot read .*half\.jpg: the file is truncated") as info:
+            read_ldr(path)
+        assert str(path) in str(info.value) and "\n" not in str(info.value)
+        assert isinstance(info.value, HDRIOError) and isinstance(info.value, OSError)
+
+    # the half; just before IEND; inside IEND's CRC; in the 8-byte signature's next header
+    @pytest.mark.parametrize("keep", [0.5, -12, -2, 12])
+    def test_png(self, tmp_path, keep):
+        path = cut(astronaut_file(tmp_path, "astronaut.png"), keep, "half.png")
+        with pytest.raises(TruncatedImageError, match=r"half\.png: the file is truncated \(.*IEND") as info:
+            read_ldr(path)
+        assert str(path) in str(info.value)
+        with pytest.raises(TruncatedImageError):  # the chunk walk comes before the pixel type check
+            read_hdr(path)
+
+    @pytest.mark.parametrize("name", ["astronaut.png", "astronaut.jpg"])
+    def test_trailing_bytes_accepted(self, tmp_path, name):
+        """Bytes after IEND / EOI (a Motion Photo's video, padding) are no truncation."""
+        whole = astronaut_file(tmp_path, name)
+        longer = tmp_path / ("long_" + name)
+        longer.write_bytes(whole.read_bytes() + b"\x00" * 64 + b"ftypmp42" * 100)
+        torch.testing.assert_close(read_ldr(longer), read_ldr(whole), atol=0, rtol=0)
+
+    def test_corrupt_png_chunk_is_not_called_truncated(self, tmp_path):
+        whole = astronaut_file(tmp_path, "astronaut.png")
+        data = bytearray(whole.read_bytes())
+        data[12:16] = b"\x01\x02\x03\x04"  # IHDR's type: no chunk type
+        (tmp_path / "bad.png").write_bytes(bytes(data))
+        with pytest.raises(HDRIOError) as info:
+            read_ldr(tmp_path / "bad.png")
+        assert not isinstance(info.value, TruncatedImageError)
 
 
 class TestWriteLdr:
