@@ -60,8 +60,9 @@ def camera_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: floa
     r"""The camera rotation ``R = R_y(yaw) R_x(pitch) R_z(roll)`` of :func:`render_background`, float64.
 
     Examples:
-        >>> camera_rotation(yaw_deg=90.0) @ torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)
-        tensor([-1.0000e+00,  0.0000e+00, -6.1232e-17], dtype=torch.float64)
+        >>> forward = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)
+        >>> (camera_rotation(yaw_deg=90.0) @ forward).round(decimals=6) + 0.0
+        tensor([-1.,  0.,  0.], dtype=torch.float64)
     """
     for name, value in (("yaw_deg", yaw_deg), ("pitch_deg", pitch_deg), ("roll_deg", roll_deg)):
         _check_finite_number(value, name)
@@ -95,9 +96,10 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
     Examples:
         >>> env = torch.zeros(1, 2, 4)
         >>> env[0, :, 1:3] = 1.0  # the two centre columns: forward
-        >>> sample_latlong(env, torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]]))
+        >>> sample_latlong(env, torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])).round(decimals=4)
         tensor([[1., 0.]])
-        >>> sample_latlong(torch.stack([env, 2 * env]), torch.tensor([[[0.0, 0.0, -1.0]]] * 2)).flatten()
+        >>> both = sample_latlong(torch.stack([env, 2 * env]), torch.tensor([[[0.0, 0.0, -1.0]]] * 2))
+        >>> both.flatten().round(decimals=4)
         tensor([1., 2.])
     """
     batched = isinstance(latlong, torch.Tensor) and latlong.dim() == 4

@@ -148,7 +148,8 @@ def project_points(points: np.ndarray | torch.Tensor, camera: Camera, transform:
 
     Examples:
         >>> cam = Camera(90.0, 1.0, 0.0, 0.0, size=100)
-        >>> project_points(np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0]]), cam, camera_transform(cam, (0, 0, 0)))
+        >>> xy = project_points(np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0]]), cam, camera_transform(cam, (0, 0, 0)))
+        >>> xy.round(decimals=3)
         tensor([[50., 50.],
                 [75., 25.]])
     """
