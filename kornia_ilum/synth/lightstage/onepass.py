@@ -132,6 +132,25 @@ def light_cells(lighting_size: int, cells: int = _CELLS) -> tuple[np.ndarray, np
     return valid, start.astype(np.int64), count.astype(np.int64), corner
 
 
+def _aligned(x: np.ndarray, dtype: Any) -> np.ndarray:
+    """A 64-byte aligned C-contiguous copy of ``x``.
+
+    Dr.Jit maps numpy memory without copying and compiles the load's alignment into the kernel, so arrays of a
+    random alignment give kernels that differ between calls and are compiled again (about a second each).
+    """
+    x = np.asarray(x, dtype=dtype)
+    buf = np.empty(x.nbytes + 64, np.uint8)
+    off = (-buf.ctypes.data) % 64
+    out = buf[off:off + x.nbytes].view(x.dtype).reshape(x.shape)
+    out[...] = x
+    return out
+
+
+def _jit(cls: Any, *arrays: np.ndarray, dtype: Any = np.float32) -> Any:
+    """``cls(*arrays)`` from aligned copies (:func:`_aligned`)."""
+    return cls(*[_aligned(a, dtype) for a in arrays])
+
+
 # ----------------------------------------------------------------------------------------------
 # scene
 
@@ -200,7 +219,7 @@ class _Scenes:
             table = np.full(max(ids, default=0) + 1, -1, dtype=np.int32)
             for (i, _), sid in zip(meshes, ids):
                 table[sid] = i
-            return mi.Int32(table)
+            return _jit(mi.Int32, table, dtype=np.int32)
 
         self.cam_lut = lut(list(enumerate(cam_ids)))
         self.alpha_lut = lut(alpha_ids)
@@ -208,9 +227,9 @@ class _Scenes:
         self.full = mi.BSDFPtr(full)
         self.twin = mi.BSDFPtr(twin)
         kinds = [p.kind for p in self.parts]
-        self.is_cornea = mi.Bool([k == "cornea" for k in kinds])
-        self.is_alpha = mi.Bool([p.alpha_tested for p in self.parts])
-        self.is_sss = mi.Float([float(p.subsurface) for p in self.parts])
+        self.is_cornea = _jit(mi.Bool, [k == "cornea" for k in kinds], dtype=bool)
+        self.is_alpha = _jit(mi.Bool, [p.alpha_tested for p in self.parts], dtype=bool)
+        self.is_sss = _jit(mi.Float, [float(p.subsurface) for p in self.parts])
         self.cornea_params = {}
         for i, part in enumerate(subject.parts):
             if part.material.kind == "cornea":
@@ -222,7 +241,7 @@ class _Scenes:
         eta_s = np.ones(len(self.parts), np.float32)
         for i, (m, s) in self.cornea_params.items():
             eta_m[i], eta_s[i] = m, s
-        self.eta_mirror, self.eta_slab = mi.Float(eta_m), mi.Float(eta_s)
+        self.eta_mirror, self.eta_slab = _jit(mi.Float, eta_m), _jit(mi.Float, eta_s)
 
     def part_of(self, si: Any, lut: Any) -> Any:
         dr, mi = self.dr, self.mi
@@ -327,9 +346,9 @@ def render_olat_onepass(
     valid, start, count, corner = light_cells(lighting_size)
     nv = len(valid)
     cell = 2.0 / (lighting_size * _CELLS)
-    l_start, l_count = mi.UInt32(start.astype(np.uint32)), mi.UInt32(count.astype(np.uint32))
-    l_weight = mi.Float((4.0 * count * cell * cell).astype(np.float32))  # 4 x (u, v) area of the region
-    c_u, c_v = mi.Float(corner[:, 0].astype(np.float32)), mi.Float(corner[:, 1].astype(np.float32))
+    l_start, l_count = _jit(mi.UInt32, start, dtype=np.uint32), _jit(mi.UInt32, count, dtype=np.uint32)
+    l_weight = _jit(mi.Float, 4.0 * count * cell * cell)  # 4 x (u, v) area of the region
+    c_u, c_v = _jit(mi.Float, corner[:, 0]), _jit(mi.Float, corner[:, 1])
     timings["scene"] = time.perf_counter() - t0
 
     size = camera.size
@@ -347,60 +366,73 @@ def render_olat_onepass(
     g_alpha = np.zeros(p_count, np.float64)
     g_sss = np.zeros(p_count, np.float64)
     ctx = mi.BSDFContext()
-    for s in range(spp):
-        d = dirs[s]
-        zero = np.zeros(p_count, np.float32)
-        ray = mi.Ray3f(mi.Point3f(zero, zero, zero), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-        active = mi.Bool(np.ones(p_count, bool))
-        through = mi.Float(np.ones(p_count, np.float32))
-        final = mi.Bool(np.zeros(p_count, bool))
-        for _ in range(MAX_LAYERS):
-            si = sc.cam.ray_intersect(ray, active)
-            active &= si.is_valid()
-            part = sc.part_of(si, sc.cam_lut)
-            pc = dr.maximum(part, 0)
-            cornea = active & dr.gather(mi.Bool, sc.is_cornea, pc, active)
-            alpha_part = active & dr.gather(mi.Bool, sc.is_alpha, pc, active)
-            pass_texel = alpha_part & ~sc.opaque_texel(si, part, alpha_part)
-            cos_i = dr.dot(si.n, -ray.d)
-            outside = cornea & (cos_i > 0)
+    # all samples of all pixels in one batch: lane = sample * P + pixel
+    n_cam = spp * p_count
+    d = dirs.reshape(n_cam, 3)
+    ray = mi.Ray3f(dr.zeros(mi.Point3f, n_cam), _jit(mi.Vector3f, d[:, 0], d[:, 1], d[:, 2]))
+    active = dr.full(mi.Bool, True, n_cam)
+    through = dr.full(mi.Float, 1.0, n_cam)
+    layers = []  # per layer: lanes that stop there, their ray origins, directions, throughput
+    for _ in range(MAX_LAYERS):
+        si = sc.cam.ray_intersect(ray, active)
+        active &= si.is_valid()
+        part = sc.part_of(si, sc.cam_lut)
+        pc = dr.maximum(part, 0)
+        cornea = active & dr.gather(mi.Bool, sc.is_cornea, pc, active)
+        alpha_part = active & dr.gather(mi.Bool, sc.is_alpha, pc, active)
+        pass_texel = alpha_part & ~sc.opaque_texel(si, part, alpha_part)
+        stop = active & ~cornea & ~pass_texel
+        n_sh = si.sh_frame.n
+        gw = mi.Float(0.0)
+        refl = mi.Vector3f(0.0)
+        if sc.cornea_params:
             # one-sided Fresnel mirror of the cornea (the conductor with k = 0 of the reference)
-            n_sh = si.sh_frame.n
+            outside = cornea & (dr.dot(si.n, -ray.d) > 0)
             cos_sh = dr.abs(dr.dot(n_sh, -ray.d))
             f_m = mi.fresnel(cos_sh, dr.gather(mi.Float, sc.eta_mirror, pc, cornea))[0]
             r_s = mi.fresnel(cos_sh, dr.gather(mi.Float, sc.eta_slab, pc, cornea))[0]
             refl = ray.d - 2.0 * dr.dot(ray.d, n_sh) * n_sh
             vis = sc.visible(si, refl, outside)
             gw = dr.select(outside & vis, through * f_m, 0.0)
-            dr.eval(gw, refl, active, cornea)
+        # terminal hits: G-buffer
+        bsdf = dr.gather(mi.BSDFPtr, sc.full, pc, stop)
+        albedo = bsdf.eval_diffuse_reflectance(si, stop)
+        nrm = dr.select(dr.dot(n_sh, ray.d) > 0, -n_sh, n_sh)
+        sss = dr.gather(mi.Float, sc.is_sss, pc, stop)
+        depth = -si.p.z
+        dr.eval(gw, refl, stop, albedo, nrm, sss, depth, ray, through)
+        stop_np = np.asarray(stop)
+        sel = np.flatnonzero(stop_np)
+        if sc.cornea_params:
             gw_np = np.asarray(gw)
             gsel = np.flatnonzero(gw_np > 0)
             if len(gsel):
-                glints.append((gsel, np.asarray(refl)[:, gsel].T, gw_np[gsel]))
+                glints.append((gsel % p_count, np.asarray(refl)[:, gsel].T, gw_np[gsel]))
+        if len(sel):
+            pix = sel % p_count
+            g_albedo += np.stack([np.bincount(pix, c, p_count) for c in np.asarray(albedo)[:, sel]])
+            g_normal += np.stack([np.bincount(pix, c, p_count) for c in np.asarray(nrm)[:, sel]])
+            g_depth += np.bincount(pix, np.asarray(depth)[sel], p_count)
+            g_alpha += np.bincount(pix, None, p_count)
+            g_sss += np.bincount(pix, np.asarray(sss)[sel], p_count)
+            layers.append((sel, np.asarray(ray.o)[:, sel].T, np.asarray(ray.d)[:, sel].T, np.asarray(through)[sel]))
+        if sc.cornea_params:
             through = dr.select(cornea, through * (1.0 - 2.0 * r_s / (1.0 + r_s)), through)
-            stop = active & ~cornea & ~pass_texel
-            final |= stop
-            # terminal hits: G-buffer
-            if True:
-                sel = np.flatnonzero(np.asarray(stop))
-                if len(sel):
-                    bsdf = dr.gather(mi.BSDFPtr, sc.full, pc, stop)
-                    albedo = bsdf.eval_diffuse_reflectance(si, stop)
-                    nrm = dr.select(dr.dot(n_sh, ray.d) > 0, -n_sh, n_sh)
-                    sss = dr.gather(mi.Float, sc.is_sss, pc, stop)
-                    dr.eval(albedo, nrm, sss)
-                    g_albedo[:, sel] += np.asarray(albedo)[:, sel]
-                    g_normal[:, sel] += np.asarray(nrm)[:, sel]
-                    g_depth[sel] += -np.asarray(si.p.z)[sel]
-                    g_alpha[sel] += 1.0
-                    g_sss[sel] += np.asarray(sss)[sel]
-                    o = np.asarray(ray.o)[:, sel].T
-                    dd = np.asarray(ray.d)[:, sel].T
-                    hits.append((s, sel, o, dd, np.asarray(through)[sel]))
-            active &= ~stop
-            ray = dr.select(active, si.spawn_ray(ray.d), ray)
-            if not bool(dr.any(active)):
-                break
+        active &= ~stop
+        ray = dr.select(active, si.spawn_ray(ray.d), ray)
+        if not bool(dr.any(active)):
+            break
+    if layers:  # regroup the terminal hits per camera sample (the light samples are stratified over them)
+        lanes = np.concatenate([x[0] for x in layers])
+        o_all, d_all = np.concatenate([x[1] for x in layers]), np.concatenate([x[2] for x in layers])
+        t_all = np.concatenate([x[3] for x in layers])
+        order = np.argsort(lanes, kind="stable")
+        lanes, o_all, d_all, t_all = lanes[order], o_all[order], d_all[order], t_all[order]
+        bounds = np.searchsorted(lanes, np.arange(spp + 1) * p_count)
+        for s in range(spp):
+            i0, i1 = bounds[s], bounds[s + 1]
+            if i1 > i0:
+                hits.append((s, lanes[i0:i1] - s * p_count, o_all[i0:i1], d_all[i0:i1], t_all[i0:i1]))
     timings["camera"] = time.perf_counter() - t1
 
     # ---- all lights at every terminal hit
@@ -417,16 +449,15 @@ def render_olat_onepass(
         for a in range(0, len(sel), hc):
             b = min(len(sel), a + hc)
             n_h = b - a
-            ray = mi.Ray3f(mi.Point3f(o_np[a:b].T.copy()), mi.Vector3f(d_np[a:b].T.copy()))
+            ray = mi.Ray3f(_jit(mi.Point3f, *o_np[a:b].T), _jit(mi.Vector3f, *d_np[a:b].T))
             si = sc.cam.ray_intersect(ray)
-            thr = mi.Float(thr_np[a:b])
+            thr = _jit(mi.Float, thr_np[a:b])
             dr.eval(si, thr)
+            # kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon
             lane = dr.arange(mi.UInt32, n_h * nv)
             h = lane // nv
             light = lane - h * nv
             sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-            part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
-            # stratified light sample: cell stratum from the pixel's sample index, jitter inside the cell
             key = dr.opaque(mi.UInt32, (seed * 7919 + s * 104729 + a * 31) & 0x7FFFFFFF)
             rng_d = mi.PCG32(dr.width(lane), lane + key * 2654435761)
             cnt = dr.gather(mi.UInt32, l_count, light)
@@ -436,20 +467,35 @@ def render_olat_onepass(
             u = dr.gather(mi.Float, c_u, cidx) + cell * rng_d.next_float32()
             v = dr.gather(mi.Float, c_v, cidx) + cell * rng_d.next_float32()
             r2 = u * u + v * v
-            inside = r2 <= 1.0
             sq = 2.0 * dr.safe_sqrt(1.0 - r2)
             wo = mi.Vector3f(u * sq, v * sq, 1.0 - 2.0 * r2)
             ng = sih.n
-            up = inside & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
-            vis = sc.visible(sih, wo, up)
-            wo_l = sih.to_local(wo)
-            bs_full = dr.gather(mi.BSDFPtr, sc.full, part, vis)
-            bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, vis)
-            weight = dr.gather(mi.Float, l_weight, light) * dr.gather(mi.Float, thr, h)
-            f_full = bs_full.eval(ctx, sih, wo_l, vis)
-            f_diff = bs_twin.eval(ctx, sih, wo_l, vis)
-            out_d = dr.select(vis, f_diff * weight, 0.0)
-            out_s = dr.select(vis, (f_full - f_diff) * weight, 0.0)
+            up = (r2 <= 1.0) & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
+            dr.eval(wo, up)
+            # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
+            idx = dr.compress(up)
+            n_up = dr.width(idx)
+            out_d = dr.zeros(mi.Color3f, n_h * nv)
+            out_s = dr.zeros(mi.Color3f, n_h * nv)
+            if n_up:
+                h = idx // nv
+                light = idx - h * nv
+                wo = dr.gather(mi.Vector3f, wo, idx)
+                sih = dr.gather(mi.SurfaceInteraction3f, si, h)
+                part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
+                vis = sc.visible(sih, wo, mi.Bool(True))
+                wo_l = sih.to_local(wo)
+                weight = dr.gather(mi.Float, l_weight, light) * dr.gather(mi.Float, thr, h)
+                bs_full = dr.gather(mi.BSDFPtr, sc.full, part, vis)
+                f_full = bs_full.eval(ctx, sih, wo_l, vis) * weight
+                # the diffuse twin only where subsurface scattering will need the split; elsewhere all of the
+                # response goes to the specular part (which the subsurface pass leaves alone)
+                sss = vis & (dr.gather(mi.Float, sc.is_sss, part) > 0)
+                bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, sss)
+                f_diff = dr.select(sss, bs_twin.eval(ctx, sih, wo_l, sss) * weight, 0.0)
+                f_full = dr.select(vis, f_full, 0.0)
+                dr.scatter(out_d, f_diff, idx)
+                dr.scatter(out_s, f_full - f_diff, idx)
             dr.eval(out_d, out_s)
             rows = torch.from_numpy(row_of[sel[a:b]])
             diffuse.index_add_(1, rows, torch.from_numpy(np.asarray(out_d)).view(3, n_h, nv))
