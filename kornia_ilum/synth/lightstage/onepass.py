@@ -268,7 +268,7 @@ class _Scenes:
         if self.alpha is not None:
             todo = mi.Bool(vis)
             for _ in range(MAX_LAYERS):
-                hit = self.alpha.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=False, active=todo)
+                hit = self.alpha.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal | mi.RayFlags.UV, coherent=False, active=todo)
                 todo &= hit.is_valid()
                 part = self.part_of(hit, self.alpha_lut)
                 blocked = todo & self.opaque_texel(hit, part, todo)
