@@ -39,6 +39,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import torch
@@ -114,20 +115,61 @@ def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
     s = _per_image(sigma, b, "sigma")
     if (s < 0).any():
         raise ValueCheckError("sigma must be non-negative")
-    smax = float(s.max()) if b else 0.0
-    if smax == 0.0:
-        return image.clone()
-    r = min(max(1, math.ceil(2.0 * smax)), (min(h, w) - 1))
+    r = _blur_radius(float(s.max()) if b else 0.0, h, w)
     if r < 1:
         return image.clone()
-    x = torch.arange(-r, r + 1, dtype=torch.float64)
-    kern = torch.exp(-(x[None] ** 2) / (2.0 * s.clamp(min=1e-6)[:, None] ** 2))
-    kern = torch.where(s[:, None] > 0, kern, (x[None] == 0).double())
-    kern = (kern / kern.sum(-1, keepdim=True)).to(image.dtype).repeat_interleave(c, 0)  # (B C, 2r + 1)
+    kern = _blur_kernels(s, r)
+    if image.dtype == torch.float32 and image.device.type == "cpu":
+        return _lens_blur_cv2(image, kern, s.tolist())
+    kern = kern.to(image.dtype).repeat_interleave(c, 0)  # (B C, 2r + 1)
     flat = image.reshape(1, b * c, h, w)
     flat = F.conv2d(F.pad(flat, (r, r, 0, 0), mode="reflect"), kern[:, None, None, :], groups=b * c)
     flat = F.conv2d(F.pad(flat, (0, 0, r, r), mode="reflect"), kern[:, None, :, None], groups=b * c)
     return flat.reshape(b, c, h, w)
+
+
+def _blur_radius(smax: float, h: int, w: int) -> int:
+    """The kernel's half width for the largest sigma of a batch (0: no blur)."""
+    if smax == 0.0:
+        return 0
+    return min(max(1, math.ceil(2.0 * smax)), (min(h, w) - 1))
+
+
+def _blur_kernels(s: torch.Tensor, r: int) -> torch.Tensor:
+    """Normalised Gaussian taps ``(B, 2r + 1)`` float64 of the sigmas ``s`` (sigma 0: the identity)."""
+    x = torch.arange(-r, r + 1, dtype=torch.float64)
+    kern = torch.exp(-(x[None] ** 2) / (2.0 * s.clamp(min=1e-6)[:, None] ** 2))
+    kern = torch.where(s[:, None] > 0, kern, (x[None] == 0).double())
+    return kern / kern.sum(-1, keepdim=True)
+
+
+def _lens_blur_cv2(image: torch.Tensor, kern: torch.Tensor, sigmas: list[float],
+                   out: torch.Tensor | None = None) -> torch.Tensor:
+    """:func:`lens_blur` of CPU float32 images: OpenCV's separable filter on each plane (reflected borders,
+    ``BORDER_REFLECT_101`` is torch's ``"reflect"``); 10 to 16 times faster than the grouped convolutions.
+    ``out`` may be ``image`` (each plane is filtered into a scratch plane, then copied back)."""
+    import cv2
+
+    src = image.contiguous()
+    if out is None:
+        out = torch.empty_like(src)
+    taps = kern.float().numpy()
+    scratch = None
+    for k, sigma in enumerate(sigmas):
+        if sigma <= 0:
+            if out is not image:
+                out[k].copy_(src[k])
+            continue
+        for c in range(src.shape[1]):
+            plane = src[k, c].numpy()
+            if out is image:
+                scratch = cv2.sepFilter2D(plane, -1, taps[k], taps[k], dst=scratch,
+                                          borderType=cv2.BORDER_REFLECT_101)
+                plane[...] = scratch
+            else:
+                cv2.sepFilter2D(plane, -1, taps[k], taps[k], dst=out[k, c].numpy(),
+                                borderType=cv2.BORDER_REFLECT_101)
+    return out
 
 
 @functools.lru_cache(maxsize=8)
@@ -290,14 +332,28 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
         >>> encode_tone8(x, 0.0).flatten().tolist(), encode_tone8(x, 0.5).flatten().tolist()
         ([0, 127, 255, 255], [0, 127, 255, 255])
     """
-    from kornia_ilum.color import encode_srgb8
-
     _check_images(linear, "linear")
     b = linear.shape[0]
     c = _per_image(contrast, b, "contrast")
     g = _per_image(gamma, b, "gamma")
     if (c.abs() >= 1).any() or (g <= 0).any():
         raise ValueCheckError("contrast must be in (-1, 1) and gamma positive")
+    if linear.device.type != "cpu":
+        return _encode_tone8_reference(linear, c, g)
+    out = torch.empty(linear.shape, dtype=torch.uint8)
+    tables, cells = _code_tables(c, g)
+    scratch = torch.empty(linear.shape[1:], dtype=torch.float32)
+    index = torch.empty(linear.shape[1:], dtype=torch.int32)
+    for k in range(b):
+        _encode_one(torch.mul(linear[k], float(cells[k]) ** 2, out=scratch), tables[k], cells[k], index, out[k])
+    return out
+
+
+def _encode_tone8_reference(linear: torch.Tensor, c: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
+    """:func:`encode_tone8` as first written (any device): ``encode_srgb8`` or a 4096-cell table per image."""
+    from kornia_ilum.color import encode_srgb8
+
+    b = linear.shape[0]
     out = torch.empty(linear.shape, dtype=torch.uint8, device=linear.device)
     toned = ((c != 0) | (g != 1)).tolist()
     if not any(toned):
@@ -311,6 +367,48 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
         x = linear[k].to(torch.float32, copy=True).mul_(n * n).clamp_(0.0, (n - 0.5) ** 2).sqrt_()
         out[k] = tables[k].index_select(0, x.to(torch.int32).flatten()).view(x.shape)
     return out
+
+
+def _code_tables(c: torch.Tensor, g: torch.Tensor) -> tuple[list[torch.Tensor], list[int]]:
+    """Per image: the table of codes and its cell count (cells evenly spaced in ``sqrt(x)``).
+
+    An image whose tone curve is the identity reads :func:`~kornia_ilum.color.encode_srgb8`'s own table (65536
+    cells: exactly its codes); the others a table of :data:`_TONE_CELLS` cells of the sRGB curve then their
+    tone curve (computed for those images only).
+    """
+    from kornia_ilum.color.transfer import _LUT_SIZE, _srgb8_table
+
+    srgb = _srgb8_table(torch.device("cpu"))
+    toned = torch.nonzero((c != 0) | (g != 1)).flatten()
+    tables, cells = [srgb] * len(c), [_LUT_SIZE] * len(c)
+    if len(toned):
+        cell = _srgb_cells()[None].expand(len(toned), -1)
+        toned_tables = (_tone(cell, c[toned], g[toned]) * 255.0).round_().to(torch.uint8)
+        for k, table in zip(toned.tolist(), toned_tables, strict=True):
+            tables[k], cells[k] = table, _TONE_CELLS
+    return tables, cells
+
+
+def _sqrt_(x: torch.Tensor) -> torch.Tensor:
+    """In-place square root of a contiguous CPU float32 tensor (OpenCV's: twice as fast as torch's here, and
+    correctly rounded as IEEE ``sqrt`` is, so the same values)."""
+    import cv2
+
+    flat = x.numpy().reshape(-1, x.shape[-1])
+    cv2.sqrt(flat, dst=flat)
+    return x
+
+
+def _encode_one(scaled: torch.Tensor, table: torch.Tensor, cells: int, index: torch.Tensor, out: torch.Tensor
+                ) -> torch.Tensor:
+    """Codes of one image from its linear values times ``cells^2`` (overwritten): clip, ``sqrt``, read the table.
+
+    The steps of :func:`~kornia_ilum.color.encode_srgb8` (which does ``x * 65536^2``, clip, ``sqrt``, truncate,
+    read), on a scratch image that stays in the cache; ``index`` is an int32 scratch of the image's shape.
+    """
+    _sqrt_(scaled.clamp_(0.0, (cells - 0.5) ** 2))
+    index.copy_(scaled)
+    return torch.index_select(table, 0, index.view(-1), out=out.view(-1))
 
 
 def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> torch.Tensor:
@@ -329,9 +427,6 @@ def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> t
         >>> torch.equal(jpeg_compress(x, 0), x), torch.equal(jpeg_compress(x, 40), x)
         (True, False)
     """
-    import cv2
-    import numpy as np
-
     check_tensor(image, "image", ["B", "3", "H", "W"], floating=False)
     b = image.shape[0]
     q = _per_image(quality, b, "quality").round().long().tolist()
@@ -341,18 +436,28 @@ def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> t
     if image.dtype != torch.uint8 and not as_float:
         raise TypeCheckError(f"image must be uint8 or float, got {image.dtype}")
     codes = (image.clamp(0.0, 1.0) * 255.0).round().to(torch.uint8) if as_float else image
-    out = codes.clone()
-    cpu = codes.cpu()
+    out = codes.cpu().clone().contiguous()
     for k in range(b):
-        if q[k] <= 0:
-            continue
-        bgr = np.ascontiguousarray(cpu[k].flip(0).permute(1, 2, 0).numpy())
-        ok, buf = cv2.imencode(".jpg", bgr, [int(cv2.IMWRITE_JPEG_QUALITY), int(q[k])])
-        if not ok:  # pragma: no cover - OpenCV failure
-            raise ValueCheckError("cv2.imencode failed")
-        dec = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-        out[k] = torch.from_numpy(dec).permute(2, 0, 1).flip(0).to(out.device)
+        if q[k] > 0:
+            _jpeg_one(out[k], q[k])
+    out = out.to(image.device)
     return out.to(image.dtype) / 255.0 if as_float else out
+
+
+def _jpeg_one(planes: torch.Tensor, quality: int) -> None:
+    """JPEG round trip of one contiguous CPU ``(3, H, W)`` uint8 RGB image, in place (OpenCV, 4:2:0).
+
+    The planes go to OpenCV's interleaved BGR and back with ``cv2.merge`` / ``cv2.split`` (vectorised: 0.04 ms
+    against 0.8 ms for numpy's and torch's strided copies of ``flip(0).permute(1, 2, 0)`` and back).
+    """
+    import cv2
+
+    p = planes.numpy()
+    ok, buf = cv2.imencode(".jpg", cv2.merge([p[2], p[1], p[0]]), [int(cv2.IMWRITE_JPEG_QUALITY), int(quality)])
+    if not ok:  # pragma: no cover - OpenCV failure
+        raise ValueCheckError("cv2.imencode failed")
+    dec = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    cv2.split(dec, [p[2], p[1], p[0]])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -585,24 +690,108 @@ class CameraEffects:
         return {name: module.draw(n, generator) for name, module in self.modules().items()}
 
     def apply(self, linear: torch.Tensor, params: dict[str, torch.Tensor], *, generator: torch.Generator | None = None,
-              noise: torch.Tensor | None = None, inplace: bool = False) -> torch.Tensor:
+              noise: torch.Tensor | Sequence[torch.Tensor] | None = None, inplace: bool = False,
+              gain: torch.Tensor | None = None) -> torch.Tensor:
         """Exposed linear images ``(B, 3, H, W)`` to ``uint8`` codes with the parameters of :meth:`draw`.
 
-        ``noise`` (standard normal, the shape of ``linear``) or ``generator`` is the sensor noise's source;
-        ``inplace`` lets the blur and the vignette overwrite ``linear`` (no copy).
+        Args:
+            linear: ``(B, 3, H, W)`` float linear images (exposed, or exposed by ``gain``); never modified.
+            params: the parameters of :meth:`draw`.
+            generator: the sensor noise's source when ``noise`` is not given (one ``randn`` of ``linear``'s shape,
+                drawn when any image has noise).
+            noise: standard normal samples: a tensor of ``linear``'s shape or a sequence of ``B`` tensors
+                ``(3, H, W)`` (views, e.g. windows of a larger noise texture, are read without a copy).
+            inplace: accepted for compatibility; the fused path never writes to ``linear``.
+            gain: ``(B,)`` exposures: the exposed image is ``linear * gain`` (fused with the vignette).
+
+        Convention:
+            On CPU float32 the effects run fused, one image at a time on a scratch image that stays in the cache:
+            the lens blur on the images that draw it (OpenCV's separable filter), then one multiplication by
+            ``gain * (1 - v r^2)`` times the table's scale ``u`` (``cells^2``), the sensor noise in those units
+            (``x u + sqrt(shot u (x u) + read^2 u^2) n`` is ``u`` times the noisy ``x``), the table lookup of
+            :func:`encode_tone8` and the JPEG round trip of the images that draw it. The result equals the
+            unfused chain (:meth:`apply_reference`) up to float rounding: codes at most one off, for a few
+            values near code boundaries (then JPEG may spread that difference a little). Other devices or
+            dtypes run :meth:`apply_reference`.
         """
         _check_images(linear, "linear")
-        x = linear
+        if linear.device.type != "cpu" or linear.dtype != torch.float32:
+            return self.apply_reference(linear, params, generator=generator, noise=noise, gain=gain)
+        b, c, h, w = linear.shape
+        shot = _per_image(params["noise"], b, "noise")
+        noisy = (shot > 0).tolist()
+        if any(noisy):
+            noise = self._noise_list(linear, noise, generator)
+        read2 = (read_noise_for_shot(shot) ** 2).tolist()
+        shot_l = shot.tolist()
+        scale = [1.0] * b if gain is None else _per_image(gain, b, "gain").tolist()
+        vig = _per_image(params["vignette"], b, "vignette").tolist()
+        quality = _per_image(params["jpeg"], b, "jpeg").round().long().tolist()
+        tables, cells = _code_tables(params["tone"][:, 0].double(), params["tone"][:, 1].double())
+        blur = _per_image(params["blur"], b, "blur")
+        sources = list(linear)
+        sel = torch.nonzero(blur > 0).flatten()
+        if len(sel):
+            for k, image in zip(sel.tolist(), lens_blur(linear[sel], blur[sel]), strict=True):
+                sources[k] = image
+        out = torch.empty(linear.shape, dtype=torch.uint8)
+        x = torch.empty(c, h, w)
+        std = torch.empty(c, h, w) if any(noisy) else None
+        index = torch.empty(c, h, w, dtype=torch.int32)
+        weight = torch.empty(h, w)
+        r2 = _radius2(h, w)
+        for k in range(b):
+            u = float(cells[k]) ** 2  # exposed linear -> the table's units
+            s = u * scale[k]
+            if vig[k] > 0:
+                torch.mul(r2, -vig[k] * s, out=weight).add_(s)
+                torch.mul(sources[k], weight, out=x)
+            else:
+                torch.mul(sources[k], s, out=x)
+            if noisy[k]:
+                torch.clamp(x, min=0.0, out=std).mul_(shot_l[k] * u).add_(read2[k] * u * u)
+                x.addcmul_(_sqrt_(std), noise[k])
+            _encode_one(x, tables[k], cells[k], index, out[k])
+            if quality[k] > 0:
+                _jpeg_one(out[k], quality[k])
+        return out
+
+    @staticmethod
+    def _noise_list(linear: torch.Tensor, noise: torch.Tensor | Sequence[torch.Tensor] | None,
+                    generator: torch.Generator | None) -> Sequence[torch.Tensor]:
+        _check_generator(generator)
+        if noise is None:
+            return torch.randn(linear.shape, generator=generator, dtype=linear.dtype)
+        if isinstance(noise, torch.Tensor):
+            if noise.shape != linear.shape:
+                raise ShapeError(f"noise must have the shape of linear {tuple(linear.shape)}, "
+                                 f"got {tuple(noise.shape)}")
+            return noise
+        noise = list(noise)
+        if len(noise) != len(linear) or any(not isinstance(n, torch.Tensor) or n.shape != linear.shape[1:]
+                                            for n in noise):
+            raise ShapeError(f"noise must be {len(linear)} tensors of shape {tuple(linear.shape[1:])}")
+        return noise
+
+    def apply_reference(self, linear: torch.Tensor, params: dict[str, torch.Tensor], *,
+                        generator: torch.Generator | None = None,
+                        noise: torch.Tensor | Sequence[torch.Tensor] | None = None,
+                        gain: torch.Tensor | None = None) -> torch.Tensor:
+        """:meth:`apply` unfused, effect after effect with the functionals (the reference; any device)."""
+        _check_images(linear, "linear")
+        x = linear.clone()
+        if gain is not None:
+            x.mul_(_per_image(gain, len(x), "gain").to(x)[:, None, None, None])
         for name, effect in (("blur", lens_blur), ("vignette", vignette)):
             value = params[name]
             if (value > 0).any():
                 idx = torch.nonzero(value > 0).flatten()
-                if x is linear and not inplace:
-                    x = x.clone()
                 x[idx] = effect(x[idx], value[idx])
         if (params["noise"] > 0).any():
+            if noise is not None and not isinstance(noise, torch.Tensor):
+                noise = torch.stack(list(noise))
             x = sensor_noise(x, params["noise"], generator=generator, noise=noise)
-        codes = encode_tone8(x, params["tone"][:, 0], params["tone"][:, 1])
+        codes = _encode_tone8_reference(x, params["tone"][:, 0].double(), params["tone"][:, 1].double())
         quality = params["jpeg"]
         if (quality > 0).any():
             codes = jpeg_compress(codes, quality)

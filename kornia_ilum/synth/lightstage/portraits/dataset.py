@@ -494,22 +494,24 @@ class PortraitDataset(IterableDataset):
             samples.append(sample)
         return samples
 
-    def _noise(self, n: int, size: int, g: torch.Generator, needed: bool) -> torch.Tensor | None:
+    def _noise(self, n: int, size: int, g: torch.Generator, needed: bool) -> list[torch.Tensor] | None:
         """``n`` standard normal images ``(3, size, size)``, cheaply (``None`` unless ``needed``; the draws from
         ``g`` are made either way, so switching the noise off changes no other draw).
 
         Drawing fresh Gaussian noise for every pixel costs more than the rest of the encoding; windows at random
         offsets of one ``(3, size + 64, size + 64)`` Gaussian texture (seeded by the dataset's seed), with random
-        signs, look the same and cost one copy.
+        signs, look the same and cost nothing: they are views of the texture or of its negation (kept beside
+        it), read in place by :meth:`CameraEffects.apply`.
         """
         offsets = torch.randint(65, (n, 2), generator=g).tolist()
-        signs = torch.where(torch.rand(n, generator=g) < 0.5, -1.0, 1.0)
+        signs = (torch.rand(n, generator=g) < 0.5).tolist()  # True: negated
         if not needed:
             return None
         if self._noise_bank is None or self._noise_bank.shape[-1] != size + 64:
-            self._noise_bank = torch.randn(3, size + 64, size + 64, generator=_generator(self.seed, -1))
-        noise = torch.stack([self._noise_bank[:, i : i + size, j : j + size] for i, j in offsets])
-        return noise.mul_(signs[:, None, None, None])
+            bank = torch.randn(3, size + 64, size + 64, generator=_generator(self.seed, -1))
+            self._noise_bank = torch.stack([bank, -bank])
+        return [self._noise_bank[int(neg), :, i : i + size, j : j + size] for (i, j), neg in zip(offsets, signs,
+                                                                                                   strict=True)]
 
     def _render(self, rf: ReflectanceField, latlong: torch.Tensor, pyramids: list | None, turn: torch.Tensor,
                 blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor, key: torch.Tensor,
@@ -537,7 +539,6 @@ class PortraitDataset(IterableDataset):
         linear = crop_images(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)
-        linear.mul_(gain[:, None, None, None].to(linear))
         noise = self._noise(len(linear), size, g, bool((effects["noise"] > 0).any()))
-        image = cfg.camera.apply(linear, effects, noise=noise, inplace=True)
+        image = cfg.camera.apply(linear, effects, noise=noise, gain=gain)  # exposes, fused with the effects
         return image, lighting * gain[:, None, None, None].to(lighting), gain.float()
