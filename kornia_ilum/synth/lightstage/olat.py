@@ -669,7 +669,9 @@ def render_olat(
         seed: the random seed.
         envmap_height, lights: the reference's (:func:`render_olat_reference`).
         threads: if given, sets Dr.Jit's thread count (process-global) before rendering.
-        callback: called with 1 after each light (reference) or with fractions of the work (one-pass).
+        callback: progress, in lights: called with 1 after each light (reference), or after each chunk of the
+            one-pass renderer with that chunk's share of the valid lights (floats that sum to the valid light
+            count), so one progress bar of ``total`` = valid lights serves both.
         method: ``"onepass"`` (:mod:`~kornia_ilum.synth.lightstage.onepass`, needs a vectorised variant),
             ``"reference"`` (:func:`render_olat_reference`), or ``"auto"``: one-pass when the variant is
             vectorised and no reference-only option (``lights``, ``envmap_height``, ``max_depth`` other than 2)
@@ -733,9 +735,10 @@ def render_olat(
         check_positive_int(threads, "threads")
         dr.set_thread_count(threads)
     transform = camera_transform(camera, _pivot(subject))
+    n_lights = int(mirror_ball_valid(lighting_size).sum())
     res = render_olat_onepass(subject, camera, transform, lighting_size=lighting_size, spp=spp, seed=seed,
                               chunk_lanes=chunk_lanes or _DEFAULT_LANES,
-                              callback=None if callback is None else (lambda frac: None))
+                              callback=None if callback is None else (lambda frac: callback(frac * n_lights)))
     t_post = time.perf_counter()
     diffuse, specular, steps = res.diffuse, res.specular, []
     size = camera.size
@@ -778,8 +781,6 @@ def render_olat(
     for key in ("split", "skin_tone"):
         if hasattr(subject, key):
             meta[key] = getattr(subject, key)
-    if callback is not None:
-        callback(int(len(res.cols)))
     rf = ReflectanceField(out, res.gbuffer.alpha.clone(), face_box, camera, int(subject.seed), meta)
     rf.gbuffer = res.gbuffer
     return rf
