@@ -6,7 +6,7 @@ r"""The one-pass OLAT renderer: every light of the mirror-ball basis traced in o
 Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
 
 1. **Camera rays** (pinhole at the origin looking along -Z, horizontal ``fov_deg``), ``spp`` per pixel on a
-   jittered ``k x k`` grid (``k = sqrt(spp)`` when ``spp`` is a square, else independent jitter). A ray
+   jittered ``k_u x k_v`` grid (``k_u k_v = spp``, as square as ``spp``'s divisors allow: 8 is 4 x 2). A ray
    continues through texels of alpha-tested parts (``opacity_texture < 0.5``, nearest texel) and through the
    cornea, at most :data:`MAX_LAYERS` surfaces. At a cornea hit seen from outside the Fresnel mirror's glint is
    recorded (weight ``F(theta)`` into the light that owns the reflected direction, if that direction is not
@@ -298,14 +298,12 @@ class _Scenes:
 def _camera_dirs(camera: Camera, spp: int, rng: np.random.Generator) -> np.ndarray:
     """Unit ray directions ``(spp, P, 3)`` float32 and the sub-pixel positions used."""
     size = camera.size
-    k = math.isqrt(spp)
+    kv = max(d for d in range(1, math.isqrt(spp) + 1) if spp % d == 0)  # a kv x ku grid, ku * kv = spp
+    ku = spp // kv
     s = np.arange(spp)
-    if k * k == spp:
-        su, sv = (s % k)[:, None], (s // k)[:, None]
-        ju = (su + rng.random((spp, size * size))) / k
-        jv = (sv + rng.random((spp, size * size))) / k
-    else:
-        ju, jv = rng.random((2, spp, size * size))
+    su, sv = (s % ku)[:, None], (s // ku)[:, None]
+    ju = (su + rng.random((spp, size * size))) / ku
+    jv = (sv + rng.random((spp, size * size))) / kv
     i, j = np.divmod(np.arange(size * size), size)
     tanh = math.tan(math.radians(camera.fov_deg) / 2)
     x = ((j + ju) / size * 2 - 1) * tanh
