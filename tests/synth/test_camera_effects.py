@@ -135,3 +135,99 @@ def test_camera_effects_pipeline(linear) -> None:
     assert torch.equal(q["noise"], p1["noise"]) and (q["jpeg"] == 0).all()
     with pytest.raises(ValueCheckError):
         CameraEffects(tone_contrast=(-0.5, 1.0))
+
+
+# ----------------------------------------------------------------------------------------------
+# the fused path of CameraEffects.apply against the unfused reference
+
+
+def photo(n: int = 8, seed: int = 0) -> torch.Tensor:
+    """Smooth linear images (upsampled noise) in [0, 1.2]: photo-like content for the JPEG."""
+    g = gen(seed)
+    return torch.nn.functional.interpolate(torch.rand(n, 3, 8, 8, generator=g), size=48, mode="bilinear") * 1.2
+
+
+def code_diff(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    return (a.int() - b.int()).abs()
+
+
+@pytest.mark.parametrize("kw", [{}, {"blur_p": 1.0, "vignette_p": 1.0, "noise_p": 1.0, "tone_p": 1.0},
+                                {"noise_p": 0.0}, {"tone_p": 0.0, "blur_p": 1.0}],
+                         ids=["defaults", "all", "no-noise", "untoned"])
+def test_fused_apply_equals_the_reference(kw) -> None:
+    fx = CameraEffects(**{**kw, "jpeg_p": 0.0})
+    x = photo(16)
+    params = fx.draw(16, gen(3))
+    gain = torch.linspace(0.5, 2.0, 16, dtype=torch.float64)
+    fused = fx.apply(x, params, generator=gen(4), gain=gain)
+    ref = fx.apply_reference(x, params, generator=gen(4), gain=gain)
+    diff = code_diff(fused, ref)
+    assert fused.dtype == torch.uint8 and diff.max() <= 1 and (diff > 0).float().mean() < 1e-3
+    assert torch.equal(fused, fx.apply(x, params, generator=gen(4), gain=gain))  # deterministic
+
+
+def test_fused_apply_with_jpeg_stays_close_to_the_reference() -> None:
+    fx = CameraEffects(jpeg_p=1.0)
+    x = photo(8)
+    params = fx.draw(8, gen(5))
+    fused, ref = fx.apply(x, params, generator=gen(6)), fx.apply_reference(x, params, generator=gen(6))
+    diff = code_diff(fused, ref)
+    assert (diff > 0).float().mean() < 0.01 and diff.float().mean() < 0.01
+
+
+def test_fused_apply_gain_noise_views_and_input() -> None:
+    fx = CameraEffects(blur_p=0.5, vignette_p=0.5, noise_p=1.0, jpeg_p=0.0)
+    x = photo(6)
+    kept = x.clone()
+    params = fx.draw(6, gen(7))
+    bank = torch.randn(2, 3, 64, 64, generator=gen(8))
+    views = [bank[k % 2, :, k : k + 48, 2 * k : 2 * k + 48] for k in range(6)]  # non-contiguous windows
+    gain = torch.full((6,), 1.5, dtype=torch.float64)
+    a = fx.apply(x, params, noise=views, gain=gain)
+    assert torch.equal(x, kept)  # the input is never written
+    assert torch.equal(a, fx.apply(x, params, noise=torch.stack(views), gain=gain))
+    diff = code_diff(a, fx.apply(x * 1.5, params, noise=torch.stack(views)))  # gain = pre-exposed input
+    assert diff.max() <= 1 and (diff > 0).float().mean() < 1e-3
+    diff = code_diff(a, fx.apply(x.double(), params, noise=views, gain=gain))  # float64: the reference path
+    assert diff.max() <= 1 and (diff > 0).float().mean() < 1e-3
+    with pytest.raises(ShapeError):
+        fx.apply(x, params, noise=views[:3])
+
+
+def test_fused_noise_keeps_its_statistics() -> None:
+    fx = CameraEffects(blur_p=0.0, vignette_p=0.0, noise_p=1.0, tone_p=0.0, jpeg_p=0.0, noise_shot=(1e-3, 1e-3))
+    x = torch.full((2, 3, 64, 64), 0.2)
+    codes = fx.apply(x, fx.draw(2, gen(9)), generator=gen(10))
+    noisy = sensor_noise(x, 1e-3, generator=gen(10))  # the same normals: one randn of x's shape
+    diff = code_diff(codes, encode_srgb8(noisy))
+    assert diff.max() <= 1 and (diff > 0).float().mean() < 1e-3
+
+
+def test_lens_blur_opencv_matches_the_convolutions(linear) -> None:
+    sigma = torch.tensor([0.0, 0.3, 0.7, 1.0])
+    fast = lens_blur(linear, sigma)  # float32 on CPU: OpenCV
+    ref = lens_blur(linear.double(), sigma)  # grouped convolutions
+    torch.testing.assert_close(fast.double(), ref, rtol=1e-5, atol=1e-6)
+    assert torch.equal(fast[0], linear[0])
+
+
+def test_encode_tone8_mixed_batch_matches_the_reference(linear) -> None:
+    from kornia_ilum.synth.camera_effects import _encode_tone8_reference
+
+    c, g = torch.tensor([0.0, 0.4, 0.0, -0.1], dtype=torch.float64), torch.tensor([1.0, 1.0, 0.9, 1.1],
+                                                                                  dtype=torch.float64)
+    assert torch.equal(encode_tone8(linear, c, g), _encode_tone8_reference(linear, c, g))
+    assert torch.equal(encode_tone8(linear, c, g)[0], encode_srgb8(linear[0]))
+
+
+def test_jpeg_compress_equals_the_strided_round_trip(linear) -> None:
+    import cv2
+    import numpy as np
+
+    codes = encode_srgb8(linear)
+    out = jpeg_compress(codes, torch.tensor([0, 40, 70, 95]))
+    assert torch.equal(out[0], codes[0])
+    for k, q in ((1, 40), (2, 70), (3, 95)):
+        bgr = np.ascontiguousarray(codes[k].flip(0).permute(1, 2, 0).numpy())
+        dec = cv2.imdecode(cv2.imencode(".jpg", bgr, [int(cv2.IMWRITE_JPEG_QUALITY), q])[1], cv2.IMREAD_COLOR)
+        assert torch.equal(out[k], torch.from_numpy(dec).permute(2, 0, 1).flip(0))

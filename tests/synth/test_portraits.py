@@ -449,3 +449,18 @@ class TestConfig:
         for a, b in zip(with_fx, without, strict=True):
             torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
             assert torch.equal(a["crop_box"], b["crop_box"])
+
+    def test_noise_windows_are_signed_views_of_the_bank(self, cache) -> None:
+        data = small(cache)
+        g1, g2 = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
+        views = data._noise(5, OUT, g1, True)
+        bank = data._noise_bank[0]
+        offsets = torch.randint(65, (5, 2), generator=g2).tolist()  # the draws of _noise, in its order
+        signs = torch.where(torch.rand(5, generator=g2) < 0.5, -1.0, 1.0)
+        for view, (i, j), sign in zip(views, offsets, signs, strict=True):
+            assert view.shape == (3, OUT, OUT)
+            assert view.untyped_storage().data_ptr() == bank.untyped_storage().data_ptr()  # a view, no copy
+            assert torch.equal(view, sign * bank[:, i : i + OUT, j : j + OUT])
+        assert data._noise(5, OUT, torch.Generator().manual_seed(3), False) is None
+        # the draws are the same whether the noise is needed or not
+        assert torch.equal(g1.get_state(), (data._noise(5, OUT, g2.manual_seed(3), False), g2)[1].get_state())
