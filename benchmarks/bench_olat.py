@@ -87,6 +87,25 @@ def cached_reference(out: Path, source: str, seed: int, view: int, subj, cam, sp
     return rf
 
 
+def cached_onepass(out: Path, source: str, seed: int, view: int, subj, cam, spp: int,
+                   render_seed: int) -> ReflectanceField:
+    """A one-pass field with every camera sample tracing every light (no demodulation), cached to ``out``."""
+    path = out / f"onepass_{source}_s{seed}_v{view}_{cam.size}px_{spp}spp_seed{render_seed}.pt"
+    if path.exists():
+        d = torch.load(path)
+        return ReflectanceField(d["field"], d["alpha"], d["face_box"], cam, seed, d["meta"])
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rf = render_olat(subj, cam, spp=spp, shade_spp=spp, demodulate=False, subsurface=False, seed=render_seed,
+                     threads=1)
+    print(f"  one-pass reference ({spp} spp, seed {render_seed}) rendered in {time.perf_counter() - t0:.0f} s "
+          f"-> {path}", flush=True)
+    torch.save({"field": rf.field, "alpha": rf.alpha, "face_box": rf.face_box, "meta": rf.meta},
+               path.with_suffix(".tmp"))
+    path.with_suffix(".tmp").rename(path)
+    return rf
+
+
 def map_lights(path: Path, lighting_size: int = 32) -> torch.Tensor:
     """``(1, S^2, 3)`` radiance of a lat-long map as a mirror ball (energy-conserving area resampling)."""
     latlong = read_hdr(path)
@@ -135,9 +154,18 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--spps", type=int, nargs="+", default=[1, 2, 4, 8])
     parser.add_argument("--direct-spp", type=int, default=256)
-    parser.add_argument("--reference", default="perlight", choices=["perlight", "direct"],
+    parser.add_argument("--reference", default="perlight", choices=["perlight", "direct", "onepass"],
                         help="perlight: the cached 64-spp per-light field, relit; direct: render_lighting under "
-                             "each map at --direct-spp, max_depth 2 (minutes instead of a quarter of an hour)")
+                             "each map at --direct-spp, max_depth 2 (minutes instead of a quarter of an hour); "
+                             "onepass: the mean of two one-pass fields (seeds 101, 102) at --ref-spp camera "
+                             "samples that all trace every light, no demodulation (cached)")
+    parser.add_argument("--ref-spp", type=int, default=32)
+    parser.add_argument("--configs", nargs="+", default=[],
+                        help="one-pass settings to score, each 'C:T' (spp C, shade_spp T; demodulated when T < C), "
+                             "subsurface off; replaces the --spps x denoise table when given")
+    parser.add_argument("--check-direct", action="store_true",
+                        help="with --reference onepass: also score the reference against render_lighting at "
+                             "--direct-spp (max_depth 2) under each map")
     parser.add_argument("--reference-only", action="store_true", help="render and cache the reference, then stop")
     parser.add_argument("--skip-timing", action="store_true")
     parser.add_argument("--skip-interreflection", action="store_true")
@@ -158,6 +186,14 @@ def main() -> int:
             return 0
         ref_img = {k: relit(ref, v) for k, v in maps.items()}
         alpha_ref = ref.alpha.flatten()
+    elif args.reference == "onepass":
+        refs = [cached_onepass(args.out, args.source, args.seed, args.view, subj, cam, args.ref_spp, sd)
+                for sd in (101, 102)]
+        if args.reference_only:
+            return 0
+        pair = [{k: relit(r, v) for k, v in maps.items()} for r in refs]
+        ref_img = {k: 0.5 * (pair[0][k] + pair[1][k]) for k in maps}
+        alpha_ref = 0.5 * (refs[0].alpha.flatten() + refs[1].alpha.flatten())
     else:  # one render under each map (the OLAT basis weighted by the map: the same envmap, importance-sampled)
         ref_img = {}
         for k, ball in balls.items():
@@ -183,6 +219,46 @@ def main() -> int:
     def scores(rf: ReflectanceField) -> dict[str, float]:
         mask = (alpha_ref > 0) | (rf.alpha.flatten() > 0)
         return {k: psnr8(to_srgb8(relit(rf, v), exposure[k]), ref8[k], mask) for k, v in maps.items()}
+
+    def region_scores(img: dict[str, torch.Tensor], alpha: torch.Tensor) -> str:
+        """PSNR over interior pixels (both alphas 1) and over partly covered ones (the silhouettes, cards)."""
+        full = (alpha_ref > 0.999) & (alpha > 0.999)
+        part = ((alpha_ref > 0) | (alpha > 0)) & ~full
+        out = []
+        for k in maps:
+            a = to_srgb8(img[k], exposure[k])
+            out.append(f"{k} interior {psnr8(a, ref8[k], full):.2f} / partial {psnr8(a, ref8[k], part):.2f}")
+        return "; ".join(out) + f" ({int(full.sum())} interior, {int(part.sum())} partial pixels)"
+
+    if args.reference == "onepass":
+        mask = (refs[0].alpha.flatten() > 0) | (refs[1].alpha.flatten() > 0)
+        own = {k: psnr8(to_srgb8(pair[0][k], exposure[k]), to_srgb8(pair[1][k], exposure[k]), mask) for k in maps}
+        print(f"reference: mean of two one-pass fields at {args.ref_spp} spp (all lights per sample); the two "
+              f"against each other: sun {own['sun']:.2f} dB, overcast {own['overcast']:.2f} dB (the mean's own "
+              f"noise is about 6 dB below that)", flush=True)
+        if args.check_direct:
+            for k, ball in balls.items():
+                img, alpha = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1, seed=7)
+                m = (alpha_ref > 0) | (alpha.flatten() > 0)
+                print(f"  {k}: render_lighting {args.direct_spp} spp vs the one-pass reference "
+                      f"{psnr8(to_srgb8(img.reshape(3, -1), exposure[k]), ref8[k], m):.2f} dB; one reference field "
+                      f"vs the direct render {psnr8(to_srgb8(img.reshape(3, -1), exposure[k]), to_srgb8(pair[0][k], exposure[k]), m):.2f} dB",
+                      flush=True)
+
+    if args.configs:
+        print(f"\n{'C':>4} {'T':>4} {'demod':>6} {'sun dB':>8} {'overcast dB':>12} {'render s':>9} {'lights s':>9}  regions")
+        for cfg in args.configs:
+            c, t = (int(x) for x in cfg.split(":"))
+            times, rf = [], None
+            for _ in range(args.repeats):
+                rf = render_olat(subj, cam, spp=c, shade_spp=t, subsurface=False, threads=1)
+                times.append((rf.meta["render_seconds"], rf.meta["timings"]["lights"]))
+            sc = scores(rf)
+            reg = region_scores({k: relit(rf, v) for k, v in maps.items()}, rf.alpha.flatten())
+            print(f"{c:>4} {t:>4} {str(rf.meta['demodulate']):>6} {sc['sun']:>8.2f} {sc['overcast']:>12.2f} "
+                  f"{statistics.median(x[0] for x in times):>9.1f} {statistics.median(x[1] for x in times):>9.1f}"
+                  f"  {reg}", flush=True)
+        return 0
 
     print(f"\n{'spp':>4} {'denoise':>8} {'sss':>4} {'sun dB':>8} {'overcast dB':>12} {'render s':>9}")
     sss_rows = []

@@ -92,6 +92,7 @@ __all__ = [
     "material_bsdf",
     "olat_envmap_basis",
     "render_lighting",
+    "ONEPASS_SHADE_SPP",
     "ONEPASS_SPP",
     "diffuse_twin_bsdf",
     "render_olat",
@@ -653,6 +654,8 @@ def render_olat(
     subsurface: bool = True,
     denoise: bool = False,
     chunk_lanes: int | None = None,
+    shade_spp: int | None = None,
+    demodulate: bool | None = None,
 ) -> ReflectanceField:
     r"""Render the OLAT reflectance field of a subject seen by a camera.
 
@@ -681,6 +684,10 @@ def render_olat(
         denoise: one-pass only: apply ``denoise.denoise_field`` when that module exists (off by default: it
             lowers the PSNR of relit portraits at :data:`ONEPASS_SPP`, see there).
         chunk_lanes: one-pass only: light-hit pairs per kernel.
+        shade_spp: one-pass only: camera samples per pixel that trace the lights (the expensive part); default
+            ``min(spp, ONEPASS_SHADE_SPP)``.
+        demodulate: one-pass only: scale the traced samples' shading by the coverage and albedo of all ``spp``
+            camera samples (:mod:`~kornia_ilum.synth.lightstage.onepass`); default ``shade_spp < spp``.
 
     Returns:
         the :class:`ReflectanceField`; ``meta`` records the method, settings and timings. The one-pass
@@ -717,6 +724,14 @@ def render_olat(
     check_positive_int(lighting_size, "lighting_size")
     spp = ONEPASS_SPP if spp is None else spp
     check_positive_int(spp, "spp")
+    shade_spp = min(spp, ONEPASS_SHADE_SPP) if shade_spp is None else shade_spp
+    check_positive_int(shade_spp, "shade_spp")
+    if shade_spp > spp:
+        raise ValueCheckError(f"shade_spp must be at most spp = {spp}, got {shade_spp}")
+    if demodulate is None:
+        demodulate = shade_spp < spp
+    if not demodulate and shade_spp != spp:
+        raise ValueCheckError("demodulate=False needs shade_spp == spp (every camera sample traces the lights)")
     if max_depth not in (None, 2):
         raise ValueCheckError(f"the one-pass renderer traces direct light only (max_depth 2), got {max_depth}")
     if lights is not None:
@@ -737,7 +752,8 @@ def render_olat(
         dr.set_thread_count(threads)
     transform = camera_transform(camera, _pivot(subject))
     n_lights = int(mirror_ball_valid(lighting_size).sum())
-    res = render_olat_onepass(subject, camera, transform, lighting_size=lighting_size, spp=spp, seed=seed,
+    res = render_olat_onepass(subject, camera, transform, lighting_size=lighting_size, spp=spp,
+                              shade_spp=shade_spp, demodulate=demodulate, seed=seed,
                               chunk_lanes=chunk_lanes or _DEFAULT_LANES,
                               callback=None if callback is None else (lambda frac: callback(frac * n_lights)))
     t_post = time.perf_counter()
@@ -769,6 +785,8 @@ def render_olat(
         "variant": variant,
         "max_depth": 2,
         "spp": spp,
+        "shade_spp": shade_spp,
+        "demodulate": demodulate,
         "seed": seed,
         "lighting_size": lighting_size,
         "post": steps,
@@ -802,6 +820,9 @@ def render_olat(
 #: (it smooths texture and edge detail that the reference has), so :func:`render_olat` does not denoise by
 #: default.
 ONEPASS_SPP = 4
+
+#: Default camera samples per pixel that trace the lights (:func:`render_olat`'s ``shade_spp``).
+ONEPASS_SHADE_SPP = 4
 
 
 def _vectorised(variant: str | None) -> bool:

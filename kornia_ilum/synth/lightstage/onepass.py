@@ -77,7 +77,9 @@ class OnePassResult:
         cols: int64 ``(N_v,)`` the valid light indices.
         gbuffer: the :class:`GBuffer`.
         timings: seconds per stage.
-        spp: camera samples per pixel.
+        spp: camera samples per pixel ``C``.
+        shade_spp: camera samples per pixel that traced the lights ``T``.
+        demodulate: whether the shading was re-modulated by the ``C`` samples' coverage and albedo.
     """
 
     diffuse: torch.Tensor
@@ -87,6 +89,8 @@ class OnePassResult:
     gbuffer: GBuffer
     timings: dict[str, float]
     spp: int
+    shade_spp: int = 0
+    demodulate: bool = False
 
 
 def _morton(n: int) -> np.ndarray:
@@ -242,6 +246,8 @@ class _Scenes:
         self.is_cornea = _jit(mi.Bool, [k == "cornea" for k in kinds], dtype=bool)
         self.is_alpha = _jit(mi.Bool, [p.alpha_tested for p in self.parts], dtype=bool)
         self.is_sss = _jit(mi.Float, [float(p.subsurface) for p in self.parts])
+        self.is_lambert = _jit(mi.Float, [float(k == "diffuse") for k in kinds])
+        self.needs_twin = _jit(mi.Float, [float(k not in ("diffuse", "cornea")) for k in kinds])
         self.cornea_params = {}
         for i, part in enumerate(subject.parts):
             if part.material.kind == "cornea":
@@ -312,6 +318,24 @@ def _camera_dirs(camera: Camera, spp: int, rng: np.random.Generator) -> np.ndarr
     return (d / np.linalg.norm(d, axis=-1, keepdims=True)).astype(np.float32)
 
 
+@functools.lru_cache(maxsize=16)
+def _strata_rank(spp: int) -> np.ndarray:
+    """Rank of each camera stratum ``s`` (``su = s % ku``, ``sv = s // ku``, :func:`_camera_dirs`) in Z order.
+
+    Evenly spaced picks in this order are spread over the pixel (the traced hits of :func:`render_olat_onepass`).
+    """
+    kv = max(d for d in range(1, math.isqrt(spp) + 1) if spp % d == 0)
+    ku = spp // kv
+    s = np.arange(spp)
+    su, sv = s % ku, s // ku
+    code = np.zeros(spp, np.int64)
+    for b in range(max(ku, kv).bit_length()):
+        code |= ((su >> b) & 1) << (2 * b) | ((sv >> b) & 1) << (2 * b + 1)
+    rank = np.empty(spp, np.int64)
+    rank[np.argsort(code, kind="stable")] = np.arange(spp)
+    return rank
+
+
 def _dir_to_light(dirs: np.ndarray, lighting_size: int) -> np.ndarray:
     from kornia_ilum.geometry import direction_to_mirror_ball
 
@@ -326,6 +350,8 @@ def render_olat_onepass(
     *,
     lighting_size: int = 32,
     spp: int = 4,
+    shade_spp: int | None = None,
+    demodulate: bool | None = None,
     seed: int = 0,
     chunk_lanes: int = _DEFAULT_LANES,
     callback: Any = None,
@@ -337,7 +363,11 @@ def render_olat_onepass(
         camera: the camera.
         transform: subject-to-camera transform (:func:`~kornia_ilum.synth.lightstage.scene.camera_transform`).
         lighting_size: the mirror-ball side ``S``.
-        spp: camera samples per pixel; each sample traces one direction per light.
+        spp: camera samples per pixel ``C`` (coverage, albedo, G-buffer, glints).
+        shade_spp: ``T``, the camera samples per pixel that trace every light (at most ``T`` of the pixel's
+            hits, evenly spaced in the strata's Z order); default ``spp`` (all of them).
+        demodulate: re-modulate the traced samples' shading by the ``C`` samples' coverage and albedo (module
+            docstring); default ``shade_spp < spp``. Without it every hit must be traced (``shade_spp = spp``).
         seed: the random seed (camera jitter and light samples).
         chunk_lanes: light-hit pairs per kernel.
         callback: called with a fraction of the work done (floats summing to 1), for progress bars.
@@ -350,6 +380,12 @@ def render_olat_onepass(
 
     if not mi.variant() or not mi.variant().startswith(("llvm", "cuda")):
         raise ValueCheckError(f"the one-pass renderer needs a vectorised Mitsuba variant, got {mi.variant()}")
+    shade_spp = spp if shade_spp is None else int(shade_spp)
+    if not 1 <= shade_spp <= spp:
+        raise ValueCheckError(f"shade_spp must be in [1, spp = {spp}], got {shade_spp}")
+    demodulate = shade_spp < spp if demodulate is None else bool(demodulate)
+    if not demodulate and shade_spp != spp:
+        raise ValueCheckError("without demodulation every camera sample traces the lights (shade_spp = spp)")
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     sc = _Scenes(mi, dr, subject, transform)
@@ -368,8 +404,7 @@ def render_olat_onepass(
 
     # ---- camera rays, through transparent texels and the cornea
     t1 = time.perf_counter()
-    hits = []  # per sample: (pixel indices, ray origins, ray directions, throughput)
-    glints = []  # (pixel, origin, reflected dir, weight)
+    glints = []  # (pixel, reflected dir, weight)
     g_albedo = np.zeros((3, p_count), np.float64)
     g_normal = np.zeros((3, p_count), np.float64)
     g_depth = np.zeros(p_count, np.float64)
@@ -382,7 +417,7 @@ def render_olat_onepass(
     ray = mi.Ray3f(dr.zeros(mi.Point3f, n_cam), _jit(mi.Vector3f, d[:, 0], d[:, 1], d[:, 2]))
     active = dr.full(mi.Bool, True, n_cam)
     through = dr.full(mi.Float, 1.0, n_cam)
-    layers = []  # per layer: lanes that stop there, their ray origins, directions, throughput
+    layers = []  # per layer: lanes that stop there, ray origins, directions, throughput, albedo, subsurface
     for _ in range(MAX_LAYERS):
         si = sc.cam.ray_intersect(ray, active)
         active &= si.is_valid()
@@ -420,102 +455,138 @@ def render_olat_onepass(
                 glints.append((gsel % p_count, np.asarray(refl)[:, gsel].T, gw_np[gsel]))
         if len(sel):
             pix = sel % p_count
-            g_albedo += np.stack([np.bincount(pix, c, p_count) for c in np.asarray(albedo)[:, sel]])
+            alb = np.asarray(albedo)[:, sel]
+            g_albedo += np.stack([np.bincount(pix, c, p_count) for c in alb])
             g_normal += np.stack([np.bincount(pix, c, p_count) for c in np.asarray(nrm)[:, sel]])
             g_depth += np.bincount(pix, np.asarray(depth)[sel], p_count)
             g_alpha += np.bincount(pix, None, p_count)
-            g_sss += np.bincount(pix, np.asarray(sss)[sel], p_count)
-            layers.append((sel, np.asarray(ray.o)[:, sel].T, np.asarray(ray.d)[:, sel].T, np.asarray(through)[sel]))
+            s_np = np.asarray(sss)[sel]
+            g_sss += np.bincount(pix, s_np, p_count)
+            layers.append((sel, np.asarray(ray.o)[:, sel].T, np.asarray(ray.d)[:, sel].T, np.asarray(through)[sel],
+                           alb.T, s_np > 0))
         if sc.cornea_params:
             through = dr.select(cornea, through * (1.0 - 2.0 * r_s / (1.0 + r_s)), through)
         active &= ~stop
         ray = dr.select(active, si.spawn_ray(ray.d), ray)
         if not bool(dr.any(active)):
             break
-    if layers:  # regroup the terminal hits per camera sample (the light samples are stratified over them)
-        lanes = np.concatenate([x[0] for x in layers])
-        o_all, d_all = np.concatenate([x[1] for x in layers]), np.concatenate([x[2] for x in layers])
-        t_all = np.concatenate([x[3] for x in layers])
-        order = np.argsort(lanes, kind="stable")
-        lanes, o_all, d_all, t_all = lanes[order], o_all[order], d_all[order], t_all[order]
-        bounds = np.searchsorted(lanes, np.arange(spp + 1) * p_count)
-        for s in range(spp):
-            i0, i1 = bounds[s], bounds[s + 1]
-            if i1 > i0:
-                hits.append((s, lanes[i0:i1] - s * p_count, o_all[i0:i1], d_all[i0:i1], t_all[i0:i1]))
-    timings["camera"] = time.perf_counter() - t1
-
-    # ---- all lights at every terminal hit
-    t2 = time.perf_counter()
     rows_all = np.flatnonzero(g_alpha > 0)
     row_of = np.full(p_count, -1, np.int64)
     row_of[rows_all] = np.arange(len(rows_all))
-    diffuse = torch.zeros(3, len(rows_all), nv)
-    specular = torch.zeros(3, len(rows_all), nv)
-    total = sum(len(h[1]) for h in hits)
+    n_rows = len(rows_all)
+    # the hits that trace the lights: per pixel, its hits in the Z order of their strata, T_p = min(T, H_p) of
+    # them evenly spaced (a random offset per pixel); the t-th traced hit takes the t-th of T_p light strata
+    if layers:
+        lanes = np.concatenate([x[0] for x in layers])
+        o_all, d_all = np.concatenate([x[1] for x in layers]), np.concatenate([x[2] for x in layers])
+        t_all = np.concatenate([x[3] for x in layers])
+        a_all = np.concatenate([x[4] for x in layers])
+        s_all = np.concatenate([x[5] for x in layers])
+        pix = lanes % p_count
+        rank = _strata_rank(spp)[lanes // p_count]
+        order = np.lexsort((rank, pix))
+        lanes, pix = lanes[order], pix[order]
+        o_all, d_all, t_all, a_all, s_all = o_all[order], d_all[order], t_all[order], a_all[order], s_all[order]
+        row = row_of[pix]
+        h_cnt = np.bincount(row, minlength=n_rows)
+        first = np.concatenate([[0], np.cumsum(h_cnt)[:-1]])
+        t_cnt = np.minimum(h_cnt, shade_spp)
+        t_row = np.repeat(np.arange(n_rows), t_cnt)
+        t_rank = np.arange(len(t_row)) - np.repeat(np.cumsum(t_cnt) - t_cnt, t_cnt)
+        off = rng.random(n_rows)[t_row]
+        pick = first[t_row] + np.floor((t_rank + off) * h_cnt[t_row] / t_cnt[t_row]).astype(np.int64)
+        tr = (row[pick], t_rank, t_cnt[t_row], o_all[pick], d_all[pick], t_all[pick], a_all[pick], s_all[pick])
+    else:
+        tr = (np.zeros(0, np.int64),) * 3 + (np.zeros((0, 3)),) * 2 + (np.zeros(0),) + (np.zeros((0, 3)),
+                                                                                     np.zeros(0, bool))
+    timings["camera"] = time.perf_counter() - t1
+
+    # ---- all lights at every traced hit
+    t2 = time.perf_counter()
+    acc_d = torch.zeros(3, n_rows, nv)  # diffuse sums: of subsurface hits (demodulated: the other hits in acc_e)
+    acc_e = torch.zeros(3, n_rows, nv) if demodulate else None
+    acc_s = torch.zeros(3, n_rows, nv)
+    tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_thr, tr_alb, tr_sss = tr
+    total = len(tr_row)
     hc = max(1, chunk_lanes // nv)
-    done = 0
-    for s, sel, o_np, d_np, thr_np in hits:
-        for a in range(0, len(sel), hc):
-            b = min(len(sel), a + hc)
-            n_h = b - a
-            ray = mi.Ray3f(_jit(mi.Point3f, *o_np[a:b].T), _jit(mi.Vector3f, *d_np[a:b].T))
-            si = sc.cam.ray_intersect(ray)
-            thr = _jit(mi.Float, thr_np[a:b])
-            dr.eval(si, thr)
-            # kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon
-            lane = dr.arange(mi.UInt32, n_h * nv)
-            h = lane // nv
-            light = lane - h * nv
+    twin_at = sc.needs_twin if demodulate else sc.is_sss
+    for a in range(0, total, hc):
+        b = min(total, a + hc)
+        n_h = b - a
+        ray = mi.Ray3f(_jit(mi.Point3f, *tr_o[a:b].T), _jit(mi.Vector3f, *tr_d[a:b].T))
+        si = sc.cam.ray_intersect(ray)
+        strat = _jit(mi.Float, tr_rank[a:b])
+        n_strat = _jit(mi.Float, tr_cnt[a:b])
+        dr.eval(si, strat, n_strat)
+        # kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon
+        lane = dr.arange(mi.UInt32, n_h * nv)
+        h = lane // nv
+        light = lane - h * nv
+        sih = dr.gather(mi.SurfaceInteraction3f, si, h)
+        key = dr.opaque(mi.UInt32, (seed * 7919 + a * 31) & 0x7FFFFFFF)
+        rng_d = mi.PCG32(dr.width(lane), lane + key * 2654435761)
+        cnt = dr.gather(mi.UInt32, l_count, light)
+        s_frac = (dr.gather(mi.Float, strat, h) + rng_d.next_float32()) / dr.gather(mi.Float, n_strat, h)
+        k = dr.minimum(mi.UInt32(s_frac * mi.Float(cnt)), cnt - 1)
+        cidx = dr.gather(mi.UInt32, l_start, light) + k
+        u = dr.gather(mi.Float, c_u, cidx) + cell * rng_d.next_float32()
+        v = dr.gather(mi.Float, c_v, cidx) + cell * rng_d.next_float32()
+        r2 = u * u + v * v
+        sq = 2.0 * dr.safe_sqrt(1.0 - r2)
+        wo = mi.Vector3f(u * sq, v * sq, 1.0 - 2.0 * r2)
+        ng = sih.n
+        up = (r2 <= 1.0) & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
+        dr.eval(wo, up)
+        # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
+        idx = dr.compress(up)
+        n_up = dr.width(idx)
+        out_d = dr.zeros(mi.Color3f, n_h * nv)
+        out_s = dr.zeros(mi.Color3f, n_h * nv)
+        if n_up:
+            h = idx // nv
+            light = idx - h * nv
+            wo = dr.gather(mi.Vector3f, wo, idx)
             sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-            key = dr.opaque(mi.UInt32, (seed * 7919 + s * 104729 + a * 31) & 0x7FFFFFFF)
-            rng_d = mi.PCG32(dr.width(lane), lane + key * 2654435761)
-            cnt = dr.gather(mi.UInt32, l_count, light)
-            s_frac = (dr.opaque(mi.Float, s) + rng_d.next_float32()) / spp
-            k = dr.minimum(mi.UInt32(s_frac * mi.Float(cnt)), cnt - 1)
-            cidx = dr.gather(mi.UInt32, l_start, light) + k
-            u = dr.gather(mi.Float, c_u, cidx) + cell * rng_d.next_float32()
-            v = dr.gather(mi.Float, c_v, cidx) + cell * rng_d.next_float32()
-            r2 = u * u + v * v
-            sq = 2.0 * dr.safe_sqrt(1.0 - r2)
-            wo = mi.Vector3f(u * sq, v * sq, 1.0 - 2.0 * r2)
-            ng = sih.n
-            up = (r2 <= 1.0) & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
-            dr.eval(wo, up)
-            # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
-            idx = dr.compress(up)
-            n_up = dr.width(idx)
-            out_d = dr.zeros(mi.Color3f, n_h * nv)
-            out_s = dr.zeros(mi.Color3f, n_h * nv)
-            if n_up:
-                h = idx // nv
-                light = idx - h * nv
-                wo = dr.gather(mi.Vector3f, wo, idx)
-                sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-                part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
-                vis = sc.visible(sih, wo, mi.Bool(True))
-                wo_l = sih.to_local(wo)
-                weight = dr.gather(mi.Float, l_weight, light) * dr.gather(mi.Float, thr, h)
-                bs_full = dr.gather(mi.BSDFPtr, sc.full, part, vis)
-                f_full = bs_full.eval(ctx, sih, wo_l, vis) * weight
-                # the diffuse twin only where subsurface scattering will need the split; elsewhere all of the
-                # response goes to the specular part (which the subsurface pass leaves alone)
-                sss = vis & (dr.gather(mi.Float, sc.is_sss, part) > 0)
-                bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, sss)
-                f_diff = dr.select(sss, bs_twin.eval(ctx, sih, wo_l, sss) * weight, 0.0)
-                f_full = dr.select(vis, f_full, 0.0)
-                dr.scatter(out_d, f_diff, idx)
-                dr.scatter(out_s, f_full - f_diff, idx)
-            dr.eval(out_d, out_s)
-            rows = torch.from_numpy(row_of[sel[a:b]])
-            diffuse.index_add_(1, rows, torch.from_numpy(np.asarray(out_d)).view(3, n_h, nv))
-            specular.index_add_(1, rows, torch.from_numpy(np.asarray(out_s)).view(3, n_h, nv))
-            done += n_h
-            if callback is not None:
-                callback(n_h / max(total, 1))
+            part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
+            vis = sc.visible(sih, wo, mi.Bool(True))
+            wo_l = sih.to_local(wo)
+            weight = dr.gather(mi.Float, l_weight, light)
+            bs_full = dr.gather(mi.BSDFPtr, sc.full, part, vis)
+            f_full = dr.select(vis, bs_full.eval(ctx, sih, wo_l, vis) * weight, 0.0)
+            # the diffuse part: the twin (specular = 0) of principled parts where it is needed (subsurface
+            # hits; with demodulation every principled hit), the whole response of diffuse parts
+            twin = vis & (dr.gather(mi.Float, twin_at, part) > 0)
+            bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, twin)
+            f_diff = dr.select(twin, bs_twin.eval(ctx, sih, wo_l, twin) * weight, 0.0)
+            if demodulate:
+                f_diff = dr.select(vis & (dr.gather(mi.Float, sc.is_lambert, part) > 0), f_full, f_diff)
+            dr.scatter(out_d, f_diff, idx)
+            dr.scatter(out_s, f_full - f_diff, idx)
+        dr.eval(out_d, out_s)
+        rows = torch.from_numpy(tr_row[a:b])
+        od = torch.from_numpy(np.asarray(out_d)).view(3, n_h, nv)
+        os_ = torch.from_numpy(np.asarray(out_s)).view(3, n_h, nv)
+        if demodulate:
+            m = torch.from_numpy(tr_sss[a:b])
+            acc_d.index_add_(1, rows[m], od[:, m])
+            acc_e.index_add_(1, rows[~m], od[:, ~m])
+            acc_s.index_add_(1, rows, os_)
+        else:  # the plain mean over the C samples, throughput included
+            w = torch.from_numpy(tr_thr[a:b].astype(np.float32))[None, :, None]
+            acc_d.index_add_(1, rows, od * w)
+            acc_s.index_add_(1, rows, os_ * w)
+        if callback is not None:
+            callback(n_h / max(total, 1))
     timings["lights"] = time.perf_counter() - t2
 
-    # ---- glints, then the mean over samples
+    # ---- the estimate per pixel
+    if demodulate:
+        _remodulate(acc_d, acc_e, acc_s, tr, lanes_info=(row_of, layers, p_count, spp), n_rows=n_rows)
+        diffuse, specular = acc_d, acc_e
+        del acc_s
+    else:
+        diffuse, specular = acc_d / spp, acc_s / spp
+    # ---- glints, a mean over the C samples
     for gsel, refl, w in glints:
         li = _dir_to_light(refl, lighting_size)
         col = np.searchsorted(valid, li)
@@ -529,9 +600,7 @@ def render_olat_onepass(
             diffuse, specular = torch.cat([diffuse, pad], 1), torch.cat([specular, pad], 1)
             r = row_of[gsel]
         np_spec = specular.numpy()
-        np.add.at(np_spec, (slice(None), r, col), w[None].astype(np.float32))
-    diffuse /= spp
-    specular /= spp
+        np.add.at(np_spec, (slice(None), r, col), (w / spp)[None].astype(np.float32))
     cover = np.maximum(g_alpha, 1.0)
     gbuf = GBuffer(
         albedo=torch.from_numpy((g_albedo / cover).reshape(3, size, size)).float(),
@@ -543,4 +612,52 @@ def render_olat_onepass(
     )
     timings["total"] = time.perf_counter() - t0
     return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(valid), gbuf,
-                         {k: round(v, 3) for k, v in timings.items()}, spp)
+                         {k: round(v, 3) for k, v in timings.items()}, spp, shade_spp, demodulate)
+
+
+def _remodulate(acc_d: torch.Tensor, acc_e: torch.Tensor, acc_s: torch.Tensor, tr: tuple, lanes_info: tuple,
+                n_rows: int) -> None:
+    r"""Demodulated estimate, in place: ``acc_d`` <- the subsurface hits' diffuse part, ``acc_e`` <- the rest.
+
+    Per pixel and group ``g`` (subsurface hits, other hits), with ``A_g`` the mean over the ``C`` camera samples
+    of ``throughput x albedo [hit in g]`` and ``a_g`` the sum of the albedos of the traced hits in ``g``:
+    diffuse ``= A_g F_g / a_g`` (``F_g`` the traced diffuse sums: a ratio estimator of the irradiance factor); a
+    group with no traced albedo in a channel takes the pooled ratio of both groups. Specular ``= alpha S / T_p``
+    with ``alpha`` the mean throughput-weighted coverage of the ``C`` samples.
+    """
+    row_of, layers, p_count, spp = lanes_info
+    tr_row, _, tr_cnt, _, _, _, tr_alb, tr_sss = tr
+    cam_a = torch.zeros(2, 3, n_rows, dtype=torch.float64)  # [subsurface, other] x channel x row
+    cov = torch.zeros(n_rows, dtype=torch.float64)
+    for sel, _, _, thr, alb, sss in layers:
+        r = torch.from_numpy(row_of[sel % p_count])
+        ta = torch.from_numpy(alb.T * thr[None]).double()
+        s = torch.from_numpy(sss)
+        cam_a[0].index_add_(1, r[s], ta[:, s])
+        cam_a[1].index_add_(1, r[~s], ta[:, ~s])
+        cov.index_add_(0, r, torch.from_numpy(thr).double())
+    cam_a /= spp
+    cov /= spp
+    tra = torch.zeros(2, 3, n_rows, dtype=torch.float64)
+    r = torch.from_numpy(tr_row)
+    s = torch.from_numpy(tr_sss)
+    a = torch.from_numpy(tr_alb.T).double()
+    tra[0].index_add_(1, r[s], a[:, s])
+    tra[1].index_add_(1, r[~s], a[:, ~s])
+    n_tr = torch.bincount(r, minlength=n_rows).double()
+    pooled = tra.sum(0)
+    eps = 1e-6
+    # fallbacks (computed before the in-place scaling): a group seen by the C samples but by no traced hit
+    fb = [(cam_a[g] > 0) & (tra[g] <= eps) & (pooled > eps) for g in range(2)]
+    pooled_sum = {}
+    for g, acc in ((0, acc_d), (1, acc_e)):
+        c, rr = torch.nonzero(fb[g], as_tuple=True)
+        if len(c):
+            pooled_sum[g] = (c, rr, (acc_d[c, rr] + acc_e[c, rr]) / pooled[c, rr, None].float())
+    for g, acc in ((0, acc_d), (1, acc_e)):
+        scale = torch.where(tra[g] > eps, cam_a[g] / tra[g].clamp_min(eps), torch.zeros_like(tra[g]))
+        acc *= scale.float()[..., None]
+        if g in pooled_sum:
+            c, rr, ratio = pooled_sum[g]
+            acc[c, rr] = ratio * cam_a[g][c, rr, None].float()
+    acc_e += acc_s * (cov / n_tr.clamp_min(1)).float()[None, :, None]
