@@ -706,8 +706,8 @@ class CameraEffects:
             On CPU float32 the effects run fused, one image at a time on a scratch image that stays in the cache:
             the lens blur on the images that draw it (OpenCV's separable filter), then one multiplication by
             ``gain * (1 - v r^2)`` times the table's scale ``u`` (``cells^2``), the sensor noise in those units
-            (``x u + sqrt(shot u (x u) + read^2 u^2) n`` is ``u`` times the noisy ``x``), the table lookup of
-            :func:`encode_tone8` and the JPEG round trip of the images that draw it. The result equals the
+            (``x u + sqrt(shot u) sqrt(x u + read^2 u / shot) n`` is ``u`` times the noisy ``x``), the table
+            lookup of :func:`encode_tone8` and the JPEG round trip of the images that draw it. The result equals the
             unfused chain (:meth:`apply_reference`) up to float rounding: codes at most one off, for a few
             values near code boundaries (then JPEG may spread that difference a little). Other devices or
             dtypes run :meth:`apply_reference`.
@@ -746,9 +746,9 @@ class CameraEffects:
                 torch.mul(sources[k], weight, out=x)
             else:
                 torch.mul(sources[k], s, out=x)
-            if noisy[k]:
-                torch.clamp(x, min=0.0, out=std).mul_(shot_l[k] * u).add_(read2[k] * u * u)
-                x.addcmul_(_sqrt_(std), noise[k])
+            if noisy[k]:  # sqrt(A x+ + R) = sqrt(A) sqrt(x+ + R / A), A = shot u, R = read^2 u^2
+                torch.clamp(x, min=0.0, out=std).add_(read2[k] * u / shot_l[k])
+                x.addcmul_(_sqrt_(std), noise[k], value=math.sqrt(shot_l[k] * u))
             _encode_one(x, tables[k], cells[k], index, out[k])
             if quality[k] > 0:
                 _jpeg_one(out[k], quality[k])
