@@ -123,3 +123,53 @@ def test_makehuman_matches_reference(shared_data) -> None:
         err = (img_f - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()
         assert err < 0.07, err  # measured 0.034 and 0.037 (24 px: the edges dominate)
     assert abs(fast.alpha.mean() - ref.alpha.mean()) < 0.02
+
+
+def test_demodulated_matches_reference(fields) -> None:
+    """16 camera samples of which 4 trace the lights (demodulated): per-light sums still match the reference."""
+    _, ref = fields
+    fast = render_olat(scene(), CAM, lighting_size=S, spp=16, shade_spp=4, method="onepass", threads=1)
+    assert fast.meta["demodulate"] and fast.meta["shade_spp"] == 4
+    f, r = fast.field.float(), ref.field.float()
+    per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
+    lit = per_light_r > 0.02 * per_light_r.max()
+    rel = (per_light_f[lit] - per_light_r[lit]).abs() / per_light_r[lit]
+    # measured up to 0.16 over seeds (0.25 for 4 plain samples): 4 light samples per pixel of S = 4's big regions
+    assert rel.max() < 0.22 and rel.abs().mean() < 0.1, rel
+    torch.testing.assert_close(fast.alpha, ref.alpha, atol=0.3, rtol=0)
+    img_f, img_r = relight(f, torch.ones(1, S * S, 3)), relight(r, torch.ones(1, S * S, 3))
+    assert ((img_f - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()) < 0.12
+
+
+def textured_quad() -> SimpleNamespace:
+    """A Lambertian quad facing the camera, covering the frame, with random albedo texels (4 x 4 per pixel), and a
+    sphere in front of it (a silhouette)."""
+    v = np.array([[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], np.float32)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    tex = np.random.default_rng(0).uniform(0.05, 0.95, (128, 128, 3)).astype(np.float32)
+    quad = SimpleNamespace(name="quad", vertices=v, faces=f, uvs=uv,
+                           material=SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), albedo_texture=tex))
+    sv, sf = _icosphere(3)
+    ball = SimpleNamespace(name="ball", vertices=0.8 * sv + np.array([0, 0, 1.0], np.float32), faces=sf,
+                           material=mat("diffuse", 0.7))
+    return SimpleNamespace(seed=0, split="train", skin_tone=2, parts=[quad, ball], face_landmarks=sv)
+
+
+def test_demodulation_antialiases_texture() -> None:
+    """At the light cost of 4 samples per pixel, 32 demodulated camera samples match a 64-sample reference's
+    anti-aliased texture and silhouette much better than 4 plain samples, under one light and under all
+    (measured: relative rms 0.18 -> 0.06 under all lights, 0.19 -> 0.095 under light 100; ``S = 16``, so that
+    the lights' own sampling noise is small)."""
+    sub = textured_quad()
+    cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=16)
+    s = 16
+    kw = dict(lighting_size=s, method="onepass", subsurface=False, threads=1)
+    ref = render_olat(sub, cam, spp=64, shade_spp=64, seed=1, **kw).field.float()
+    plain = render_olat(sub, cam, spp=4, seed=2, **kw).field.float()
+    demod = render_olat(sub, cam, spp=32, shade_spp=4, seed=2, **kw).field.float()
+    for lights in (torch.ones(1, s * s, 3), torch.zeros(1, s * s, 3).index_fill_(1, torch.tensor([100]), 5.0)):
+        img_r = relight(ref, lights)
+        err = [((relight(x, lights) - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()).item()
+               for x in (plain, demod)]
+        assert err[1] < 0.65 * err[0], err
