@@ -472,12 +472,27 @@ def _frame_angles(fov_deg: float, size: int, mirrored: bool) -> tuple[torch.Tens
     return ((phi + math.pi) / (2 * math.pi)).float(), ((math.pi / 2 - el) / math.pi).float()
 
 
-def _pyramid_grid(u: torch.Tensor, t: torch.Tensor, rows: int, turn: float) -> torch.Tensor:
-    """The padded map's ``grid_sample`` grid (``align_corners=True``) of ``(u - turn, t)``, ``(1, h, w, 2)``."""
+def _pyramid_grid(fov_deg: float, size: int, mirrored: bool, rows: int, turn: float) -> torch.Tensor:
+    """The padded map's ``grid_sample`` grid (``align_corners=True``) of the camera's rays turned by ``turn``,
+    ``(1, size, size, 2)``.
+
+    The rows' coordinates do not depend on the turn: they come from a cached grid, copied, and the columns'
+    ``(u - turn) mod 1`` are written in place (5 passes over the pixels instead of 10).
+    """
+    u, _ = _frame_angles(fov_deg, size, mirrored)
     w = 2 * rows
-    gx = torch.remainder(u - turn, 1.0).mul_(w).add_(0.5).mul_(2.0 / (w + 1)).sub_(1.0)
+    grid = _row_grid(fov_deg, size, mirrored, rows).clone()
+    gx = torch.sub(u, turn).remainder_(1.0).mul_(w).add_(0.5).mul_(2.0 / (w + 1)).sub_(1.0)
+    grid[0, ..., 0] = gx
+    return grid
+
+
+@functools.lru_cache(maxsize=64)
+def _row_grid(fov_deg: float, size: int, mirrored: bool, rows: int) -> torch.Tensor:
+    """:func:`_pyramid_grid` with the rows' coordinates filled in and the columns' at 0."""
+    _, t = _frame_angles(fov_deg, size, mirrored)
     gy = t.mul(rows).add_(0.5).mul_(2.0 / (rows + 1)).sub_(1.0)
-    return torch.stack([gx, gy], -1)[None]
+    return torch.stack([torch.zeros_like(gy), gy], -1)[None]
 
 
 #: Blurs of more than this many frame pixels are made at a coarser level of :func:`background_pyramid`.
@@ -503,8 +518,8 @@ def frame_backgrounds(
     looked up at ``size / 2^k`` in the map averaged ``2^k`` times, blurred by the rest
     (:func:`~kornia_ilum.synth.camera_effects.lens_blur` of ``sqrt((sigma / 2^k)^2 - 1/6)``, the bilinear
     enlargement's own spread subtracted; a per-image separable kernel, 3 to 10 times faster here than
-    :func:`kornia.filters.gaussian_blur2d` with per-image sigmas) and enlarged to ``size`` (bilinear): a blurred
-    frame costs less than a sharp one. The widths are approximate (the averaged map and the enlargement blur a
+    :func:`kornia.filters.gaussian_blur2d` with per-image sigmas) and enlarged to ``size`` (bilinear, OpenCV's
+    ``resize`` on CPU float32): a blurred frame costs less than a sharp one. The widths are approximate (the averaged map and the enlargement blur a
     little in their own ways, and blurs below 0.8 pixel come out at about 0.8); the blur is the same everywhere
     (a distant background).
 
@@ -547,8 +562,7 @@ def frame_backgrounds(
         frames = torch.empty(len(members), 3, side, side) if k else out[members[0] : members[0]]
         for n, j in enumerate(members):
             level = pyramids[j][k]
-            u, t = _frame_angles(fov, side, bool(mirror_l[j]))
-            grid = _pyramid_grid(u, t, level.shape[-2] - 2, turn_l[j])
+            grid = _pyramid_grid(fov, side, bool(mirror_l[j]), level.shape[-2] - 2, turn_l[j])
             view = F.grid_sample(level, grid, mode="bilinear", padding_mode="border", align_corners=True)[0]
             if k:
                 frames[n] = view
@@ -560,5 +574,25 @@ def frame_backgrounds(
         sel = torch.nonzero(rest >= 0.3).flatten()
         if len(sel) and side > 3:
             frames[sel] = lens_blur(frames[sel], rest[sel])
-        out[members] = F.interpolate(frames, size=(size, size), mode="bilinear", align_corners=False)
+        _enlarge(frames, out, members)
     return out
+
+
+def _enlarge(frames: torch.Tensor, out: torch.Tensor, members: list[int]) -> None:
+    """``out[members] = `` the frames enlarged to ``out``'s size, bilinear (``align_corners=False``).
+
+    On CPU float32 with OpenCV's ``resize`` plane by plane (``INTER_LINEAR`` with float weights on float images:
+    the same values up to float rounding, 7 times faster than :func:`~torch.nn.functional.interpolate` on one
+    core here: 0.05 against 0.35 ms per 192 x 192 frame).
+    """
+    size = out.shape[-2:]
+    if frames.dtype != torch.float32 or frames.device.type != "cpu" or out.dtype != torch.float32:
+        out[members] = F.interpolate(frames, size=tuple(size), mode="bilinear", align_corners=False)
+        return
+    import cv2
+
+    frames = frames.contiguous()
+    for n, j in enumerate(members):
+        for c in range(frames.shape[1]):
+            cv2.resize(frames[n, c].numpy(), (size[1], size[0]), dst=out[j, c].numpy(),
+                       interpolation=cv2.INTER_LINEAR)
