@@ -161,7 +161,7 @@ def main() -> int:
                              "samples that all trace every light, no demodulation (cached)")
     parser.add_argument("--ref-spp", type=int, default=32)
     parser.add_argument("--configs", nargs="+", default=[],
-                        help="one-pass settings to score, each 'C:T' (spp C, shade_spp T; demodulated when T < C), "
+                        help="one-pass settings to score, each 'C:T[:E]' (spp C, shade_spp T, edge_spp E; demodulated when T < C), "
                              "subsurface off; replaces the --spps x denoise table when given")
     parser.add_argument("--check-direct", action="store_true",
                         help="with --reference onepass: also score the reference against render_lighting at "
@@ -246,16 +246,18 @@ def main() -> int:
                       flush=True)
 
     if args.configs:
-        print(f"\n{'C':>4} {'T':>4} {'demod':>6} {'sun dB':>8} {'overcast dB':>12} {'render s':>9} {'lights s':>9}  regions")
+        print(f"\n{'C':>4} {'T':>4} {'E':>4} {'traced':>6} {'demod':>6} {'sun dB':>8} {'overcast dB':>12} "
+              f"{'render s':>9} {'lights s':>9}  regions")
         for cfg in args.configs:
-            c, t = (int(x) for x in cfg.split(":"))
+            c, t, e = ([int(x) for x in cfg.split(":")] + [None])[:3]
             times, rf = [], None
             for _ in range(args.repeats):
-                rf = render_olat(subj, cam, spp=c, shade_spp=t, subsurface=False, threads=1)
+                rf = render_olat(subj, cam, spp=c, shade_spp=t, edge_spp=e, subsurface=False, threads=1)
                 times.append((rf.meta["render_seconds"], rf.meta["timings"]["lights"]))
             sc = scores(rf)
             reg = region_scores({k: relit(rf, v) for k, v in maps.items()}, rf.alpha.flatten())
-            print(f"{c:>4} {t:>4} {str(rf.meta['demodulate']):>6} {sc['sun']:>8.2f} {sc['overcast']:>12.2f} "
+            print(f"{c:>4} {t:>4} {rf.meta['edge_spp']:>4} {rf.meta['traced_per_pixel']:>6.2f} "
+                  f"{str(rf.meta['demodulate']):>6} {sc['sun']:>8.2f} {sc['overcast']:>12.2f} "
                   f"{statistics.median(x[0] for x in times):>9.1f} {statistics.median(x[1] for x in times):>9.1f}"
                   f"  {reg}", flush=True)
         return 0

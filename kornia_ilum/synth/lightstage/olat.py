@@ -92,6 +92,7 @@ __all__ = [
     "material_bsdf",
     "olat_envmap_basis",
     "render_lighting",
+    "ONEPASS_EDGE_SPP",
     "ONEPASS_SHADE_SPP",
     "ONEPASS_SPP",
     "diffuse_twin_bsdf",
@@ -656,6 +657,7 @@ def render_olat(
     chunk_lanes: int | None = None,
     shade_spp: int | None = None,
     demodulate: bool | None = None,
+    edge_spp: int | None = None,
 ) -> ReflectanceField:
     r"""Render the OLAT reflectance field of a subject seen by a camera.
 
@@ -688,6 +690,8 @@ def render_olat(
             ``min(spp, ONEPASS_SHADE_SPP)``.
         demodulate: one-pass only: scale the traced samples' shading by the coverage and albedo of all ``spp``
             camera samples (:mod:`~kornia_ilum.synth.lightstage.onepass`); default ``shade_spp < spp``.
+        edge_spp: one-pass, demodulated only: the samples that trace the lights in mixed pixels (silhouettes,
+            hair, creases); default ``min(spp, max(shade_spp, ONEPASS_EDGE_SPP))``.
 
     Returns:
         the :class:`ReflectanceField`; ``meta`` records the method, settings and timings. The one-pass
@@ -730,6 +734,10 @@ def render_olat(
         raise ValueCheckError(f"shade_spp must be at most spp = {spp}, got {shade_spp}")
     if demodulate is None:
         demodulate = shade_spp < spp
+    edge_spp = min(spp, max(shade_spp, ONEPASS_EDGE_SPP)) if edge_spp is None else edge_spp
+    check_positive_int(edge_spp, "edge_spp")
+    if edge_spp > spp:
+        raise ValueCheckError(f"edge_spp must be at most spp = {spp}, got {edge_spp}")
     if not demodulate and shade_spp != spp:
         raise ValueCheckError("demodulate=False needs shade_spp == spp (every camera sample traces the lights)")
     if max_depth not in (None, 2):
@@ -753,7 +761,8 @@ def render_olat(
     transform = camera_transform(camera, _pivot(subject))
     n_lights = int(mirror_ball_valid(lighting_size).sum())
     res = render_olat_onepass(subject, camera, transform, lighting_size=lighting_size, spp=spp,
-                              shade_spp=shade_spp, demodulate=demodulate, seed=seed,
+                              shade_spp=shade_spp, edge_spp=edge_spp if demodulate else shade_spp,
+                              demodulate=demodulate, seed=seed,
                               chunk_lanes=chunk_lanes or _DEFAULT_LANES,
                               callback=None if callback is None else (lambda frac: callback(frac * n_lights)))
     t_post = time.perf_counter()
@@ -786,7 +795,9 @@ def render_olat(
         "max_depth": 2,
         "spp": spp,
         "shade_spp": shade_spp,
+        "edge_spp": edge_spp if demodulate else shade_spp,
         "demodulate": demodulate,
+        "traced_per_pixel": res.traced,
         "seed": seed,
         "lighting_size": lighting_size,
         "post": steps,
@@ -823,6 +834,9 @@ ONEPASS_SPP = 4
 
 #: Default camera samples per pixel that trace the lights (:func:`render_olat`'s ``shade_spp``).
 ONEPASS_SHADE_SPP = 4
+
+#: Default samples per pixel that trace the lights in mixed pixels (:func:`render_olat`'s ``edge_spp``).
+ONEPASS_EDGE_SPP = 16
 
 
 def _vectorised(variant: str | None) -> bool:

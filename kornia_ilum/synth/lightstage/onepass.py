@@ -55,10 +55,14 @@ from kornia_ilum.geometry import mirror_ball_pixel_index, mirror_ball_valid
 from kornia_ilum.synth.lightstage.gbuffer import GBuffer
 from kornia_ilum.synth.lightstage.scene import Camera
 
-__all__ = ["MAX_LAYERS", "OnePassResult", "light_cells", "render_olat_onepass"]
+__all__ = ["EDGE_NORMAL_SPREAD", "MAX_LAYERS", "OnePassResult", "light_cells", "render_olat_onepass"]
 
 #: Surfaces a camera or shadow ray may pass (cornea layers, transparent texels) before it stops.
 MAX_LAYERS = 6
+
+#: A pixel whose camera samples' shading normals have ``1 - |mean normal|`` above this is mixed (about 8 degrees
+#: of spread): it traces ``edge_spp`` samples.
+EDGE_NORMAL_SPREAD = 0.01
 
 _CELLS = 8  # sub-cells per mirror-ball pixel axis for the light regions
 _DEFAULT_LANES = 1 << 21  # light-hit pairs per kernel launch (about 100 MB of outputs)
@@ -80,6 +84,7 @@ class OnePassResult:
         spp: camera samples per pixel ``C``.
         shade_spp: camera samples per pixel that traced the lights ``T``.
         demodulate: whether the shading was re-modulated by the ``C`` samples' coverage and albedo.
+        traced: traced hits per covered pixel (the light stage's cost, in samples per pixel).
     """
 
     diffuse: torch.Tensor
@@ -91,6 +96,7 @@ class OnePassResult:
     spp: int
     shade_spp: int = 0
     demodulate: bool = False
+    traced: float = 0.0
 
 
 def _morton(n: int) -> np.ndarray:
@@ -351,6 +357,7 @@ def render_olat_onepass(
     lighting_size: int = 32,
     spp: int = 4,
     shade_spp: int | None = None,
+    edge_spp: int | None = None,
     demodulate: bool | None = None,
     seed: int = 0,
     chunk_lanes: int = _DEFAULT_LANES,
@@ -367,7 +374,9 @@ def render_olat_onepass(
         shade_spp: ``T``, the camera samples per pixel that trace every light (at most ``T`` of the pixel's
             hits, evenly spaced in the strata's Z order); default ``spp`` (all of them).
         demodulate: re-modulate the traced samples' shading by the ``C`` samples' coverage and albedo (module
-            docstring); default ``shade_spp < spp``. Without it every hit must be traced (``shade_spp = spp``).
+            docstring); default ``shade_spp < spp``.
+        edge_spp: with demodulation, the traced samples of mixed pixels (partly covered, more than one part, or
+            normals spread by more than :data:`EDGE_NORMAL_SPREAD`); default ``shade_spp``. Without it every hit must be traced (``shade_spp = spp``).
         seed: the random seed (camera jitter and light samples).
         chunk_lanes: light-hit pairs per kernel.
         callback: called with a fraction of the work done (floats summing to 1), for progress bars.
@@ -384,6 +393,9 @@ def render_olat_onepass(
     if not 1 <= shade_spp <= spp:
         raise ValueCheckError(f"shade_spp must be in [1, spp = {spp}], got {shade_spp}")
     demodulate = shade_spp < spp if demodulate is None else bool(demodulate)
+    edge_spp = shade_spp if edge_spp is None else int(edge_spp)
+    if not 1 <= edge_spp <= spp:
+        raise ValueCheckError(f"edge_spp must be in [1, spp = {spp}], got {edge_spp}")
     if not demodulate and shade_spp != spp:
         raise ValueCheckError("without demodulation every camera sample traces the lights (shade_spp = spp)")
     t0 = time.perf_counter()
@@ -463,7 +475,7 @@ def render_olat_onepass(
             s_np = np.asarray(sss)[sel]
             g_sss += np.bincount(pix, s_np, p_count)
             layers.append((sel, np.asarray(ray.o)[:, sel].T, np.asarray(ray.d)[:, sel].T, np.asarray(through)[sel],
-                           alb.T, s_np > 0))
+                           alb.T, s_np > 0, np.asarray(part)[sel], np.asarray(nrm)[:, sel].T))
         if sc.cornea_params:
             through = dr.select(cornea, through * (1.0 - 2.0 * r_s / (1.0 + r_s)), through)
         active &= ~stop
@@ -474,39 +486,15 @@ def render_olat_onepass(
     row_of = np.full(p_count, -1, np.int64)
     row_of[rows_all] = np.arange(len(rows_all))
     n_rows = len(rows_all)
-    # the hits that trace the lights: per pixel, its hits in the Z order of their strata, T_p = min(T, H_p) of
-    # them evenly spaced (a random offset per pixel); the t-th traced hit takes the t-th of T_p light strata
-    if layers:
-        lanes = np.concatenate([x[0] for x in layers])
-        o_all, d_all = np.concatenate([x[1] for x in layers]), np.concatenate([x[2] for x in layers])
-        t_all = np.concatenate([x[3] for x in layers])
-        a_all = np.concatenate([x[4] for x in layers])
-        s_all = np.concatenate([x[5] for x in layers])
-        pix = lanes % p_count
-        rank = _strata_rank(spp)[lanes // p_count]
-        order = np.lexsort((rank, pix))
-        lanes, pix = lanes[order], pix[order]
-        o_all, d_all, t_all, a_all, s_all = o_all[order], d_all[order], t_all[order], a_all[order], s_all[order]
-        row = row_of[pix]
-        h_cnt = np.bincount(row, minlength=n_rows)
-        first = np.concatenate([[0], np.cumsum(h_cnt)[:-1]])
-        t_cnt = np.minimum(h_cnt, shade_spp)
-        t_row = np.repeat(np.arange(n_rows), t_cnt)
-        t_rank = np.arange(len(t_row)) - np.repeat(np.cumsum(t_cnt) - t_cnt, t_cnt)
-        off = rng.random(n_rows)[t_row]
-        pick = first[t_row] + np.floor((t_rank + off) * h_cnt[t_row] / t_cnt[t_row]).astype(np.int64)
-        tr = (row[pick], t_rank, t_cnt[t_row], o_all[pick], d_all[pick], t_all[pick], a_all[pick], s_all[pick])
-    else:
-        tr = (np.zeros(0, np.int64),) * 3 + (np.zeros((0, 3)),) * 2 + (np.zeros(0),) + (np.zeros((0, 3)),
-                                                                                     np.zeros(0, bool))
+    tr = _trace_plan(layers, row_of, n_rows, p_count, spp, shade_spp, edge_spp, demodulate, len(sc.parts), rng)
     timings["camera"] = time.perf_counter() - t1
+    traced = len(tr[0]) / max(n_rows, 1)
 
     # ---- all lights at every traced hit
     t2 = time.perf_counter()
-    acc_d = torch.zeros(3, n_rows, nv)  # diffuse sums: of subsurface hits (demodulated: the other hits in acc_e)
-    acc_e = torch.zeros(3, n_rows, nv) if demodulate else None
-    acc_s = torch.zeros(3, n_rows, nv)
-    tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_thr, tr_alb, tr_sss = tr
+    acc_d = torch.zeros(3, n_rows, nv)  # the diffuse part of subsurface hits
+    acc_s = torch.zeros(3, n_rows, nv)  # the rest
+    tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_wd, tr_ws, tr_sss = tr
     total = len(tr_row)
     hc = max(1, chunk_lanes // nv)
     twin_at = sc.needs_twin if demodulate else sc.is_sss
@@ -566,26 +554,17 @@ def render_olat_onepass(
         rows = torch.from_numpy(tr_row[a:b])
         od = torch.from_numpy(np.asarray(out_d)).view(3, n_h, nv)
         os_ = torch.from_numpy(np.asarray(out_s)).view(3, n_h, nv)
-        if demodulate:
-            m = torch.from_numpy(tr_sss[a:b])
-            acc_d.index_add_(1, rows[m], od[:, m])
-            acc_e.index_add_(1, rows[~m], od[:, ~m])
-            acc_s.index_add_(1, rows, os_)
-        else:  # the plain mean over the C samples, throughput included
-            w = torch.from_numpy(tr_thr[a:b].astype(np.float32))[None, :, None]
-            acc_d.index_add_(1, rows, od * w)
-            acc_s.index_add_(1, rows, os_ * w)
+        m = torch.from_numpy(tr_sss[a:b])
+        od *= torch.from_numpy(tr_wd[a:b].T)[:, :, None]
+        os_ *= torch.from_numpy(tr_ws[a:b])[None, :, None]
+        acc_d.index_add_(1, rows[m], od[:, m])
+        os_[:, ~m] += od[:, ~m]
+        acc_s.index_add_(1, rows, os_)
         if callback is not None:
             callback(n_h / max(total, 1))
     timings["lights"] = time.perf_counter() - t2
 
-    # ---- the estimate per pixel
-    if demodulate:
-        _remodulate(acc_d, acc_e, acc_s, tr, lanes_info=(row_of, layers, p_count, spp), n_rows=n_rows)
-        diffuse, specular = acc_d, acc_e
-        del acc_s
-    else:
-        diffuse, specular = acc_d / spp, acc_s / spp
+    diffuse, specular = acc_d, acc_s
     # ---- glints, a mean over the C samples
     for gsel, refl, w in glints:
         li = _dir_to_light(refl, lighting_size)
@@ -612,52 +591,71 @@ def render_olat_onepass(
     )
     timings["total"] = time.perf_counter() - t0
     return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(valid), gbuf,
-                         {k: round(v, 3) for k, v in timings.items()}, spp, shade_spp, demodulate)
+                         {k: round(v, 3) for k, v in timings.items()}, spp, shade_spp, demodulate,
+                         round(traced, 3))
 
 
-def _remodulate(acc_d: torch.Tensor, acc_e: torch.Tensor, acc_s: torch.Tensor, tr: tuple, lanes_info: tuple,
-                n_rows: int) -> None:
-    r"""Demodulated estimate, in place: ``acc_d`` <- the subsurface hits' diffuse part, ``acc_e`` <- the rest.
+def _trace_plan(layers: list, row_of: np.ndarray, n_rows: int, p_count: int, spp: int, shade_spp: int,
+                edge_spp: int, demodulate: bool, n_parts: int, rng: np.random.Generator) -> tuple:
+    r"""Which terminal hits trace the lights, their light strata and their weights.
 
-    Per pixel and group ``g`` (subsurface hits, other hits), with ``A_g`` the mean over the ``C`` camera samples
-    of ``throughput x albedo [hit in g]`` and ``a_g`` the sum of the albedos of the traced hits in ``g``:
-    diffuse ``= A_g F_g / a_g`` (``F_g`` the traced diffuse sums: a ratio estimator of the irradiance factor); a
-    group with no traced albedo in a channel takes the pooled ratio of both groups. Specular ``= alpha S / T_p``
-    with ``alpha`` the mean throughput-weighted coverage of the ``C`` samples.
+    The hits are grouped per pixel and part ``g`` (``H_g`` of the ``C`` camera samples). Without demodulation
+    every hit is traced with weight ``throughput / C``. With it, a group traces ``T_g = max(1, round(T H_g /
+    H_p))`` of its hits (``H_p`` the pixel's), evenly spaced in the Z order of their strata (a random offset per
+    group); the ``t``-th of them takes the ``t``-th of ``T_g`` light strata. Weights: the diffuse part
+    ``A_g / a_g`` per channel, with ``A_g`` the mean over the ``C`` samples of ``throughput x albedo`` in ``g``
+    and ``a_g`` the sum of the traced hits' albedos (a ratio estimator: the traced hits measure the group's
+    irradiance factor, the ``C`` samples its coverage and albedo); the specular part ``alpha_g / T_g`` with
+    ``alpha_g`` the mean throughput-weighted coverage of ``g``.
+
+    Returns:
+        ``(row, stratum, strata, origin, direction, w_diffuse (K, 3), w_specular (K,), subsurface)`` per traced
+        hit.
     """
-    row_of, layers, p_count, spp = lanes_info
-    tr_row, _, tr_cnt, _, _, _, tr_alb, tr_sss = tr
-    cam_a = torch.zeros(2, 3, n_rows, dtype=torch.float64)  # [subsurface, other] x channel x row
-    cov = torch.zeros(n_rows, dtype=torch.float64)
-    for sel, _, _, thr, alb, sss in layers:
-        r = torch.from_numpy(row_of[sel % p_count])
-        ta = torch.from_numpy(alb.T * thr[None]).double()
-        s = torch.from_numpy(sss)
-        cam_a[0].index_add_(1, r[s], ta[:, s])
-        cam_a[1].index_add_(1, r[~s], ta[:, ~s])
-        cov.index_add_(0, r, torch.from_numpy(thr).double())
-    cam_a /= spp
-    cov /= spp
-    tra = torch.zeros(2, 3, n_rows, dtype=torch.float64)
-    r = torch.from_numpy(tr_row)
-    s = torch.from_numpy(tr_sss)
-    a = torch.from_numpy(tr_alb.T).double()
-    tra[0].index_add_(1, r[s], a[:, s])
-    tra[1].index_add_(1, r[~s], a[:, ~s])
-    n_tr = torch.bincount(r, minlength=n_rows).double()
-    pooled = tra.sum(0)
-    eps = 1e-6
-    # fallbacks (computed before the in-place scaling): a group seen by the C samples but by no traced hit
-    fb = [(cam_a[g] > 0) & (tra[g] <= eps) & (pooled > eps) for g in range(2)]
-    pooled_sum = {}
-    for g, acc in ((0, acc_d), (1, acc_e)):
-        c, rr = torch.nonzero(fb[g], as_tuple=True)
-        if len(c):
-            pooled_sum[g] = (c, rr, (acc_d[c, rr] + acc_e[c, rr]) / pooled[c, rr, None].float())
-    for g, acc in ((0, acc_d), (1, acc_e)):
-        scale = torch.where(tra[g] > eps, cam_a[g] / tra[g].clamp_min(eps), torch.zeros_like(tra[g]))
-        acc *= scale.float()[..., None]
-        if g in pooled_sum:
-            c, rr, ratio = pooled_sum[g]
-            acc[c, rr] = ratio * cam_a[g][c, rr, None].float()
-    acc_e += acc_s * (cov / n_tr.clamp_min(1)).float()[None, :, None]
+    if not layers:
+        z = np.zeros(0, np.int64)
+        return z, z, z, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3), np.float32), np.zeros(0, np.float32), \
+            np.zeros(0, bool)
+    lanes = np.concatenate([x[0] for x in layers])
+    o_all, d_all = np.concatenate([x[1] for x in layers]), np.concatenate([x[2] for x in layers])
+    t_all = np.concatenate([x[3] for x in layers]).astype(np.float64)
+    a_all = np.concatenate([x[4] for x in layers]).astype(np.float64)
+    s_all = np.concatenate([x[5] for x in layers])
+    part = np.concatenate([x[6] for x in layers]).astype(np.int64)
+    n_all = np.concatenate([x[7] for x in layers]).astype(np.float64)
+    row = row_of[lanes % p_count]
+    rank = _strata_rank(spp)[lanes // p_count]
+    gid = row * n_parts + part
+    order = np.lexsort((rank, gid))
+    gid, row = gid[order], row[order]
+    o_all, d_all, t_all, a_all, s_all = o_all[order], d_all[order], t_all[order], a_all[order], s_all[order]
+    groups, first, h_g = np.unique(gid, return_index=True, return_counts=True)
+    g_of = np.repeat(np.arange(len(groups)), h_g)
+    g_row = row[first]
+    if demodulate:
+        h_p = np.bincount(g_row, h_g, n_rows)
+        # mixed pixels (partly covered, more than one part, or a spread of normals: silhouettes, hair, creases)
+        # trace edge_spp of their hits, the others shade_spp
+        n_sum = np.stack([np.bincount(row, n_all[order][:, c], n_rows) for c in range(3)], 1)
+        spread = 1.0 - np.linalg.norm(n_sum, axis=1) / np.maximum(h_p, 1)
+        mixed = (h_p < spp) | (np.bincount(g_row, None, n_rows) > 1) | (spread > EDGE_NORMAL_SPREAD)
+        t_p = np.where(mixed, edge_spp, shade_spp)[g_row]
+        t_g = np.minimum(h_g, np.maximum(1, np.rint(t_p * h_g / h_p[g_row]))).astype(np.int64)
+    else:
+        t_g = h_g
+    t_grp = np.repeat(np.arange(len(groups)), t_g)
+    t_rank = np.arange(len(t_grp)) - np.repeat(np.cumsum(t_g) - t_g, t_g)
+    off = rng.random(len(groups))[t_grp] if demodulate else np.zeros(len(t_grp))
+    pick = first[t_grp] + np.floor((t_rank + off) * h_g[t_grp] / t_g[t_grp]).astype(np.int64)
+    if demodulate:
+        cam_a = np.stack([np.bincount(g_of, a_all[:, c] * t_all, len(groups)) for c in range(3)], 1) / spp
+        cov = np.bincount(g_of, t_all, len(groups)) / spp
+        tr_a = np.stack([np.bincount(t_grp, a_all[pick, c], len(groups)) for c in range(3)], 1)
+        w_s = cov / t_g
+        w_d = np.where(tr_a > 1e-6, cam_a / np.maximum(tr_a, 1e-6), w_s[:, None])[t_grp]
+        w_s = w_s[t_grp]
+    else:
+        w_s = t_all[pick] / spp
+        w_d = np.repeat(w_s[:, None], 3, 1)
+    return (g_row[t_grp], t_rank, t_g[t_grp], o_all[pick], d_all[pick], w_d.astype(np.float32),
+            w_s.astype(np.float32), s_all[pick])
