@@ -26,9 +26,11 @@ camera pipeline, and is what :class:`~kornia_ilum.synth.lightstage.PortraitDatas
 :meth:`CameraEffects.apply` runs the chain fused on CPU, one image at a time in a scratch image that stays in
 the cache (exposure and vignette as one multiplication, the noise in the units of the code table, each effect
 only on the images that draw it; :meth:`CameraEffects.apply_reference` is the unfused chain, equal up to float
-rounding). On one core, per 256 x 256 image: 0.37 ms with every effect off (against 0.43 ms for
-:func:`~kornia_ilum.color.encode_srgb8` alone), 1.4 ms at the defaults on noise-like images (JPEG's 0.75 ms
-included; 1.9 ms unfused, ``benchmarks/bench_portraits.py``), under a loaded machine.
+rounding). On one core of a loaded machine, per 256 x 256 image (``benchmarks/bench_portraits.py``): 0.3 to
+0.4 ms with every effect off (0.4 to 0.6 ms for :func:`~kornia_ilum.color.encode_srgb8` alone), 1.2 to 1.4 ms
+at the defaults on noise-like images (JPEG's 0.75 ms included; 1.9 to 2 ms unfused); in
+:class:`~kornia_ilum.synth.lightstage.PortraitDataset` the defaults cost about 0.6 ms a sample more than no
+effect (of 5 to 6 ms), where they cost 3.5 to 4 ms unfused.
 
 White-balance errors are left out on purpose: the ground-truth lighting of a portrait is in the units of its
 image (SPEC.md), so a colour cast would have to be applied to the truth as well, which is what the environments'
