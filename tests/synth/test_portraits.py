@@ -465,3 +465,19 @@ class TestConfig:
         assert data._noise(5, OUT, torch.Generator().manual_seed(3), False) is None
         # the draws are the same whether the noise is needed or not
         assert torch.equal(g1.get_state(), (data._noise(5, OUT, g2.manual_seed(3), False), g2)[1].get_state())
+
+    def test_enlarge_and_pyramid_grid_match_torch(self) -> None:
+        from kornia_ilum.synth.lightstage.portraits.compose import _enlarge, _frame_angles, _pyramid_grid
+
+        frames = torch.rand(3, 3, 12, 12, generator=torch.Generator().manual_seed(0))
+        out = torch.zeros(5, 3, 40, 40)
+        _enlarge(frames, out, [4, 0, 2])  # OpenCV's resize
+        expected = torch.nn.functional.interpolate(frames, size=(40, 40), mode="bilinear", align_corners=False)
+        torch.testing.assert_close(out[[4, 0, 2]], expected, rtol=0, atol=1e-5)
+        assert (out[[1, 3]] == 0).all()
+        u, t = _frame_angles(40.0, 16, True)
+        w = 64
+        gx = torch.remainder(u - 0.3, 1.0) * w
+        reference = torch.stack([(gx + 0.5) * 2 / (w + 1) - 1, (t * 32 + 0.5) * 2 / 33 - 1], -1)[None]
+        torch.testing.assert_close(_pyramid_grid(40.0, 16, True, 32, 0.3), reference, rtol=0, atol=1e-6)
+        assert not torch.equal(_pyramid_grid(40.0, 16, True, 32, 0.3), _pyramid_grid(40.0, 16, True, 32, 0.1))
