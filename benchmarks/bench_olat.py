@@ -161,7 +161,8 @@ def main() -> int:
                              "samples that all trace every light, no demodulation (cached)")
     parser.add_argument("--ref-spp", type=int, default=32)
     parser.add_argument("--configs", nargs="+", default=[],
-                        help="one-pass settings to score, each 'C:T[:E]' (spp C, shade_spp T, edge_spp E; demodulated when T < C), "
+                        help="one-pass settings to score, each 'C:T[:E]' (spp C, shade_spp T, edge_spp E; "
+                             "demodulated when T < C), "
                              "subsurface off; replaces the --spps x denoise table when given")
     parser.add_argument("--check-direct", action="store_true",
                         help="with --reference onepass: also score the reference against render_lighting at "
@@ -207,11 +208,14 @@ def main() -> int:
             rf = render_olat(subj, cam, threads=1)
             runs.append(rf.meta["timings"] | {"render": rf.meta["render_seconds"]})
         med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
-        print(f"\none-pass at the defaults (spp {ONEPASS_SPP}, post {rf.meta['post']}), median of "
+        print(f"\none-pass at the defaults (spp {ONEPASS_SPP}, shade_spp {rf.meta['shade_spp']}, edge_spp "
+              f"{rf.meta['edge_spp']}, traced {rf.meta['traced_per_pixel']} per pixel, post {rf.meta['post']}), "
+              f"median of "
               f"{args.repeats}: {med['render'] + build:.1f} s per subject-view incl. subject build {build:.2f} s; "
               + ", ".join(f"{k} {v:.2f}" for k, v in med.items()), flush=True)
 
-    print(f"reference: {args.reference}; maps: sun = {args.sun.name}, overcast = {args.overcast.name}; exposure: median subject luminance "
+    print(f"reference: {args.reference}; maps: sun = {args.sun.name}, overcast = {args.overcast.name}; "
+          f"exposure: median subject luminance "
           f"of the reference -> {MIDDLE_GREY}; background black; PSNR over covered pixels")
     exposure = {k: MIDDLE_GREY / luminance(v)[alpha_ref > 0.5].median().item() for k, v in ref_img.items()}
     ref8 = {k: to_srgb8(v, exposure[k]) for k, v in ref_img.items()}
@@ -240,9 +244,10 @@ def main() -> int:
             for k, ball in balls.items():
                 img, alpha = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1, seed=7)
                 m = (alpha_ref > 0) | (alpha.flatten() > 0)
+                direct8 = to_srgb8(img.reshape(3, -1), exposure[k])
                 print(f"  {k}: render_lighting {args.direct_spp} spp vs the one-pass reference "
                       f"{psnr8(to_srgb8(img.reshape(3, -1), exposure[k]), ref8[k], m):.2f} dB; one reference field "
-                      f"vs the direct render {psnr8(to_srgb8(img.reshape(3, -1), exposure[k]), to_srgb8(pair[0][k], exposure[k]), m):.2f} dB",
+                      f"vs the direct render {psnr8(direct8, to_srgb8(pair[0][k], exposure[k]), m):.2f} dB",
                       flush=True)
 
     if args.configs:

@@ -816,23 +816,24 @@ def render_olat(
     return rf
 
 
-#: Default camera samples per pixel of the one-pass renderer.
+#: Default camera samples per pixel of the one-pass renderer (``spp``: coverage, albedo, G-buffer, glints).
 #:
-#: Chosen with ``benchmarks/bench_olat.py`` (MakeHuman seed 1, view 0, 192 px, one thread on the loaded 2-core
-#: machine): PSNR of relit 8-bit sRGB portraits (exposure: reference's median subject luminance -> 0.18, black
-#: background, covered pixels only) against a 256-spp ``render_lighting`` reference at ``max_depth = 2``, under
-#: pedestrian_overpass (sun) / phalzer_forest_01 (overcast), no subsurface: 1 spp 22.7 / 22.8 dB (denoised
-#: 23.5 / 23.0), 2 spp 25.5 / 25.6 (26.3 / 25.6), 4 spp 30.6 / 30.3 (denoised 29.6 / 29.4). At 128 px, 16 spp
-#: reaches 36.0 dB (sun) where two independent 256-spp references differ by 37.6 dB, so the references' own
-#: noise caps what can be measured; the error sits on silhouettes, hair and brow cards and the eyes (camera-sample
-#: aliasing of binary alpha and textures), not on the skin (interior pixels: 33.1 dB at 4 spp, 38.8 at 16).
-#: 35 dB is not reached within the time budget (the light stage scales with spp: 4 spp costs about 7 s of the
-#: ~22 core-seconds per subject-view); 4 spp is the setting that fits. The denoiser lowers this PSNR at 4 spp
-#: (it smooths texture and edge detail that the reference has), so :func:`render_olat` does not denoise by
-#: default.
-ONEPASS_SPP = 4
+#: With :data:`ONEPASS_SHADE_SPP` = 4 of them tracing the lights in plain pixels and :data:`ONEPASS_EDGE_SPP` =
+#: 16 in mixed ones (silhouettes, hair, several parts, creases), demodulated by albedo and coverage
+#: (:mod:`~kornia_ilum.synth.lightstage.onepass`). Chosen with ``benchmarks/bench_olat.py --reference onepass``
+#: (MakeHuman seed 1, view 0, 192 px, one thread on the loaded 2-core machine): PSNR of relit 8-bit sRGB
+#: portraits (exposure: reference's median subject luminance -> 0.18, black background, covered pixels only,
+#: no subsurface) under pedestrian_overpass (sun) / phalzer_forest_01 (overcast), against the mean of two
+#: one-pass fields at 32 samples that all trace every light (they agree to 41.3 / 40.1 dB; a 256-spp
+#: ``render_lighting`` render agrees with their mean to 38.9 / 38.2 dB, its own noise). ``spp:shade:edge``:
+#: 4:4:4 (the previous default, every sample traced) 30.8 / 30.7 dB; 16:4:4 33.5 / 34.5; 16:4:16 35.4 / 36.6;
+#: 32:3:16 34.9 / 38.4; 32:4:12 37.2 / 38.3; 32:4:16 37.5 / 38.7; 64:4:16 36.7 / 39.1 (and a slower camera
+#: stage). 32:4:16 costs about 13 s per subject-view including the subject build and the subsurface pass
+#: (light stage 8.2 s for 5.3 traced samples per pixel, camera rays 1.1 s). The denoiser lowers this PSNR (it
+#: smooths texture and edge detail that the reference has), so :func:`render_olat` does not denoise by default.
+ONEPASS_SPP = 32
 
-#: Default camera samples per pixel that trace the lights (:func:`render_olat`'s ``shade_spp``).
+#: Default camera samples per pixel that trace the lights in plain pixels (:func:`render_olat`'s ``shade_spp``).
 ONEPASS_SHADE_SPP = 4
 
 #: Default samples per pixel that trace the lights in mixed pixels (:func:`render_olat`'s ``edge_spp``).

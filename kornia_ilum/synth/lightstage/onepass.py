@@ -5,38 +5,62 @@ r"""The one-pass OLAT renderer: every light of the mirror-ball basis traced in o
 ``mitsuba.render`` per light (812 renders at ``S = 32``, each with 40-70 ms of fixed overhead) it traces, with
 Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
 
-1. **Camera rays** (pinhole at the origin looking along -Z, horizontal ``fov_deg``), ``spp`` per pixel on a
-   jittered ``k_u x k_v`` grid (``k_u k_v = spp``, as square as ``spp``'s divisors allow: 8 is 4 x 2). A ray
+1. **Camera rays** (pinhole at the origin looking along -Z, horizontal ``fov_deg``), ``C = spp`` per pixel on a
+   jittered ``k_u x k_v`` grid (``k_u k_v = C``, as square as ``C``'s divisors allow: 32 is 8 x 4). A ray
    continues through texels of alpha-tested parts (``opacity_texture < 0.5``, nearest texel) and through the
    cornea, at most :data:`MAX_LAYERS` surfaces. At a cornea hit seen from outside the Fresnel mirror's glint is
    recorded (weight ``F(theta)`` into the light that owns the reflected direction, if that direction is not
    shadowed) and the ray goes on with the thin-slab transmission ``1 - 2 r / (1 + r)`` (the reference's
-   ``thindielectric``, :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf`).
-2. **Every light at every terminal hit**: for each camera sample and each valid light ``n`` one direction is
-   drawn uniformly (in mirror-ball ``(u, v)``, which is equal-area: ``dOmega = 4 du dv``) inside the region that
-   light ``n`` owns, stratified over the ``spp`` samples of a pixel. The region is tabulated once per ``S`` as
-   ``8 x 8`` sub-cells per pixel, each owned through
-   :func:`~kornia_ilum.geometry.mirror_ball_pixel_index` of its centre (so the rim slivers belong to their
-   nearest valid pixel, SPEC.md); samples with ``r > 1`` count 0. A shadow ray (opaque parts; the cornea is
-   transparent to it; alpha-tested parts are tested texel by texel, :data:`MAX_LAYERS` times) and the part's
-   Mitsuba BSDF (``bsdf.eval``, which includes the cosine) give the sample ``f cos V * 4 A_n`` with ``A_n`` the
-   ``(u, v)`` area of the light's region. At hits on subsurface parts (skin) the diffuse part is the same
-   BSDF with ``specular = 0`` (Mitsuba's ``principled`` is linear in ``specular``) and the specular part is the
-   rest; elsewhere the whole response is put in the specular part, which subsurface scattering leaves alone
-   (it spreads only the skin share of a pixel's diffuse value, so nothing is lost by not splitting there).
-3. The per-pixel mean over ``spp`` is the field (premultiplied by coverage, background 0), with the
-   :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer` of the first opaque hits.
+   ``thindielectric``, :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf`). Camera rays are cheap: all
+   ``C`` samples give the coverage, the albedo, the glints and the
+   :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer`.
+2. **Which hits trace the lights** (the expensive part). Without demodulation, all of them (the plain mean over
+   the ``C`` samples). With it (the default when ``shade_spp < spp``), the terminal hits of a pixel are grouped
+   by part (skin, hair cards, brows, eyes...), and a group of ``H_g`` of the pixel's ``H_p`` hits traces
+   ``T_g = max(1, round(T H_g / H_p))`` of them, evenly spaced in the Z order of their strata (so spread over
+   the pixel); ``T = shade_spp`` (4) in plain pixels and ``edge_spp`` (16) in *mixed* ones: partly covered
+   (silhouettes), more than one part (hair over skin, brows, eyelids), or shading normals spread by more than
+   :data:`EDGE_NORMAL_SPREAD` (creases, ears). About 5 % of a portrait's pixels are mixed and the light stage
+   costs 5.3 traced samples per pixel instead of 4.
+3. **Every light at every traced hit**: one direction is drawn uniformly (in mirror-ball ``(u, v)``, which is
+   equal-area: ``dOmega = 4 du dv``) inside the region that light ``n`` owns, stratified over the ``T_g``
+   traced hits of the group. The region is tabulated once per ``S`` as ``8 x 8`` sub-cells per pixel, each
+   owned through :func:`~kornia_ilum.geometry.mirror_ball_pixel_index` of its centre (so the rim slivers
+   belong to their nearest valid pixel, SPEC.md); samples with ``r > 1`` count 0. A shadow ray (opaque parts;
+   the cornea is transparent to it; alpha-tested parts are tested texel by texel, :data:`MAX_LAYERS` times)
+   and the part's Mitsuba BSDF (``bsdf.eval``, which includes the cosine) give the sample ``f cos V * 4 A_n``
+   with ``A_n`` the ``(u, v)`` area of the light's region. The diffuse part is the same BSDF with
+   ``specular = 0`` (Mitsuba's ``principled`` is linear in ``specular``; a ``diffuse`` part is all diffuse),
+   the specular part the rest.
+4. **Demodulation** (a ratio estimator per pixel and group): the traced hits measure the group's
+   *irradiance factor* ``sum_i f_diffuse,i / sum_i albedo_i`` (albedo-free), the ``C`` samples its
+   throughput-weighted albedo ``A_g`` and coverage ``alpha_g``: diffuse ``= A_g sum_i f_d,i / sum_i a_i``,
+   specular ``= alpha_g mean_i f_s,i``. So texture, coverage and alpha-tested cards are anti-aliased with ``C``
+   samples even under a single dominant light (the sun), while the lights are paid for ``T`` samples. This is
+   linear in the lighting and exact for a group whose irradiance factor is constant over the pixel; it is
+   approximate (a ratio estimator: the traced hits' albedo-weighted irradiance stands for the whole group's)
+   where albedo and irradiance vary together inside one part and one pixel, e.g. a texel-sized shadow on a
+   textured patch. The diffuse part of subsurface hits goes to ``diffuse`` (what subsurface scattering
+   spreads), everything else to ``specular``; the cornea's glints are a mean over the ``C`` samples.
 
-Cost. All ``spp x P`` camera rays are traced as one batch (one kernel per layer). The light stage is chunked
-over hits (``chunk_lanes`` light-hit pairs; same IR every chunk): a first kernel draws the directions and
+Measured (``benchmarks/bench_olat.py --reference onepass``: MakeHuman seed 1 view 0, 192 px, one thread of
+the loaded 2-core machine; PSNR of relit 8-bit sRGB portraits against the mean of two one-pass fields at 32
+samples that all trace every light, which agree with each other to 41.3 dB (sun) / 40.1 dB (overcast) and
+with a 256-spp ``render_lighting`` Mitsuba render to 38.9 / 38.2 dB, that render's own noise):
+``C:T:edge`` = 4:4 (the old default) 30.8 / 30.7 dB; 16:4:4 33.5 / 34.5; 16:4:16 35.4 / 36.6; 32:4:8
+see ``ONEPASS_SPP``; 32:4:16 (the default) 37.5 / 38.7 dB at about 13 s per subject-view including the
+subject build and the subsurface pass (lights 8.2 s, camera 1.1 s). The remaining error sits on silhouettes
+(partly covered pixels: 4 % of the pixels, about 30 dB there) and hair.
+
+Cost. All ``C x P`` camera rays are traced as one batch (one kernel per layer). The light stage is chunked
+over traced hits (``chunk_lanes`` light-hit pairs; same IR every chunk): a first kernel draws the directions and
 tests the geometric horizon, the lanes above it (about half) are compacted (``dr.compress``) and only they pay
-for the shadow rays and the BSDF evaluations. Every numpy array handed to Dr.Jit is copied to 64-byte aligned
-memory first: Dr.Jit maps numpy memory and bakes the load alignment into the kernel, so randomly aligned inputs
-made kernels differ between calls and recompile (0.5 to 5 s per render). With these, a MakeHuman subject-view
-at 192 px, 4 spp, one thread costs about 0.15 s (scene) + 0.2 s (camera) + 6.5 s (lights), plus the
-post-processing of :func:`~kornia_ilum.synth.lightstage.olat.render_olat` (about 2.7 s), on the project's
-loaded 2-core machine (``benchmarks/bench_olat.py``); before, 0.1 + 1.6 + 9.4 s. The first render of a process
-compiles the kernels (about 10 s, less when Dr.Jit's disk cache has them).
+for the shadow rays; shadow rays that passed a transparent texel of an alpha-tested card go on alone
+(compacted again), and only the visible lanes pay for the BSDF evaluations, scatter-added into the
+``(pixel, light)`` accumulators. Every numpy array handed to Dr.Jit is copied to 64-byte aligned memory
+first: Dr.Jit maps numpy memory and bakes the load alignment into the kernel, so randomly aligned inputs made
+kernels differ between calls and recompile (0.5 to 5 s per render). The first render of a process compiles
+the kernels (about 10 s, less when Dr.Jit's disk cache has them).
 """
 
 from __future__ import annotations
@@ -282,8 +306,26 @@ class _Scenes:
             opaque = dr.select(hit, value >= 0.5, opaque)
         return opaque
 
-    def visible(self, si: Any, wo: Any, active: Any) -> Any:
-        """Whether the direction ``wo`` from the hit ``si`` escapes (shadow rays; the cornea is transparent)."""
+    def _alpha_step(self, ray: Any, vis: Any, todo: Any) -> tuple[Any, Any, Any]:
+        """One alpha-tested layer of shadow rays: blocked by an opaque texel, or on through a transparent one."""
+        dr, mi = self.dr, self.mi
+        hit = self.alpha.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal | mi.RayFlags.UV, coherent=False,
+                                       active=todo)
+        todo = todo & hit.is_valid()
+        part = self.part_of(hit, self.alpha_lut)
+        blocked = todo & self.opaque_texel(hit, part, todo)
+        vis = vis & ~blocked
+        todo = todo & ~blocked
+        ray = dr.select(todo, hit.spawn_ray(ray.d), ray)
+        return ray, vis, todo
+
+    def visible(self, si: Any, wo: Any, active: Any, compact: bool = False) -> Any:
+        """Whether the direction ``wo`` from the hit ``si`` escapes (shadow rays; the cornea is transparent).
+
+        With ``compact``, the rays still going after the first alpha-tested layer (those that passed a
+        transparent texel: few) are evaluated, compressed and continued alone, instead of carrying every lane
+        through :data:`MAX_LAYERS` masked intersections (this ends the caller's kernel there).
+        """
         dr, mi = self.dr, self.mi
         ray = si.spawn_ray(wo)
         vis = mi.Bool(active)
@@ -291,14 +333,20 @@ class _Scenes:
             vis &= ~self.shadow.ray_test(ray, active)
         if self.alpha is not None:
             todo = mi.Bool(vis)
-            for _ in range(MAX_LAYERS):
-                hit = self.alpha.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal | mi.RayFlags.UV, coherent=False, active=todo)
-                todo &= hit.is_valid()
-                part = self.part_of(hit, self.alpha_lut)
-                blocked = todo & self.opaque_texel(hit, part, todo)
-                vis &= ~blocked
-                todo &= ~blocked
-                ray = dr.select(todo, hit.spawn_ray(ray.d), ray)
+            ray, vis, todo = self._alpha_step(ray, vis, todo)
+            if compact:
+                dr.eval(ray, vis, todo)
+                idx = dr.compress(todo)
+                if dr.width(idx):
+                    r = dr.gather(mi.Ray3f, ray, idx)
+                    v = dr.full(mi.Bool, True, dr.width(idx))
+                    t = dr.full(mi.Bool, True, dr.width(idx))
+                    for _ in range(MAX_LAYERS - 1):
+                        r, v, t = self._alpha_step(r, v, t)
+                    dr.scatter(vis, v & ~t, idx)  # still inside a stack of transparent texels: blocked
+                return vis
+            for _ in range(MAX_LAYERS - 1):
+                ray, vis, todo = self._alpha_step(ray, vis, todo)
             vis &= ~todo  # still inside a stack of transparent texels: counted as blocked
         return vis
 
@@ -371,12 +419,13 @@ def render_olat_onepass(
         transform: subject-to-camera transform (:func:`~kornia_ilum.synth.lightstage.scene.camera_transform`).
         lighting_size: the mirror-ball side ``S``.
         spp: camera samples per pixel ``C`` (coverage, albedo, G-buffer, glints).
-        shade_spp: ``T``, the camera samples per pixel that trace every light (at most ``T`` of the pixel's
-            hits, evenly spaced in the strata's Z order); default ``spp`` (all of them).
-        demodulate: re-modulate the traced samples' shading by the ``C`` samples' coverage and albedo (module
-            docstring); default ``shade_spp < spp``.
+        shade_spp: ``T``, the camera samples per pixel that trace every light in plain pixels (module
+            docstring, step 2); default ``spp`` (all of them).
         edge_spp: with demodulation, the traced samples of mixed pixels (partly covered, more than one part, or
-            normals spread by more than :data:`EDGE_NORMAL_SPREAD`); default ``shade_spp``. Without it every hit must be traced (``shade_spp = spp``).
+            normals spread by more than :data:`EDGE_NORMAL_SPREAD`); default ``shade_spp``.
+        demodulate: re-modulate the traced samples' shading by the ``C`` samples' coverage and albedo (module
+            docstring, step 4); default ``shade_spp < spp``. Without it every hit is traced (``shade_spp`` must
+            be ``spp``).
         seed: the random seed (camera jitter and light samples).
         chunk_lanes: light-hit pairs per kernel.
         callback: called with a fraction of the work done (floats summing to 1), for progress bars.
@@ -492,8 +541,9 @@ def render_olat_onepass(
 
     # ---- all lights at every traced hit
     t2 = time.perf_counter()
-    acc_d = torch.zeros(3, n_rows, nv)  # the diffuse part of subsurface hits
-    acc_s = torch.zeros(3, n_rows, nv)  # the rest
+    # accumulated by Dr.Jit's scatter-add: (row, light) -> row * N_v + light
+    acc_d = dr.zeros(mi.Color3f, max(n_rows * nv, 1))  # the diffuse part of subsurface hits
+    acc_s = dr.zeros(mi.Color3f, max(n_rows * nv, 1))  # the rest
     tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_wd, tr_ws, tr_sss = tr
     total = len(tr_row)
     hc = max(1, chunk_lanes // nv)
@@ -505,6 +555,10 @@ def render_olat_onepass(
         si = sc.cam.ray_intersect(ray)
         strat = _jit(mi.Float, tr_rank[a:b])
         n_strat = _jit(mi.Float, tr_cnt[a:b])
+        h_row = _jit(mi.UInt32, tr_row[a:b], dtype=np.uint32)
+        h_wd = _jit(mi.Color3f, *tr_wd[a:b].T)
+        h_ws = _jit(mi.Float, tr_ws[a:b])
+        h_sss = _jit(mi.Bool, tr_sss[a:b], dtype=bool)
         dr.eval(si, strat, n_strat)
         # kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon
         lane = dr.arange(mi.UInt32, n_h * nv)
@@ -528,43 +582,46 @@ def render_olat_onepass(
         # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
         idx = dr.compress(up)
         n_up = dr.width(idx)
-        out_d = dr.zeros(mi.Color3f, n_h * nv)
-        out_s = dr.zeros(mi.Color3f, n_h * nv)
         if n_up:
             h = idx // nv
             light = idx - h * nv
             wo = dr.gather(mi.Vector3f, wo, idx)
             sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-            part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
-            vis = sc.visible(sih, wo, mi.Bool(True))
-            wo_l = sih.to_local(wo)
-            weight = dr.gather(mi.Float, l_weight, light)
-            bs_full = dr.gather(mi.BSDFPtr, sc.full, part, vis)
-            f_full = dr.select(vis, bs_full.eval(ctx, sih, wo_l, vis) * weight, 0.0)
-            # the diffuse part: the twin (specular = 0) of principled parts where it is needed (subsurface
-            # hits; with demodulation every principled hit), the whole response of diffuse parts
-            twin = vis & (dr.gather(mi.Float, twin_at, part) > 0)
-            bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, twin)
-            f_diff = dr.select(twin, bs_twin.eval(ctx, sih, wo_l, twin) * weight, 0.0)
-            if demodulate:
-                f_diff = dr.select(vis & (dr.gather(mi.Float, sc.is_lambert, part) > 0), f_full, f_diff)
-            dr.scatter(out_d, f_diff, idx)
-            dr.scatter(out_s, f_full - f_diff, idx)
-        dr.eval(out_d, out_s)
-        rows = torch.from_numpy(tr_row[a:b])
-        od = torch.from_numpy(np.asarray(out_d)).view(3, n_h, nv)
-        os_ = torch.from_numpy(np.asarray(out_s)).view(3, n_h, nv)
-        m = torch.from_numpy(tr_sss[a:b])
-        od *= torch.from_numpy(tr_wd[a:b].T)[:, :, None]
-        os_ *= torch.from_numpy(tr_ws[a:b])[None, :, None]
-        acc_d.index_add_(1, rows[m], od[:, m])
-        os_[:, ~m] += od[:, ~m]
-        acc_s.index_add_(1, rows, os_)
+            vis = sc.visible(sih, wo, mi.Bool(True), compact=True)
+            # kernel 3: the BSDFs of the visible lanes only, added into the accumulators
+            j = dr.compress(vis)
+            if dr.width(j):
+                idx = dr.gather(mi.UInt32, idx, j)
+                wo = dr.gather(mi.Vector3f, wo, j)
+                h = idx // nv
+                light = idx - h * nv
+                sih = dr.gather(mi.SurfaceInteraction3f, si, h)
+                part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
+                wo_l = sih.to_local(wo)
+                weight = dr.gather(mi.Float, l_weight, light)
+                bs_full = dr.gather(mi.BSDFPtr, sc.full, part)
+                f_full = bs_full.eval(ctx, sih, wo_l) * weight
+                # the diffuse part: the twin (specular = 0) of principled parts where it is needed (subsurface
+                # hits; with demodulation every principled hit), the whole response of diffuse parts
+                twin = dr.gather(mi.Float, twin_at, part) > 0
+                bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, twin)
+                f_diff = dr.select(twin, bs_twin.eval(ctx, sih, wo_l, twin) * weight, 0.0)
+                if demodulate:
+                    f_diff = dr.select(dr.gather(mi.Float, sc.is_lambert, part) > 0, f_full, f_diff)
+                wd = dr.gather(mi.Color3f, h_wd, h) * f_diff
+                ws = dr.gather(mi.Float, h_ws, h) * (f_full - f_diff)
+                target = dr.gather(mi.UInt32, h_row, h) * nv + light
+                sss = dr.gather(mi.Bool, h_sss, h)
+                dr.scatter_reduce(dr.ReduceOp.Add, acc_d, wd, target, sss)
+                dr.scatter_reduce(dr.ReduceOp.Add, acc_s, dr.select(sss, ws, ws + wd), target)
+                dr.eval(acc_d, acc_s)
         if callback is not None:
             callback(n_h / max(total, 1))
     timings["lights"] = time.perf_counter() - t2
 
-    diffuse, specular = acc_d, acc_s
+    diffuse = torch.from_numpy(np.array(acc_d, dtype=np.float32)[:, :n_rows * nv]).reshape(3, n_rows, nv)
+    specular = torch.from_numpy(np.array(acc_s, dtype=np.float32)[:, :n_rows * nv]).reshape(3, n_rows, nv)
+    del acc_d, acc_s
     # ---- glints, a mean over the C samples
     for gsel, refl, w in glints:
         li = _dir_to_light(refl, lighting_size)

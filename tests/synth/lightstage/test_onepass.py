@@ -93,7 +93,8 @@ def test_card_lets_light_through(fields) -> None:
     """Light from +X reaches the sphere through the card's transparent stripes: neither dark nor fully lit."""
     fast, ref = fields
     with_card = fast.field.float()
-    no_card = render_olat(scene(False), CAM, lighting_size=S, spp=16, shade_spp=16, method="onepass", threads=1).field.float()
+    no_card = render_olat(scene(False), CAM, lighting_size=S, spp=16, shade_spp=16, method="onepass",
+                          threads=1).field.float()
     light = 7  # row 1, column 3: from +X, a little up
     ratio = with_card[..., light].sum() / no_card[..., light].sum()
     ref_ratio = ref.field.float()[..., light].sum() / no_card[..., light].sum()
@@ -109,8 +110,8 @@ def test_makehuman_matches_reference(shared_data) -> None:
     subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(1)
     cam = sample_views(1, 4, 24, landmarks=subj.face_landmarks)[0]
     s = 8
-    fast = render_olat(subj, cam, lighting_size=s, spp=16, shade_spp=16, method="onepass", subsurface=False, denoise=False,
-                       threads=1)
+    fast = render_olat(subj, cam, lighting_size=s, spp=16, shade_spp=16, method="onepass", subsurface=False,
+                       denoise=False, threads=1)
     ref = render_olat(subj, cam, lighting_size=s, spp=64, method="reference", max_depth=2, threads=1)
     f, r = fast.field.float(), ref.field.float()
     assert torch.isfinite(f).all() and (f >= 0).all()
