@@ -5,9 +5,10 @@ Run: ``python benchmarks/bench_olat.py [--source makehuman] [--seed 1] [--view 0
 For one subject-view (``subject_source(--source).sample(--seed)``, view ``--view`` of
 :func:`~kornia_ilum.synth.lightstage.scene.sample_views` at ``--size``):
 
-1. **Timing** of :func:`render_olat` (one-pass, the default settings: :data:`ONEPASS_SPP`, subsurface and
-   denoise on) with one Dr.Jit thread and one torch thread: the median of ``--repeats`` (3) renders in this
-   process, with the renderer's breakdown (scene, camera, lights, post) and the subject-building time.
+1. **Timing** of :func:`render_olat` (one-pass, the default settings: :data:`ONEPASS_SPP` camera samples, 4
+   or 16 of them tracing the lights, subsurface on, denoise off) with one Dr.Jit thread and one torch thread:
+   the median of ``--repeats`` (3) renders in this process, with the renderer's breakdown (scene, camera,
+   lights, post) and the subject-building time.
 2. **Noise table**: relit 8-bit sRGB portraits under a sun-dominated real map (``--sun``, default
    ``pedestrian_overpass_1k.hdr``) and an overcast one (``--overcast``, default ``hdri_more/phalzer_forest_01_1k.hdr``:
    soft light, no sun disc), each lat-long map taken to a 32 px mirror ball with
@@ -24,6 +25,18 @@ For one subject-view (``subject_source(--source).sample(--seed)``, view ``--view
    directly under each map with :func:`render_lighting` at ``--direct-spp`` (256) spp, in dB (the one-pass
    renderer is direct only). And, as a check of the per-light reference itself, :func:`render_lighting` at
    ``max_depth = 2`` against the relit per-light reference.
+
+4. ``--reference onepass``: the reference is the mean of two one-pass fields (render seeds 101 and 102) at
+   ``--ref-spp`` (32) camera samples that all trace every light (no demodulation), cached under ``--out``
+   (about a minute each at 192 px); their PSNR against each other is printed (the mean's own noise is about
+   6 dB lower), and ``--check-direct`` scores the mean against ``render_lighting`` at ``--direct-spp``.
+   ``--configs C:T[:E] ...`` then replaces the table of step 2: one row per setting (``spp = C``,
+   ``shade_spp = T``, ``edge_spp = E``; demodulated when ``T < C``; no subsurface, render seed 0), with the
+   traced samples per pixel, the median render and light-stage seconds of ``--repeats`` renders, and the PSNR
+   over interior pixels (both alphas 1) and partly covered ones (silhouettes).
+
+Example (the numbers of ``ONEPASS_SPP``): ``python benchmarks/bench_olat.py --reference onepass --configs 4:4
+16:4:16 32:4:8 32:4:16``.
 
 This is a benchmark, not a test: it prints numbers and asserts nothing.
 """

@@ -174,3 +174,21 @@ def test_demodulation_antialiases_texture() -> None:
         err = [((relight(x, lights) - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()).item()
                for x in (plain, demod)]
         assert err[1] < 0.65 * err[0], err
+
+
+def test_sampling_settings() -> None:
+    """Mixed pixels (the sphere's silhouette) trace edge_spp samples, plain ones shade_spp; bad settings raise."""
+    from kornia_ilum.core.errors import ValueCheckError
+
+    sub = textured_quad()
+    cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=12)
+    kw = dict(lighting_size=S, method="onepass", subsurface=False, threads=1)
+    a = render_olat(sub, cam, spp=16, shade_spp=2, edge_spp=2, **kw)
+    b = render_olat(sub, cam, spp=16, shade_spp=2, edge_spp=8, **kw)
+    assert 2.0 <= a.meta["traced_per_pixel"] < 2.3  # a part seen by few samples still gets one traced hit
+    assert 2.2 < b.meta["traced_per_pixel"] < 8.0
+    plain = render_olat(sub, cam, spp=4, **kw)
+    assert plain.meta["shade_spp"] == 4 and not plain.meta["demodulate"]
+    for bad in (dict(spp=4, shade_spp=8), dict(spp=8, shade_spp=2, demodulate=False), dict(spp=8, edge_spp=16)):
+        with pytest.raises(ValueCheckError):
+            render_olat(sub, cam, **kw, **bad)
