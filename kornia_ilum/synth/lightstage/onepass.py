@@ -20,7 +20,7 @@ Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
    ``T_g = max(1, round(T H_g / H_p))`` of them, evenly spaced in the Z order of their strata (so spread over
    the pixel); ``T = shade_spp`` (4) in plain pixels and ``edge_spp`` (16) in *mixed* ones: partly covered
    (silhouettes), more than one part (hair over skin, brows, eyelids), or shading normals spread by more than
-   :data:`EDGE_NORMAL_SPREAD` (creases, ears). About 5 % of a portrait's pixels are mixed and the light stage
+   :data:`EDGE_NORMAL_SPREAD` (creases, ears). About 10 % of a portrait's pixels are mixed and the light stage
    costs 5.3 traced samples per pixel instead of 4.
 3. **Every light at every traced hit**: one direction is drawn uniformly (in mirror-ball ``(u, v)``, which is
    equal-area: ``dOmega = 4 du dv``) inside the region that light ``n`` owns, stratified over the ``T_g``
