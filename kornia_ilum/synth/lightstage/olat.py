@@ -827,8 +827,8 @@ def render_olat(
 #: one-pass fields at 32 samples that all trace every light (they agree to 41.3 / 40.1 dB; a 256-spp
 #: ``render_lighting`` render agrees with their mean to 38.9 / 38.2 dB, its own noise). ``spp:shade:edge``:
 #: 4:4:4 (the previous default, every sample traced) 30.8 / 30.7 dB; 16:4:4 33.5 / 34.5; 16:4:16 35.4 / 36.6;
-#: 32:3:16 34.9 / 38.4; 32:4:12 37.2 / 38.3; 32:4:16 37.5 / 38.7; 64:4:16 36.7 / 39.1 (and a slower camera
-#: stage). 32:4:16 costs about 13 s per subject-view including the subject build and the subsurface pass
+#: 32:3:16 34.9 / 38.4; 32:4:8 36.6 / 37.3; 32:4:12 37.2 / 38.3; 32:4:16 37.5 / 38.7; 64:4:16 36.7 / 39.1
+#: (and a slower camera stage); on seed 2 view 1, 4:4:4 30.1 / 31.1 and 32:4:16 39.0 / 40.9. 32:4:16 costs about 13 s per subject-view including the subject build and the subsurface pass
 #: (light stage 8.2 s for 5.3 traced samples per pixel, camera rays 1.1 s). The denoiser lowers this PSNR (it
 #: smooths texture and edge detail that the reference has), so :func:`render_olat` does not denoise by default.
 ONEPASS_SPP = 32

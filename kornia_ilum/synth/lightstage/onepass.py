@@ -48,7 +48,7 @@ the loaded 2-core machine; PSNR of relit 8-bit sRGB portraits against the mean o
 samples that all trace every light, which agree with each other to 41.3 dB (sun) / 40.1 dB (overcast) and
 with a 256-spp ``render_lighting`` Mitsuba render to 38.9 / 38.2 dB, that render's own noise):
 ``C:T:edge`` = 4:4 (the old default) 30.8 / 30.7 dB; 16:4:4 33.5 / 34.5; 16:4:16 35.4 / 36.6; 32:4:8
-see ``ONEPASS_SPP``; 32:4:16 (the default) 37.5 / 38.7 dB at about 13 s per subject-view including the
+36.6 / 37.3; 32:4:16 (the default) 37.5 / 38.7 dB (seed 2 view 1: 4:4 30.1 / 31.1, 32:4:16 39.0 / 40.9) at about 13 s per subject-view including the
 subject build and the subsurface pass (lights 8.2 s, camera 1.1 s). The remaining error sits on silhouettes
 (partly covered pixels: 4 % of the pixels, about 30 dB there) and hair.
 
