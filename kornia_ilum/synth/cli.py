@@ -350,7 +350,8 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     cmd.add_argument("--assets", metavar="DIR", default=None, help="the MakeHuman assets folder")
     cmd.add_argument("--views", type=_positive_int, default=4, metavar="N", help="random views per subject (4)")
     cmd.add_argument("--size", type=_positive_int, default=192, metavar="PX", help="render side in pixels (192)")
-    cmd.add_argument("--spp", type=_positive_int, default=16, metavar="N", help="samples per pixel per light (16)")
+    cmd.add_argument("--spp", type=_positive_int, default=None, metavar="N",
+                     help="camera samples per pixel (default: the renderer's, 32 with 4 tracing the lights)")
     cmd.add_argument("--lighting-size", type=_positive_int, default=32, metavar="S",
                      help="side of the mirror-ball lighting basis (32: 812 lights)")
     cmd.add_argument("--workers", type=_positive_int, default=2, metavar="N",

@@ -127,7 +127,7 @@ class TestSubjects:
     def test_defaults_and_options(self):
         args = self.parser().parse_args(["synth", "subjects"])
         assert (args.out, args.seeds, args.views, args.size, args.spp, args.lighting_size, args.worker) == (
-            "lightstage", list(range(10)), 4, 192, 16, 32, (0, 1),
+            "lightstage", list(range(10)), 4, 192, None, 32, (0, 1),
         )  # fmt: skip
         assert (args.source, args.assets, args.workers) == (None, None, 2)
         assert (args.sheet, args.split, args.folder, args.func) == (64, "train", None, run_synth_subjects)

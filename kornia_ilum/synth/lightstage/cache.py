@@ -439,7 +439,7 @@ def build_cache(
     views: Sequence[Camera] | None = None,
     views_per_subject: int = 4,
     size: int = 192,
-    spp: int = 16,
+    spp: int | None = None,
     lighting_size: int = 32,
     workers: int = 2,
     worker_index: int = 0,
@@ -472,7 +472,7 @@ def build_cache(
         views: fixed cameras (view index = position); ``None``: random views.
         views_per_subject: random views per subject.
         size: image side; replaces each view's ``size``.
-        spp: samples per pixel per light.
+        spp: camera samples per pixel (:func:`~.olat.render_olat`); ``None``: the renderer's default.
         lighting_size: the mirror-ball side ``S`` of the lighting basis.
         workers: render processes on this machine.
         worker_index: this machine's share, in ``[0, worker_count)``.
@@ -509,7 +509,8 @@ def build_cache(
         if not views or not all(isinstance(v, Camera) for v in views):
             raise TypeCheckError("views must be a non-empty sequence of Camera")
     check_positive_int(size, "size")
-    check_positive_int(spp, "spp")
+    if spp is not None:
+        check_positive_int(spp, "spp")
     check_positive_int(lighting_size, "lighting_size")
     check_positive_int(views_per_subject, "views_per_subject")
     check_positive_int(workers, "workers")
