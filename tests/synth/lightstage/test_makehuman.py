@@ -220,3 +220,13 @@ def test_missing_assets_error(tmp_path, monkeypatch):
     with pytest.raises(MakeHumanAssetsNotFoundError):
         subject_source("makehuman")
     assert subject_source("mannequin").name == "mannequin"
+
+
+def test_source_pickles_to_worker_processes(mh):
+    """build_cache sends the source to spawned workers: it pickles as its root and samples the same subject."""
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(mh))
+    assert copy.root == mh.root and copy._assets is None
+    a, b = copy.sample(5), mh.sample(5)
+    assert a.params == b.params and np.array_equal(a.parts[0].vertices, b.parts[0].vertices)

@@ -475,6 +475,13 @@ class MakeHumanSource:
                 self._assets = _Assets(self.root)
             return self._assets
 
+    def __getstate__(self) -> dict:
+        """Pickle only the root: a worker process parses the assets itself (and a lock does not pickle)."""
+        return {"root": self.root}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["root"])
+
     def __repr__(self) -> str:
         return f"MakeHumanSource({str(self.root)!r})"
 
