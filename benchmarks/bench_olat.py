@@ -54,14 +54,9 @@ import torch
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import relight
-from kornia_ilum.synth.lightstage.olat import (
-    ONEPASS_SPP,
-    ReflectanceField,
-    render_lighting,
-    render_olat,
-    render_olat_reference,
-    select_mitsuba_variant,
-)
+from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
+from kornia_ilum.synth.lightstage.olat import ONEPASS_SPP, ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import sample_views
 
 HDRI = Path("/work/shared/data/hdri")

@@ -24,18 +24,9 @@ from kornia_ilum.geometry import (
 )
 from kornia_ilum.render import relight
 from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera, camera_transform, project_points
-from kornia_ilum.synth.lightstage.olat import (
-    MITSUBA_VARIANTS,
-    VARIANT_ENV,
-    ReflectanceField,
-    _icosphere,
-    _session,
-    material_bsdf,
-    olat_envmap_basis,
-    render_lighting,
-    render_olat,
-    select_mitsuba_variant,
-)
+from kornia_ilum.synth.lightstage.materials import MITSUBA_VARIANTS, VARIANT_ENV, material_bsdf, select_mitsuba_variant
+from kornia_ilum.synth.lightstage.olat import ReflectanceField, _icosphere, render_olat
+from kornia_ilum.synth.lightstage.reference import _session, olat_envmap_basis, render_lighting
 
 S = 8  # lighting size of the tests: 52 valid lights
 ALBEDO = 0.7

@@ -14,12 +14,9 @@ from kornia_ilum.synth.lightstage.cache import (
     read_manifest,
     write_field,
 )
-from kornia_ilum.synth.lightstage.olat import (
-    ReflectanceField,
-    render_lighting,
-    render_olat,
-    select_mitsuba_variant,
-)
+from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
+from kornia_ilum.synth.lightstage.olat import ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import Camera, sample_views
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,
@@ -61,6 +58,7 @@ __all__ = [
     "read_manifest",
     "relight_portraits",
     "render_lighting",
+    "render_olat_reference",
     "render_olat",
     "sample_views",
     "select_mitsuba_variant",

@@ -477,7 +477,7 @@ def build_cache(
         workers: render processes on this machine.
         worker_index: this machine's share, in ``[0, worker_count)``.
         worker_count: machines sharing the work.
-        variant: the Mitsuba variant (:func:`~.olat.select_mitsuba_variant`).
+        variant: the Mitsuba variant (:func:`~.materials.select_mitsuba_variant`).
         threads: with ``workers = 1``, torch and Dr.Jit threads (``None``: leave them); processes use 1.
         progress: a progress bar of subject-views with an ETA on stderr.
         summary: print a summary at the end (entries, wall time, disk bytes, render seconds, peak memory).

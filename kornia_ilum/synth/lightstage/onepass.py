@@ -11,7 +11,7 @@ Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
    cornea, at most :data:`MAX_LAYERS` surfaces. At a cornea hit seen from outside the Fresnel mirror's glint is
    recorded (weight ``F(theta)`` into the light that owns the reflected direction, if that direction is not
    shadowed) and the ray goes on with the thin-slab transmission ``1 - 2 r / (1 + r)`` (the reference's
-   ``thindielectric``, :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf`). Camera rays are cheap: all
+   ``thindielectric``, :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf`). Camera rays are cheap: all
    ``C`` samples give the coverage, the albedo, the glints and the
    :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer`.
 2. **Which hits trace the lights** (the expensive part). Without demodulation, all of them (the plain mean over
@@ -218,7 +218,7 @@ class _Scenes:
     """The camera scene (all parts, their BSDFs), the opaque shadow scene and the alpha-tested one."""
 
     def __init__(self, mi: Any, dr: Any, subject: Any, transform: np.ndarray) -> None:
-        from kornia_ilum.synth.lightstage.olat import _mitsuba_mesh, diffuse_twin_bsdf, material_bsdf
+        from kornia_ilum.synth.lightstage.materials import _mitsuba_mesh, diffuse_twin_bsdf, material_bsdf
 
         self.mi, self.dr = mi, dr
         cam_objs: dict[str, Any] = {}
@@ -281,7 +281,7 @@ class _Scenes:
         self.cornea_params = {}
         for i, part in enumerate(subject.parts):
             if part.material.kind == "cornea":
-                from kornia_ilum.synth.lightstage.olat import _fresnel_ior
+                from kornia_ilum.synth.lightstage.materials import _fresnel_ior
 
                 f0 = 0.08 * max(float(getattr(part.material, "specular", 0.5)), 1e-3)
                 self.cornea_params[i] = (_fresnel_ior(f0), _fresnel_ior(f0 / (2.0 - f0)))

@@ -3,7 +3,7 @@ r"""Quick looks at synthetic subjects and at the training portraits of a cache.
 :func:`render_preview` and :func:`contact_sheet`: a Mitsuba 3 render of subjects (any source: textured
 MakeHuman heads or mannequins) under a studio light, for eyeballing, not for training data (the light-stage
 renderer is :mod:`kornia_ilum.synth.lightstage.olat`). Textures: the material's ``albedo_texture`` and
-``roughness_texture`` through :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf`, looked up with the
+``roughness_texture`` through :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf`, looked up with the
 part's ``uvs``; its ``opacity_texture`` (hair cards, brows, lashes) as a Mitsuba ``mask`` BSDF around it.
 
 :func:`compose_portrait` and :func:`training_sheet`: training portraits from cached reflectance fields, made
@@ -13,7 +13,7 @@ camera, auto-exposed, 8-bit sRGB, cropped to the face box expanded 1.25 x), with
 Convention:
     A pinhole camera on the +Z axis looks at the face (SPEC frame); ``yaw_deg`` turns it about +Y around the
     head (positive moves the camera toward +X). Materials are those of the light stage
-    (:func:`kornia_ilum.synth.lightstage.olat.material_bsdf`). Lighting: a dim constant sky, a warm key light
+    (:func:`kornia_ilum.synth.lightstage.materials.material_bsdf`). Lighting: a dim constant sky, a warm key light
     from the camera's upper left and a cool fill from the right. Output: linear RGB, exposure 1.
 """
 
@@ -27,11 +27,7 @@ import numpy as np
 
 import torch
 
-from kornia_ilum.synth.lightstage.olat import (
-    _import_mitsuba,
-    material_bsdf,
-    select_mitsuba_variant,
-)
+from kornia_ilum.synth.lightstage.materials import _import_mitsuba, material_bsdf, select_mitsuba_variant
 from kornia_ilum.synth.lightstage.scene import Camera, _pivot, camera_transform
 from kornia_ilum.synth.lightstage.subjects import Subject
 
@@ -54,7 +50,7 @@ def _has_bitmap(d: object) -> bool:
 def preview_bsdf(material, textured: bool = True) -> dict:
     """The Mitsuba BSDF dict of a :class:`~.subjects.Material` with its textures.
 
-    :func:`~kornia_ilum.synth.lightstage.olat.material_bsdf` (which maps ``albedo_texture`` and
+    :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf` (which maps ``albedo_texture`` and
     ``roughness_texture``; where it does not, the albedo texture is added here), wrapped in a ``mask`` of the
     ``opacity_texture`` when there is one. ``textured=False`` (a part without ``uvs``) gives the plain BSDF.
 

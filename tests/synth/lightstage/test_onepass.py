@@ -15,7 +15,8 @@ import torch
 
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.render import relight
-from kornia_ilum.synth.lightstage.olat import _icosphere, render_olat, select_mitsuba_variant
+from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
+from kornia_ilum.synth.lightstage.olat import _icosphere, render_olat
 from kornia_ilum.synth.lightstage.onepass import light_cells
 from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
 

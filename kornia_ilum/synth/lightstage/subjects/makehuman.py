@@ -660,7 +660,6 @@ class MakeHumanSource:
         ball_f = ef[~shell]
         cornea_v, cornea_f = [], []
         for side, cen in enumerate(eye_centres):
-            sel_side = (ev[:, 0] > 0) if side == 1 else (ev[:, 0] <= 0)
             # The cornea has no texture: close it on the unsplit (welded) vertices.
             fs = mesh.tri_v[shell_v[mesh.tri_v].all(1) & ((eye_all[mesh.tri_v][:, :, 0].mean(1) > 0) == (side == 1))]
             used, rm = np.unique(fs, return_inverse=True)

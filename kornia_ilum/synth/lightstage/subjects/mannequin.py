@@ -88,7 +88,6 @@ from __future__ import annotations
 
 import colorsys
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 import torch
