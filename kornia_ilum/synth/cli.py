@@ -360,6 +360,9 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     cmd.add_argument("--threads", type=_positive_int, default=None, metavar="N",
                      help="render threads with --workers 1 (default: Dr.Jit's, all cores)")
     cmd.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_rgb, else scalar_rgb)")
+    cmd.add_argument("--device", choices=("cpu", "cuda"), default=None,
+                     help="cuda: render with Mitsuba's cuda_ad_rgb variant on an NVIDIA GPU (same as --variant "
+                          "cuda_ad_rgb); cpu: the default variants")
     cmd.add_argument("--sheet", type=_nonnegative_int, default=64, metavar="N",
                      help="portraits in contact_sheet.png (64; 0: none)")
     cmd.add_argument("--split", choices=("train", "eval", "all"), default="train",
@@ -418,7 +421,7 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     out = Path(args.out)
     manifest = build_cache(source, args.seeds, out, views_per_subject=args.views, size=args.size, spp=args.spp,
                            lighting_size=args.lighting_size, workers=getattr(args, "workers", 2),
-                           worker_index=args.worker[0], worker_count=args.worker[1], variant=args.variant,
+                           worker_index=args.worker[0], worker_count=args.worker[1], variant="cuda_ad_rgb" if args.device == "cuda" else args.variant,
                            threads=args.threads, progress=True)
     print(f"cache {out} (source {source.name}):")
     print(cache_summary(manifest))

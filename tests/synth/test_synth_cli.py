@@ -134,10 +134,11 @@ class TestSubjects:
         args = self.parser().parse_args(["synth", "subjects", "--seeds", "4,1-2,4", "--worker", "2/3",
                                          "--source", "mannequin", "--workers", "1"])
         assert args.seeds == [4, 1, 2] and args.worker == (2, 3) and args.source == "mannequin"
+        assert args.device is None and self.parser().parse_args(["synth", "subjects", "--device", "cuda"]).device == "cuda"
 
     def test_bad_values(self, capsys):
         for bad in (["--seeds", "a-b"], ["--seeds", ""], ["--worker", "3/3"], ["--worker", "1"], ["--size", "0"],
-                    ["--source", "clay"], ["--workers", "0"]):
+                    ["--source", "clay"], ["--workers", "0"], ["--device", "tpu"]):
             with pytest.raises(SystemExit):
                 self.parser().parse_args(["synth", "subjects", *bad])
         err = capsys.readouterr().err

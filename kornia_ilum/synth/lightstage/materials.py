@@ -110,8 +110,9 @@ def select_mitsuba_variant(variant: str | None = None) -> str:
         variant: a variant to use as is (``"llvm_ad_rgb"``, ``"scalar_rgb"``, ``"cuda_ad_rgb"``, ...). ``None``
             takes the environment variable ``KORNIA_ILUM_MITSUBA_VARIANT`` if set, else the first of
             :data:`MITSUBA_VARIANTS` that renders a tiny test scene in a child process (checked once per
-            process). ``llvm_ad_rgb`` needs an LLVM that Dr.Jit can use (LLVM >= 16; on Debian 12
-            ``apt-get install libllvm19``); otherwise ``scalar_rgb`` is used, which gives the same images.
+            process). ``llvm_ad_rgb`` needs an LLVM that Dr.Jit can use (the system LLVM 15 of Debian 12
+            works with the pinned Dr.Jit 1.4.0, not with 1.5); otherwise ``scalar_rgb`` is used, which gives
+            the same images but only the slow per-light renderer.
 
     Returns:
         the active variant (Mitsuba's variant is process-global).
