@@ -95,7 +95,7 @@ def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
 
 
 def _shared() -> Path:
-    return Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", "/work/shared/data"))
+    return Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
 def default_yunet_weights() -> str | None:
@@ -122,10 +122,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="environment seed (0)")
     p.add_argument("--min-subjects", type=int, default=10, help="eval subjects wanted (10)")
     p.add_argument("--render-eval", type=int, default=0, metavar="K", help="render K more eval seeds first")
-    p.add_argument("--source", default="mannequin", help="subject source for --render-eval (mannequin)")
+    p.add_argument("--source", default="makehuman", help="subject source for --render-eval (makehuman)")
     p.add_argument("--views", type=int, default=4)
     p.add_argument("--size", type=int, default=192)
-    p.add_argument("--spp", type=int, default=4)
+    p.add_argument("--spp", type=int, default=None, help="camera samples per pixel (the renderer's default)")
     p.add_argument("--lighting-size", type=int, default=32)
     p.add_argument("--workers", type=int, default=2)
     args = p.parse_args(argv)
