@@ -8,7 +8,7 @@ Writes into ``docs/_static/``:
 - ``subjects_contact_sheet.png``: MakeHuman subjects under a studio light (:func:`preview.contact_sheet`);
 - ``subsurface_pair.png``: one subject-view relit from its one-pass reflectance field, without and with the
   subsurface step, under the same real map;
-- ``lightstage_contact_sheet.png``: 64 training portraits exactly as :class:`PortraitDataset` yields them
+- ``lightstage_contact_sheet.png``: 39 training portraits exactly as :class:`PortraitDataset` yields them
   (camera effects included), sorted by skin tone, each above its ground-truth diffuse, matte-silver and
   mirror spheres, with the bundled astronaut photograph's face crop first for comparison.
 """
@@ -71,7 +71,7 @@ def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
-def portraits_sheet(cache: str, hdri: list[str], count: int = 64, columns: int = 8) -> None:
+def portraits_sheet(cache: str, hdri: list[str], count: int = 40, columns: int = 8) -> None:
     from skimage import data
 
     from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
@@ -81,7 +81,9 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 64, columns: int =
     from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
 
     sources = default_sources() + [HDRFolderSource(h) for h in hdri]
-    config = PortraitConfig(split="train", environments=EnvironmentSampler(sources, seed=0))
+    # one lighting per field and chunk, so the sheet shows many subject-views (training uses 16 per field)
+    config = PortraitConfig(split="train", environments=EnvironmentSampler(sources, seed=0), lightings_per_field=1,
+                            shuffle=1)
     samples = list(itertools.islice(iter(PortraitDataset(cache, config=config, seed=0)), count - 1))
     samples.sort(key=lambda s: int(s["skin_tone"]))
 
@@ -103,7 +105,7 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 64, columns: int =
     tiles[0] = torch.cat([tiles[0], torch.ones(3, 6 + tiles[1].shape[1] - 262, 256)], dim=1)
     out = STATIC / "lightstage_contact_sheet.png"
     _write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
-                "matte silver, mirror", out, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 100, True)
+                "matte silver, mirror", out, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 72, True)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 

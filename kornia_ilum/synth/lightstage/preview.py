@@ -266,8 +266,8 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
         key: the exposure's target mean.
 
     Returns:
-        ``{"image": (3, H, W) uint8, "lighting": (3, 32, 32) mirror ball in image units (times the exposure),
-        "gain": float, "face_box": (4,) landmark box}``.
+        a dict: ``"image"`` ``(3, H, W)`` uint8, ``"lighting"`` the ``(3, 32, 32)`` mirror ball in image
+        units (times the exposure), ``"gain"`` a float, ``"face_box"`` the ``(4,)`` landmark box.
     """
     from kornia_ilum.color import encode_srgb8
     from kornia_ilum.synth.lightstage.portraits import auto_exposure, frame_background, relight_portraits
