@@ -378,20 +378,10 @@ def _subject_source(name: str | None, assets: str | None):
     import sys
 
     from kornia_ilum.core.errors import IlumError
+    from kornia_ilum.synth.lightstage.subjects import MannequinSource, subject_source
 
-    try:
-        from kornia_ilum.synth.lightstage.subjects import subject_source
-    except ImportError:
-        subject_source = None
-    if name == "mannequin" or (name is None and subject_source is None):
-        if name is None:
-            print("kornia-ilum: notice: the MakeHuman source is not in this build; using the mannequins",
-                  file=sys.stderr)
-        from kornia_ilum.synth.lightstage.subjects import MannequinSource
-
+    if name == "mannequin":
         return MannequinSource()
-    if subject_source is None:
-        raise IlumError("the makehuman subject source is not in this build; use --source mannequin")
     try:
         return subject_source("makehuman", assets=assets)
     except Exception as exc:  # noqa: BLE001 - missing or broken assets, whichever error the source raises
@@ -399,8 +389,6 @@ def _subject_source(name: str | None, assets: str | None):
             raise IlumError(f"cannot load the MakeHuman assets: {exc}") from exc
         print(f"kornia-ilum: notice: MakeHuman assets not found ({' '.join(str(exc).split())}); "
               "using the mannequins (--source mannequin)", file=sys.stderr)
-        from kornia_ilum.synth.lightstage.subjects import MannequinSource
-
         return MannequinSource()
 
 
