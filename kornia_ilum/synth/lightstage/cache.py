@@ -271,15 +271,9 @@ def _entry_ok(entry: dict[str, Any] | None, out_dir: Path, settings: dict[str, A
 def _resolve_source(source: Any, assets: str | os.PathLike | None = None) -> Any:
     """A subject source from an object with ``name`` and ``sample``, or from its name."""
     if isinstance(source, str):
-        try:
-            from kornia_ilum.synth.lightstage.subjects import subject_source
-        except ImportError:  # the factory is not there yet: only the mannequins
-            from kornia_ilum.synth.lightstage.subjects import MannequinSource
+        from kornia_ilum.synth.lightstage.subjects import subject_source
 
-            if source != "mannequin":
-                raise ValueCheckError(f"unknown subject source {source!r}; this build has only 'mannequin'") from None
-            return MannequinSource()
-        return subject_source(source, assets=assets) if assets is not None else subject_source(source)
+        return subject_source(source, assets=assets)
     if not (hasattr(source, "sample") and hasattr(source, "name")):
         raise TypeCheckError(f"source must be a SubjectSource (name and sample(seed)) or its name, got "
                              f"{type(source).__name__}")
