@@ -20,9 +20,9 @@ from __future__ import annotations
 import argparse
 import math
 import resource
-import statistics
-import time
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import torch
 
@@ -33,6 +33,9 @@ from kornia_ilum.synth.lightstage.subsurface import (
     subsurface_operator,
     subsurface_scatter,
 )
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_ops import median_ms  # noqa: E402  (the shared timing helper)
 
 
 def synthetic_head(size: int = 192, fov_deg: float = 30.0, distance: float = 0.4) -> GBuffer:
@@ -77,12 +80,8 @@ def synthetic_head(size: int = 192, fov_deg: float = 30.0, distance: float = 0.4
 
 
 def median_s(fn: Callable[[], object], repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    """Median wall time of ``fn`` in seconds, no warm-up (:func:`bench_ops.median_ms`)."""
+    return median_ms(fn, repeats, warmup=0) / 1e3
 
 
 def main() -> None:
