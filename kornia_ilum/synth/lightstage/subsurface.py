@@ -287,8 +287,7 @@ class SubsurfaceScatter(nn.Module):
         chunk: int = 128,
     ) -> None:
         super().__init__()
-        _check_params(radii_mm, texturing, eps, max_radius_px)
-        self.radii_mm = tuple(float(r) for r in radii_mm)
+        self.radii_mm = _check_params(radii_mm, texturing, eps, max_radius_px)
         self.texturing = texturing
         self.eps = eps
         self.max_radius_px = max_radius_px
