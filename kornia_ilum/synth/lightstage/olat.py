@@ -273,12 +273,9 @@ def render_olat(
     if denoise:
         field = _on_dense(denoise_field, field, res, size)
         steps.append("denoise")
-    rows = torch.zeros(3, len(res.rows), lighting_size**2, dtype=torch.bfloat16)
-    rows.index_copy_(2, res.cols, field.to(torch.bfloat16))
-    del field
     out = torch.zeros(3, size * size, lighting_size**2, dtype=torch.bfloat16)
-    out.index_copy_(1, res.rows, rows)
-    del rows
+    out[:, res.rows[:, None], res.cols] = field.to(torch.bfloat16)
+    del field
     box = project_points(subject.face_landmarks, camera, transform)
     face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
     meta: dict[str, Any] = {
