@@ -187,12 +187,12 @@ def clip_mesh_below(
     idx = (odd[:, None] + np.arange(3)[None]) % 3
     rot = np.take_along_axis(cross, idx, 1)
     a, b, c = rot[:, 0], rot[:, 1], rot[:, 2]
-    edges = np.concatenate([np.stack([a, b], 1), np.stack([c, a], 1), np.stack([b, c], 1)])
+    edges = np.concatenate([np.stack([a, b], 1), np.stack([c, a], 1)])  # the bc edge is never crossed
     ek = np.sort(edges, 1)
     uk, inv = np.unique(ek, axis=0, return_inverse=True)
     inv = inv.reshape(-1)
     n = len(cross)
-    e_ab, e_ca, e_bc = inv[:n] + len(v), inv[n : 2 * n] + len(v), inv[2 * n :] + len(v)
+    e_ab, e_ca = inv[:n] + len(v), inv[n:] + len(v)
     i0, i1 = uk[:, 0], uk[:, 1]
     t = (y_cut - v[i0, 1]) / np.where(np.abs(v[i1, 1] - v[i0, 1]) > 1e-30, v[i1, 1] - v[i0, 1], 1.0)
     t = np.clip(t, 0.0, 1.0)
@@ -204,8 +204,6 @@ def clip_mesh_below(
     ob = ~one_above  # a below, b and c above: a quad b, c, e_ca, e_ab
     tris.append(np.stack([b[ob], c[ob], e_ca[ob]], 1))
     tris.append(np.stack([b[ob], e_ca[ob], e_ab[ob]], 1))
-    # Edges that are not crossed (the bc edge of a one-above triangle is below) are unused: fine.
-    del e_bc
     out_f = np.concatenate(tris)
     all_v = np.concatenate([v, new_v])
     out_attrs = []
@@ -344,9 +342,6 @@ class _Assets:
     """Everything parsed once: the base mesh, targets (lazily), proxies, textures and the UV masks."""
 
     def __init__(self, root: Path) -> None:
-        import time
-
-        t0 = time.perf_counter()
         self.root = root
         self.lock = threading.RLock()
         self.base: ObjMesh = read_obj(root / "3dobjs" / "base.obj")
@@ -371,7 +366,6 @@ class _Assets:
         # Keep only what can be above any cut (the chin rises at most a few cm with the targets).
         chin = v0[LANDMARK_VERTICES["chin"], 1]
         near = (v0[tri_v, 1] > chin - 10 * _CUT_BELOW_CHIN - 1.2).any(1)
-        self.skin_src_tri = np.where(near)[0]
         sb, st, sf = _split_uv(tri_v[near], tri_t[near])
         self.split_base, self.split_uv, self.split_faces = sb, self.base.uvs[st], sf
         # Face region (for the skin re-tint): the front of the head between brows and chin, inside the jaw.
@@ -396,7 +390,6 @@ class _Assets:
         self.proxies: dict[str, Proxy] = {}
         self.textures: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
         self.skins = sorted((root / "skins" / "textures").glob("*_diffuse*.png"))
-        self.parse_s = time.perf_counter() - t0
 
     def target(self, key) -> tuple[np.ndarray, np.ndarray]:
         with self.lock:
