@@ -1,10 +1,4 @@
-"""The virtual light stage: synthetic subjects, their OLAT reflectance fields, and portraits relit from them.
-
-The portrait names (:class:`PortraitDataset`, :func:`load_fields`, :func:`relight_portraits`) are imported on
-first use, so importing the cache or the subjects does not import the portrait pipeline.
-"""
-
-from typing import Any
+"""The virtual light stage: synthetic subjects, their OLAT reflectance fields, and portraits relit from them."""
 
 from kornia_ilum.synth.lightstage.cache import (
     DEFAULT_VIEWS,
@@ -16,6 +10,7 @@ from kornia_ilum.synth.lightstage.cache import (
 )
 from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
 from kornia_ilum.synth.lightstage.olat import ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields, relight_portraits
 from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import Camera, sample_views
 from kornia_ilum.synth.lightstage.subjects import (
@@ -28,17 +23,6 @@ from kornia_ilum.synth.lightstage.subjects import (
     subject_params,
     subject_split,
 )
-
-_PORTRAIT_NAMES = ("PortraitDataset", "load_fields", "relight_portraits")
-
-
-def __getattr__(name: str) -> Any:
-    if name in _PORTRAIT_NAMES:
-        from kornia_ilum.synth.lightstage import portraits
-
-        return getattr(portraits, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 __all__ = [
     "DEFAULT_VIEWS",
