@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from kornia_ilum.color import linear_to_srgb
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import relight
@@ -140,9 +141,7 @@ def luminance(img: torch.Tensor) -> torch.Tensor:
 
 
 def to_srgb8(img: torch.Tensor, exposure: float) -> torch.Tensor:
-    x = (img * exposure).clamp(0, 1)
-    s = torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-12) ** (1 / 2.4) - 0.055)
-    return (s * 255).round()
+    return (linear_to_srgb((img * exposure).clamp(0, 1)[..., None])[..., 0] * 255).round()
 
 
 def psnr8(a: torch.Tensor, b: torch.Tensor, mask: torch.Tensor) -> float:
