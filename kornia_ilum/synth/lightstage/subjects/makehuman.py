@@ -707,9 +707,9 @@ class MakeHumanSource:
                                   Material("hair", tuple(float(c) for c in colour), rough, 0.5, albedo_texture=albedo,
                                            opacity_texture=op),
                                   _vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
+        mouth_c = vm[[LANDMARK_VERTICES["upper_lip"], LANDMARK_VERTICES["lower_lip"]]].mean(0) - (0, 0, 0.03)
         for name, rel, kind, rough in (("teeth", "teeth/teeth_base/teeth_base.mhclo", "glossy", 0.25),
                                        ("tongue", "tongue/tongue01/tongue01.mhclo", "skin", 0.4)):  # fmt: skip
-            mouth_c = vm[[LANDMARK_VERTICES["upper_lip"], LANDMARK_VERTICES["lower_lip"]]].mean(0) - (0, 0, 0.03)
             px, pv, f, uv = proxy_mesh(rel, mouth_c)
             rgb, _ = a.texture(a.material_texture(px))
             parts.append(MeshPart(name, pv.astype(np.float32), f.astype(np.int32),
