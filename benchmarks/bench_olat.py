@@ -300,7 +300,7 @@ def main() -> int:
 
     if not args.skip_interreflection:
         print(f"\ndirect renders under each map (render_lighting, {args.direct_spp} spp, 1 thread):")
-        for k, lights in maps.items():
+        for k in maps:
             ball = balls[k]
             t0 = time.perf_counter()
             d2, _ = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1)
