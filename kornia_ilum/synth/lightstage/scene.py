@@ -100,7 +100,11 @@ class Camera:
 
 
 def _pivot(subject: Any) -> np.ndarray:
-    lm = np.asarray(subject.face_landmarks, dtype=np.float64)
+    return _landmark_pivot(np.asarray(subject.face_landmarks, dtype=np.float64))
+
+
+def _landmark_pivot(lm: np.ndarray) -> np.ndarray:
+    """The pivot of :class:`Camera`: the landmark box's centre raised by :data:`PIVOT_RAISE` of its height."""
     lo, hi = lm.min(axis=0), lm.max(axis=0)
     return 0.5 * (lo + hi) + np.array([0.0, PIVOT_RAISE * (hi[1] - lo[1]), 0.0])
 
@@ -230,8 +234,7 @@ def frame_distance(camera: Camera, landmarks: np.ndarray, fraction: float = FACE
     lm = np.asarray(landmarks, dtype=np.float64)
     if lm.ndim != 2 or lm.shape[1] != 3 or len(lm) < 2:
         raise ShapeError(f"landmarks must have shape (K, 3) with K >= 2, got {tuple(lm.shape)}")
-    lo, hi = lm.min(axis=0), lm.max(axis=0)
-    pivot = 0.5 * (lo + hi) + np.array([0.0, PIVOT_RAISE * (hi[1] - lo[1]), 0.0])
+    pivot = _landmark_pivot(lm)
     reach = float(np.linalg.norm(lm - pivot, axis=1).max())  # nothing may come closer than this
     target = fraction * camera.size
     near, far = 1.05 * reach + 1e-3, 100.0
