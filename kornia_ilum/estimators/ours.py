@@ -16,8 +16,9 @@ about 9.2 M). From the paper's description:
 - decoder: three 3 x 3 convolutions of depths 64, 32, 16, each followed by bilinear 2x upsampling,
   4 -> 32 pixels, and a final 3 x 3 convolution to the 3-channel 32 x 32 log-HDR mirror ball.
 
-Our choices, where the paper says nothing: LeakyReLU (slope 0.2) after every convolution and after the
-latent-to-feature layer; no normalisation layers; "same" zero padding for the 3 x 3 convolutions and a
+Activations: ReLU after every convolution and after the latent-to-feature layer, as the paper says ("We
+use the ReLU activation function for the generator network"). Our choices, where the paper says nothing:
+no normalisation layers; "same" zero padding for the 3 x 3 convolutions and a
 valid 8 x 8 convolution (8 x 8 -> 1 x 1); blur-pool kernel 3 (binomial ``[1, 2, 1]``, Kornia's default);
 the bottleneck is linear and a second fully-connected layer maps it to the decoder's 4 x 4 x 256 input;
 PyTorch's default initialisation. The 9.2 M count depends on these: the two fully-connected layers and
@@ -27,6 +28,10 @@ Output (SPEC.md units): the head predicts ``y = log L`` (natural log of linear r
 estimate holds ``mirror_ball = exp(y)`` and ``log_mirror_ball = softplus(y) = log(1 + L)``, both 0 outside
 the ball, so ``mirror_ball == expm1(log_mirror_ball)`` and the log form is non-negative, finite and
 well-conditioned for losses in log space.
+
+Training (:mod:`kornia_ilum.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
+(:meth:`OursEstimator.decode`) into 3-channel log lighting for the multi-scale losses; they belong to the
+training model, never run at inference and are not in the shipped weights.
 """
 
 from __future__ import annotations
@@ -50,7 +55,6 @@ DECODER_DEPTHS: tuple[int, ...] = (64, 32, 16)
 LIGHTING_SIZE = 32
 
 _INPUT_SIZE = 256
-_SLOPE = 0.2
 _BOTTLENECK_SIDE = LIGHTING_SIZE >> len(DECODER_DEPTHS)  # 4
 _BOTTLENECK_DEPTH = ENCODER_DEPTHS[-1]  # 256
 _ENCODED_SIDE = _INPUT_SIZE >> len(ENCODER_DEPTHS)  # 8
@@ -115,34 +119,52 @@ class OursEstimator(LightingEstimator):
         for depth in ENCODER_DEPTHS:
             layers += [
                 nn.Conv2d(depth_in, depth, 3, padding=1),
-                nn.LeakyReLU(_SLOPE),
+                nn.ReLU(),
                 BlurPool2D(3, stride=2),
             ]
             depth_in = depth
-        layers += [nn.Conv2d(depth_in, _BOTTLENECK_DEPTH, _ENCODED_SIDE), nn.LeakyReLU(_SLOPE), nn.Flatten(1)]
+        layers += [nn.Conv2d(depth_in, _BOTTLENECK_DEPTH, _ENCODED_SIDE), nn.ReLU(), nn.Flatten(1)]
         self.encoder = nn.Sequential(*layers)
         self.to_latent = nn.Linear(_BOTTLENECK_DEPTH, latent_dim)
         self.from_latent = nn.Sequential(
-            nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.LeakyReLU(_SLOPE)
+            nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.ReLU()
         )
-        layers = []
+        blocks = []
         depth_in = _BOTTLENECK_DEPTH
         for depth in DECODER_DEPTHS:
-            layers += [
-                nn.Conv2d(depth_in, depth, 3, padding=1),
-                nn.LeakyReLU(_SLOPE),
-                nn.Upsample(scale_factor=2, mode="bilinear", align_corners=False),
-            ]
+            blocks.append(nn.Sequential(nn.Conv2d(depth_in, depth, 3, padding=1), nn.ReLU()))
             depth_in = depth
-        self.decoder = nn.Sequential(*layers)
+        self.decoder = nn.ModuleList(blocks)
+        self.upsample = nn.Upsample(scale_factor=2, mode="bilinear", align_corners=False)
         self.head = nn.Conv2d(depth_in, 3, 3, padding=1)
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
-    def predict(self, crops: Tensor) -> LightingEstimate:
+    def decode(self, crops: Tensor) -> tuple[Tensor, list[Tensor]]:
+        r"""The raw network: natural-log radiance at 32 px and the decoder's feature maps at 4, 8, 16 px.
+
+        No input checks, no masking: this is the training path (:mod:`kornia_ilum.train`), whose side
+        branches read the feature maps. Inference goes through ``forward``.
+
+        Args:
+            crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
+
+        Returns:
+            ``(log_radiance, features)``: :math:`(B, 3, 32, 32)` and the decoder's activations
+            :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`, :math:`(B, 16, 16, 16)` (before each upsampling).
+        """
         dtype = self.head.weight.dtype
         latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
-        features = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
-        log_radiance = self.head(self.decoder(features))
+        x = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
+        features = []
+        for block in self.decoder:
+            x = block(x)
+            features.append(x)
+            x = self.upsample(x)
+        return self.head(x), features
+
+    def predict(self, crops: Tensor) -> LightingEstimate:
+        dtype = self.head.weight.dtype
+        log_radiance, _ = self.decode(crops)
         with torch.autocast(log_radiance.device.type, enabled=False):
             y = log_radiance.float()
             mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)

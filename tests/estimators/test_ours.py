@@ -44,7 +44,8 @@ class TestOursEstimator:
         assert [c.kernel_size for c in convs] == [(3, 3)] * 5 + [(8, 8)]
         assert sum(isinstance(m, BlurPool2D) for m in net.encoder) == 5
         assert net.to_latent.out_features == 1024
-        assert [m.out_channels for m in net.decoder if isinstance(m, torch.nn.Conv2d)] == [64, 32, 16]
+        assert [m.out_channels for b in net.decoder for m in b if isinstance(m, torch.nn.Conv2d)] == [64, 32, 16]
+        assert not any(isinstance(m, torch.nn.LeakyReLU) for m in net.modules())  # the paper's ReLU
         assert net.head.out_channels == 3
         # two fully-connected layers and the 8x8 convolution hold most of the parameters
         assert (count(net.to_latent) + count(net.from_latent) + count(convs[-1])) / count(net) > 0.9
@@ -118,9 +119,13 @@ class TestOursEstimator:
         """forward = check + predict: the estimate is the network's exp(head output) on the ball."""
         x = crops(1)
         with torch.no_grad():
-            y = net.head(
-                net.decoder(net.from_latent(net.to_latent(net.encoder(x - 0.5))).reshape(1, 256, 4, 4))
-            )
+            h = net.from_latent(net.to_latent(net.encoder(x - 0.5))).reshape(1, 256, 4, 4)
+            for block in net.decoder:
+                h = net.upsample(block(h))
+            y = net.head(h)
+            y2, features = net.decode(x)
+            torch.testing.assert_close(y2, y, atol=0, rtol=0)
+            assert [tuple(f.shape[1:]) for f in features] == [(64, 4, 4), (32, 8, 8), (16, 16, 16)]
             torch.testing.assert_close(net(x).mirror_ball, torch.exp(y) * VALID)
             torch.testing.assert_close(net.predict(x).log_mirror_ball, net(x).log_mirror_ball, atol=0, rtol=0)
 
