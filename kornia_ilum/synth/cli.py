@@ -38,6 +38,7 @@ __all__ = [
     "parse_seeds",
     "run_synth_environments",
     "run_synth_subjects",
+    "split_seeds",
     "tone_map_tile",
     "write_contact_sheet",
 ]
@@ -326,6 +327,30 @@ def _worker(text: str) -> tuple[int, int]:
     return i, n
 
 
+class _SplitAction(argparse.Action):
+    """``--split``: stores the choice and marks it as given (``split_given``), so that only an explicit
+    ``--split`` filters the rendered seeds; the default (``"train"``) only picks the sheet's subjects."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, values)
+        namespace.split_given = True
+
+
+def split_seeds(seeds: Sequence[int], split: str | None) -> list[int]:
+    """The seeds whose :func:`~kornia_ilum.synth.lightstage.subject_split` is ``split`` (all for ``None`` or
+    ``"all"``), in order.
+
+    Examples:
+        >>> split_seeds(range(6), "eval"), split_seeds([0, 1], "all")
+        ([1, 3], [0, 1])
+    """
+    from kornia_ilum.synth.lightstage.subjects.base import subject_split
+
+    if split in (None, "all"):
+        return list(seeds)
+    return [s for s in seeds if subject_split(s) == split]
+
+
 def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``synth subjects`` to ``subparsers`` (reusing a ``synth`` command that is already there).
 
@@ -365,8 +390,10 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
                           "cuda_ad_rgb); cpu: the default variants")
     cmd.add_argument("--sheet", type=_nonnegative_int, default=64, metavar="N",
                      help="portraits in contact_sheet.png (64; 0: none)")
-    cmd.add_argument("--split", choices=("train", "eval", "all"), default="train",
-                     help="subjects shown in the sheet (train)")
+    cmd.add_argument("--split", choices=("train", "eval", "all"), default="train", action=_SplitAction,
+                     help="render only the seeds of this split (subject_split) and show them in the sheet; "
+                          "without it every seed is rendered and the sheet shows the train subjects. "
+                          "--split eval --seeds 200-999 renders an eval-only cache of extra subjects")
     cmd.add_argument("--folder", metavar="DIR", help="also light the sheet's portraits with these real HDR maps")
     cmd.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sheet's portraits (0)")
     cmd.set_defaults(func=run_synth_subjects)
@@ -405,9 +432,18 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
 
     if args.sheet:
         _require_matplotlib("synth subjects")
+    seeds = list(args.seeds)
+    if getattr(args, "split_given", False) and args.split != "all":
+        seeds = split_seeds(seeds, args.split)
+        print(f"--split {args.split}: {len(seeds)} of {len(args.seeds)} seeds, "
+              f"{len(args.seeds) - len(seeds)} of the other split skipped")
+        if not seeds:
+            from kornia_ilum.core.errors import ValueCheckError
+
+            raise ValueCheckError(f"no seed of split {args.split!r} in --seeds")
     source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None))
     out = Path(args.out)
-    manifest = build_cache(source, args.seeds, out, views_per_subject=args.views, size=args.size, spp=args.spp,
+    manifest = build_cache(source, seeds, out, views_per_subject=args.views, size=args.size, spp=args.spp,
                            lighting_size=args.lighting_size, workers=getattr(args, "workers", 2),
                            worker_index=args.worker[0], worker_count=args.worker[1], variant="cuda_ad_rgb" if args.device == "cuda" else args.variant,
                            threads=args.threads, progress=True)

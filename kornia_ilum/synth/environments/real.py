@@ -7,6 +7,15 @@ energy-conserving area average (:func:`resize_latlong`), computes its 32 x 32 mi
 :func:`kornia_ilum.geometry.latlong_to_mirror_ball` (``mode="area"``, energy-conserving) and keeps both in
 memory. :meth:`HDRFolderSource.sample` picks a map uniformly.
 
+Held-out maps: :func:`hdri_split` puts about one map in four in the ``"eval"`` split, by a stable hash of its
+file name (``blake2b(f"kornia_ilum.hdri:{name}")`` modulo 4 is 0), whatever folder it is in;
+``HDRFolderSource(folder, split="train")`` keeps the others, and :func:`folder_splits` lists a folder's
+splits. On the shared folders the eval maps are, in ``hdri/`` (10 maps): ``forest.exr``, ``sunrise.exr``
+(outdoor), ``studio.exr`` (indoor); in ``hdri_more/`` (39 maps): ``blocky_photo_studio``,
+``drachenfels_cellar``, ``leadenhall_market``, ``parking_garage``, ``royal_esplanade``, ``thatch_chapel``
+(indoor), ``evening_meadow``, ``studio_garden``, ``urban_street_01`` (outdoor; all ``_1k.hdr``): 12 of 49,
+7 indoor and 5 outdoor.
+
 Convention:
     The files use the common lat-long orientation: the centre column looks forward, the left half of the
     image is to the left, the top row is up. That is exactly the lat-long grid of SPEC.md (the camera frame
@@ -20,6 +29,7 @@ Convention:
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -38,18 +48,22 @@ from kornia_ilum.synth.environments.base import Environment, Label
 
 __all__ = [
     "DEFAULT_LABELS",
+    "HDRI_SPLITS",
     "HDR_EXTENSIONS",
     "INDOOR_KEYWORDS",
     "HDRFolderSource",
     "ResizeLatLong",
+    "folder_splits",
     "guess_label",
+    "hdri_split",
     "resize_latlong",
 ]
 
 #: File extensions that :class:`HDRFolderSource` lists (case-insensitive).
 HDR_EXTENSIONS: tuple[str, ...] = (".hdr", ".exr")
 
-#: Labels of the 10 shared real maps (``../shared/data/hdri``, Poly Haven, CC0; see its README).
+#: Labels of the 49 shared real maps (``../shared/data/hdri`` and ``hdri_more``, Poly Haven, CC0; see their
+#: READMEs): the keyword heuristic of :func:`guess_label` gets 11 of the 39 ``hdri_more`` maps wrong.
 DEFAULT_LABELS: Mapping[str, Label] = {
     "blouberg_sunrise_2_1k.hdr": "outdoor",
     "moonless_golf_1k.hdr": "outdoor",
@@ -61,6 +75,46 @@ DEFAULT_LABELS: Mapping[str, Label] = {
     "courtyard.exr": "outdoor",
     "interior.exr": "indoor",
     "studio.exr": "indoor",
+    # the 39 maps of ../shared/data/hdri_more (Poly Haven, CC0), as its README labels them
+    "aerodynamics_workshop_1k.hdr": "indoor",
+    "artist_workshop_1k.hdr": "indoor",
+    "autoshop_01_1k.hdr": "indoor",
+    "blocky_photo_studio_1k.hdr": "indoor",
+    "brown_photostudio_01_1k.hdr": "indoor",
+    "brown_photostudio_02_1k.hdr": "indoor",
+    "brown_photostudio_06_1k.hdr": "indoor",
+    "brown_photostudio_07_1k.hdr": "indoor",
+    "chinese_garden_1k.hdr": "outdoor",
+    "christmas_photo_studio_07_1k.hdr": "indoor",
+    "circus_arena_1k.hdr": "indoor",
+    "comfy_cafe_1k.hdr": "indoor",
+    "dancing_hall_1k.hdr": "indoor",
+    "drachenfels_cellar_1k.hdr": "indoor",
+    "dry_hay_field_1k.hdr": "outdoor",
+    "evening_meadow_1k.hdr": "outdoor",
+    "fireplace_1k.hdr": "indoor",
+    "hilly_terrain_01_1k.hdr": "outdoor",
+    "kloppenheim_05_1k.hdr": "outdoor",
+    "leadenhall_market_1k.hdr": "indoor",
+    "modern_buildings_2_1k.hdr": "outdoor",
+    "narrow_moonlit_road_1k.hdr": "outdoor",
+    "noon_grass_1k.hdr": "outdoor",
+    "parking_garage_1k.hdr": "indoor",
+    "peppermint_powerplant_1k.hdr": "indoor",
+    "phalzer_forest_01_1k.hdr": "outdoor",
+    "rainforest_trail_1k.hdr": "outdoor",
+    "royal_esplanade_1k.hdr": "indoor",
+    "sepulchral_chapel_rotunda_1k.hdr": "indoor",
+    "shanghai_bund_1k.hdr": "outdoor",
+    "st_peters_square_night_1k.hdr": "outdoor",
+    "studio_garden_1k.hdr": "outdoor",
+    "studio_small_05_1k.hdr": "indoor",
+    "studio_small_08_1k.hdr": "indoor",
+    "studio_small_09_1k.hdr": "indoor",
+    "thatch_chapel_1k.hdr": "indoor",
+    "urban_street_01_1k.hdr": "outdoor",
+    "vestibule_1k.hdr": "indoor",
+    "vignaioli_night_1k.hdr": "outdoor",
 }
 
 #: Words in a file name that make :func:`guess_label` answer ``"indoor"``.
@@ -70,6 +124,53 @@ INDOOR_KEYWORDS: tuple[str, ...] = (
 )  # fmt: skip
 
 _LABELS = ("indoor", "outdoor")
+
+#: The splits of :func:`hdri_split`.
+HDRI_SPLITS: tuple[str, ...] = ("train", "eval")
+
+
+def hdri_split(name: str) -> str:
+    """The split of a real map, by its file name: ``"eval"`` for about one name in four, else ``"train"``.
+
+    ``"eval"`` when the first 8 bytes of ``blake2b(f"kornia_ilum.hdri:{name}")`` (little-endian) are 0 modulo
+    4. Only the file name counts (a path's folders are dropped), so a map keeps its split in any folder.
+
+    Raises:
+        TypeCheckError: ``name`` is not a string or path.
+
+    Examples:
+        >>> hdri_split("studio.exr"), hdri_split("interior.exr"), hdri_split("/any/where/studio.exr")
+        ('eval', 'train', 'eval')
+    """
+    if not isinstance(name, (str, os.PathLike)):
+        raise TypeCheckError(f"name must be a file name, got {type(name).__name__}")
+    key = f"kornia_ilum.hdri:{Path(name).name}".encode()
+    return "eval" if int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little") % 4 == 0 else "train"
+
+
+def _map_names(folder: Path) -> tuple[str, ...]:
+    if not folder.is_dir():
+        raise HDRIOError(f"HDR map folder {folder} does not exist or is not a folder")
+    files = (p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in HDR_EXTENSIONS)
+    return tuple(sorted(p.name for p in files))
+
+
+def folder_splits(folder: str | os.PathLike[str]) -> dict[str, str]:
+    """``{name: split}`` (:func:`hdri_split`) for the maps of a folder, sorted by name.
+
+    Raises:
+        HDRIOError: the folder does not exist.
+
+    Examples:
+        >>> import tempfile
+        >>> from kornia_ilum.io import write_hdr
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     for name in ("studio.exr", "interior.exr"):
+        ...         write_hdr(Path(tmp) / name, torch.ones(3, 4, 8))
+        ...     folder_splits(tmp)
+        {'interior.exr': 'train', 'studio.exr': 'eval'}
+    """
+    return {name: hdri_split(name) for name in _map_names(Path(folder))}
 
 
 def guess_label(name: str) -> Label:
@@ -214,18 +315,22 @@ class HDRFolderSource:
         height: the working height ``H`` of the lat-long maps (``H x 2H``).
         label_of: the label of each map: a callable ``name -> "indoor" | "outdoor"``, or a dict keyed by
             file name (or stem); names missing from the dict, and all names when ``None``, get
-            :func:`guess_label` (the table of the 10 shared maps, else a keyword heuristic, else outdoor).
+            :func:`guess_label` (the table of the 49 shared maps, else a keyword heuristic, else outdoor).
+        split: keep only the maps of this split of :func:`hdri_split` (``"train"`` or ``"eval"``); ``None``:
+            all. Train on ``split="train"`` to keep the ``"eval"`` maps held out.
 
     Attributes:
-        names: the map file names, sorted.
+        names: the map file names (of ``split``), sorted.
+        split: the split kept, or ``None``.
         labels: ``{name: label}``.
         label: the source's label for :class:`~kornia_ilum.synth.environments.EnvironmentSampler`'s
             weights: the label of most maps (``"outdoor"`` on a tie); each environment carries its own.
 
     Raises:
-        HDRIOError: the folder does not exist, or holds no ``.hdr`` / ``.exr`` file (the message names it);
-            a map cannot be read (on first use).
-        ValueCheckError: ``label_of`` gives something other than ``"indoor"`` or ``"outdoor"``.
+        HDRIOError: the folder does not exist, or holds no ``.hdr`` / ``.exr`` file (of ``split``; the message
+            names it); a map cannot be read (on first use).
+        ValueCheckError: ``label_of`` gives something other than ``"indoor"`` or ``"outdoor"``; an unknown
+            ``split``.
 
     Convention:
         The files' orientation (centre column = forward) is SPEC.md's lat-long: no rotation is applied
@@ -248,16 +353,19 @@ class HDRFolderSource:
         folder: str | os.PathLike[str],
         height: int = 128,
         label_of: Callable[[str], str] | Mapping[str, str] | None = None,
+        split: str | None = None,
     ) -> None:
         check_positive_int(height, "height")
+        if split is not None and split not in HDRI_SPLITS:
+            raise ValueCheckError(f"split must be 'train', 'eval' or None, got {split!r}")
         self.folder = Path(folder)
-        if not self.folder.is_dir():
-            raise HDRIOError(f"HDR map folder {self.folder} does not exist or is not a folder")
-        files = (p for p in self.folder.iterdir() if p.is_file() and p.suffix.lower() in HDR_EXTENSIONS)
-        self.names: tuple[str, ...] = tuple(sorted(p.name for p in files))
+        self.split = split
+        names = _map_names(self.folder)
+        self.names: tuple[str, ...] = tuple(n for n in names if split is None or hdri_split(n) == split)
         if not self.names:
+            kept = f" of split {split!r}" if split is not None and names else ""
             raise HDRIOError(
-                f"HDR map folder {self.folder} holds no lat-long map ({' or '.join(HDR_EXTENSIONS)} file)"
+                f"HDR map folder {self.folder} holds no lat-long map{kept} ({' or '.join(HDR_EXTENSIONS)} file)"
             )
         self.height = height
         label_fn = _label_function(label_of)
@@ -275,7 +383,8 @@ class HDRFolderSource:
         return len(self.names)
 
     def __repr__(self) -> str:
-        return f"HDRFolderSource(folder={str(self.folder)!r}, height={self.height}, maps={len(self)})"
+        split = "" if self.split is None else f", split={self.split!r}"
+        return f"HDRFolderSource(folder={str(self.folder)!r}, height={self.height}{split}, maps={len(self)})"
 
     def _load(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
         if index not in self._cache:

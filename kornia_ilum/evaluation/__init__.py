@@ -1,0 +1,46 @@
+r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
+
+- :mod:`~kornia_ilum.evaluation.split`: what is held out (eval subjects, eval real maps, the eval sampler
+  seed :data:`EVAL_SEED`).
+- :mod:`~kornia_ilum.evaluation.evaluate`: the deterministic eval set (:func:`build_eval_set`), the oracles
+  and the per-sample scores (:func:`evaluate`).
+- :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
+  :func:`write_report`).
+- :mod:`~kornia_ilum.evaluation.cli`: :func:`~kornia_ilum.evaluation.cli.add_evaluate_parser` and
+  :func:`~kornia_ilum.evaluation.cli.run_evaluate`.
+"""
+
+from kornia_ilum.evaluation.evaluate import (
+    BRDF_NAMES,
+    DEFAULT_SAMPLES,
+    ORACLES,
+    EvalSet,
+    build_eval_set,
+    evaluate,
+    load_estimator,
+    oracle_predictions,
+    predict,
+    score,
+)
+from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
+from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields, heldout_maps
+
+__all__ = [
+    "BRDF_NAMES",
+    "DEFAULT_SAMPLES",
+    "EVAL_SEED",
+    "ORACLES",
+    "EvalSet",
+    "build_eval_set",
+    "eval_environment_sources",
+    "eval_fields",
+    "evaluate",
+    "format_markdown",
+    "heldout_maps",
+    "load_estimator",
+    "oracle_predictions",
+    "predict",
+    "score",
+    "summarize",
+    "write_report",
+]

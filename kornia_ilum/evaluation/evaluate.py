@@ -1,0 +1,313 @@
+r"""Build the held-out eval set, run estimators and oracles on it, and score them.
+
+The eval set (:func:`build_eval_set`) is ``N`` portraits of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`
+(split ``"eval"``) from the eval subjects, lit by environments of the eval sources
+(:func:`~kornia_ilum.evaluation.split.eval_environment_sources`) drawn with the seed
+:data:`~kornia_ilum.evaluation.split.EVAL_SEED`, with the training recipe's crops, flips, backgrounds, exposure
+and phone-camera effects. Each chunk of the dataset takes ``fields_per_chunk`` fields and relights each with
+``lightings_per_field`` lightings picked from ``env_pool`` environments that are all new at every chunk, so the
+set holds about as many environments as samples.
+
+Scores per sample (:func:`score`): ``L_rec`` per reference sphere
+(:func:`kornia_ilum.metrics.reconstruction_loss`, 32-pixel spheres, the metric form) and the relative radiance
+per channel (:func:`kornia_ilum.metrics.relative_radiance`). Oracles (:func:`oracle_predictions`):
+
+- ``"SH of GT"``: the order-2 SH projection of the ground truth, reconstructed on the mirror ball **unclamped**
+  (as in the paper; negative lobes render as 0 through the metric's soft clip);
+- ``"mean of GT"``: a constant lighting with the ground truth's energy (solid-angle weighted mean per channel).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
+from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields
+
+__all__ = [
+    "BRDF_NAMES",
+    "DEFAULT_SAMPLES",
+    "ORACLES",
+    "EvalSet",
+    "build_eval_set",
+    "evaluate",
+    "load_estimator",
+    "oracle_predictions",
+    "predict",
+    "score",
+]
+
+#: The reference spheres of Table 1, in order.
+BRDF_NAMES: tuple[str, ...] = ("diffuse", "matte_silver", "mirror")
+#: Samples of the default eval set.
+DEFAULT_SAMPLES = 512
+#: The oracle names.
+ORACLES: tuple[str, ...] = ("SH of GT", "mean of GT")
+
+
+@dataclass
+class EvalSet:
+    r"""The eval samples, stacked.
+
+    Attributes:
+        images: ``(N, 3, S, S)`` uint8 sRGB crops, as the dataset made them.
+        mirror_ball: ``(N, 3, 32, 32)`` float32 linear ground-truth lighting in image units.
+        label: ``"indoor"`` / ``"outdoor"`` per sample.
+        skin_tone: the subject's Monk skin tone per sample (``-1`` unknown).
+        subject_seed: the subject's seed per sample.
+        source: the environment's source per sample (``"real:<name>"``, ``"sky"``, ...).
+        description: JSON-ready facts: counts, subjects, maps, seeds, settings, build time.
+    """
+
+    images: torch.Tensor
+    mirror_ball: torch.Tensor
+    label: list[str]
+    skin_tone: list[int]
+    subject_seed: list[int]
+    source: list[str]
+    description: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+
+def build_eval_set(
+    caches: Sequence[str | os.PathLike[str]] = (),
+    hdri: Sequence[str | os.PathLike[str]] = (),
+    samples: int = DEFAULT_SAMPLES,
+    *,
+    fields: Sequence[Any] = (),
+    seed: int = EVAL_SEED,
+    size: int = 256,
+    fields_per_chunk: int = 4,
+    lightings_per_field: int = 8,
+    progress: bool = False,
+) -> EvalSet:
+    r"""The held-out eval set: ``samples`` portraits of the eval subjects under eval environments.
+
+    Deterministic: the same arguments give the same samples, bit for bit, in any run.
+
+    Args:
+        caches: light-stage cache folders; their eval subjects are used (:func:`eval_fields`).
+        hdri: folders of real maps; their eval maps join the procedural skies and rooms.
+        samples: the number of portraits ``N``.
+        fields: extra :class:`~kornia_ilum.synth.lightstage.ReflectanceField` objects (those of split
+            ``"eval"`` are used; for tests).
+        seed: the seed of the environment sampler and of the portraits (:data:`EVAL_SEED`).
+        size: the crops' side (the estimators take 256).
+        fields_per_chunk, lightings_per_field: the dataset's chunks (:class:`PortraitConfig`); every chunk
+            draws ``fields_per_chunk * lightings_per_field`` new environments (``env_pool = env_refresh``).
+        progress: show a progress bar.
+
+    Returns:
+        the :class:`EvalSet`, with ``description`` filled.
+
+    Raises:
+        ValueCheckError: no eval subject, a lighting size other than 32.
+        HDRIOError: a folder of ``hdri`` is missing or holds no eval map.
+    """
+    from kornia_ilum.core.progress import progress as bar
+    from kornia_ilum.synth.environments import EnvironmentSampler
+    from kornia_ilum.synth.environments.real import HDRFolderSource
+    from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
+
+    check_positive_int(samples, "samples")
+    t0 = time.perf_counter()
+    subjects = eval_fields(caches, fields)
+    sources = eval_environment_sources(hdri)
+    sampler = EnvironmentSampler(sources=sources, seed=seed)
+    per_chunk = fields_per_chunk * lightings_per_field
+    config = PortraitConfig(split="eval", environments=sampler, size=size, length=samples, sphere_sizes=(32,),
+                            fields_per_chunk=fields_per_chunk, lightings_per_field=lightings_per_field,
+                            env_pool=per_chunk, env_refresh=per_chunk, shuffle=1)
+    dataset = PortraitDataset(subjects, config, seed=seed)
+    items = dataset if not progress else bar(dataset, samples, "eval set", "sample")
+    images, balls, label, tone, subject, source = [], [], [], [], [], []
+    for s in items:
+        images.append(s["image"])
+        balls.append(s["mirror_ball"].float())
+        label.append(s["label"])
+        tone.append(int(s["skin_tone"]))
+        subject.append(int(s["subject_seed"]))
+        source.append(s["source"])
+    seconds = time.perf_counter() - t0
+    maps = {}
+    for src in sources:
+        if isinstance(src, HDRFolderSource):
+            maps[str(src.folder)] = {n: src.labels[n] for n in src.names}
+    used = sorted({x.removeprefix("real:") for x in source if x.startswith("real:")})
+    description = {
+        "samples": len(images),
+        "seed": seed,
+        "size": size,
+        "labels": {k: label.count(k) for k in ("indoor", "outdoor")},
+        "subjects": sorted({f.subject_seed for f in subjects}),
+        "fields": len(subjects),
+        "caches": [str(c) for c in caches],
+        "skin_tones": {str(k): tone.count(k) for k in sorted(set(tone))},
+        "eval_maps": maps,
+        "maps_used": {n: sum(x == f"real:{n}" for x in source) for n in used},
+        "sources": {k: sum(_family(x) == k for x in source) for k in sorted({_family(x) for x in source})},
+        "environment_sampler": {"seed": seed, "sources": [type(s).__name__ for s in sources],
+                                "weights": [round(w, 6) for w in sampler.weights]},
+        "portraits": {"fields_per_chunk": fields_per_chunk, "lightings_per_field": lightings_per_field,
+                      "env_pool": per_chunk, "camera": "CameraEffects() (the training default)"},
+        "build_seconds": round(seconds, 2),
+        "torch_threads": torch.get_num_threads(),
+    }
+    return EvalSet(torch.stack(images), torch.stack(balls), label, tone, subject, source, description)
+
+
+def _family(source: str) -> str:
+    return "real" if source.startswith("real:") else source.split(":")[0]
+
+
+def oracle_predictions(mirror_ball: torch.Tensor) -> dict[str, torch.Tensor]:
+    r"""The two oracles from the ground truth.
+
+    Args:
+        mirror_ball: ground-truth linear lighting.
+
+    Returns:
+        ``{"SH of GT": sh_reconstruct(sh_project(gt)) (unclamped), "mean of GT": the constant lighting with the
+        solid-angle weighted mean of ``gt`` per channel on the valid pixels}``.
+
+    Shape:
+        - mirror_ball: :math:`(B, 3, S, S)`
+        - Output: each :math:`(B, 3, S, S)`
+
+    Examples:
+        >>> gt = torch.rand(2, 3, 32, 32)
+        >>> out = oracle_predictions(gt)
+        >>> from kornia_ilum.metrics import relative_radiance
+        >>> bool(relative_radiance(out["mean of GT"], gt).abs().max() < 1e-5)
+        True
+    """
+    from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
+    from kornia_ilum.sh import sh_project, sh_reconstruct
+
+    check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"])
+    s = mirror_ball.shape[-1]
+    sh = sh_reconstruct(sh_project(mirror_ball), size=s, clamp_negative=False)
+    omega = mirror_ball_solid_angles(s, device=mirror_ball.device, dtype=mirror_ball.dtype)
+    valid = mirror_ball_valid(s, device=mirror_ball.device)
+    gt = mirror_ball * valid
+    mean = (gt * omega).sum((-2, -1), keepdim=True) / (4 * math.pi)
+    return {"SH of GT": sh, "mean of GT": mean * valid.to(mirror_ball.dtype)}
+
+
+def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
+    r"""Per-sample scores: ``L_rec`` per sphere ``(B,)`` and ``"relative_radiance"`` ``(B, 3)``.
+
+    Examples:
+        >>> gt = torch.ones(2, 3, 32, 32)
+        >>> s = score(gt, gt)
+        >>> sorted(s), s["diffuse"].tolist()
+        (['diffuse', 'matte_silver', 'mirror', 'relative_radiance'], [0.0, 0.0])
+    """
+    from kornia_ilum.metrics import reconstruction_loss, relative_radiance
+
+    out = {b: reconstruction_loss(pred, target, b, size=32, reduction="none") for b in BRDF_NAMES}
+    out["relative_radiance"] = relative_radiance(pred, target)
+    return out
+
+
+def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:
+    r"""``estimator`` on uint8 crops, in batches: float crops in ``[0, 1]`` in, ``(N, 3, 32, 32)`` float32 out.
+
+    ``estimator`` returns a :class:`~kornia_ilum.estimators.LightingEstimate` (or a tensor of mirror balls).
+    """
+    out = []
+    with torch.inference_mode():
+        for i in range(0, len(images), batch_size):
+            crops = images[i : i + batch_size].float() / 255.0
+            est = estimator(crops)
+            out.append(getattr(est, "mirror_ball", est).float())
+    return torch.cat(out)
+
+
+def load_estimator(name: str, weights: str | os.PathLike[str] | None = None):
+    r"""A registered estimator: ``create_estimator(name)``, or with ``weights`` the class of ``name`` built
+    untrained and loaded from that ``.safetensors`` file (``strict=True``), in ``eval()`` mode.
+
+    Raises:
+        ValueError: unknown name.
+        MissingWeightsError: no shipped weights (``weights=None``) or the file is missing.
+        ValueCheckError: the file is not ``.safetensors``.
+    """
+    from pathlib import Path
+
+    from kornia_ilum.estimators import create_estimator, estimator_registry
+
+    if weights is None:
+        return create_estimator(name)
+    path = Path(weights)
+    if path.suffix != ".safetensors":
+        raise ValueCheckError(f"weights must be a .safetensors file, got {path}")
+    if not path.is_file():
+        raise MissingWeightsError(f"weight file {path} not found")
+    import safetensors.torch
+
+    cls = estimator_registry().get(name)
+    if cls is None:
+        create_estimator(name, pretrained=False)  # raises the registry's ValueError for an unknown name
+        cls = estimator_registry()[name]
+    model = cls()
+    model.load_state_dict(safetensors.torch.load_file(path, device="cpu"), strict=True)
+    return model.eval()
+
+
+def evaluate(
+    eval_set: EvalSet,
+    estimators: Sequence[str] | None = None,
+    weights: dict[str, str | os.PathLike[str]] | None = None,
+    oracles: bool = True,
+    batch_size: int = 32,
+) -> dict[str, Any]:
+    r"""Score the estimators and the oracles on ``eval_set``.
+
+    Args:
+        eval_set: from :func:`build_eval_set`.
+        estimators: registered names (``None``: all of :func:`~kornia_ilum.estimators.list_estimators`).
+        weights: ``{name: checkpoint.safetensors}``, each scored as ``"name@file"`` (the class of ``name``).
+        oracles: also score :data:`ORACLES`.
+        batch_size: crops per forward pass.
+
+    Returns:
+        ``{"methods": {name: {"scores": {key: tensor}, "seconds": float}}, "skipped": {name: reason}}``
+        (:func:`score`'s per-sample tensors): an estimator without weights (:class:`MissingWeightsError`) is
+        skipped with the reason instead of failing the evaluation; other errors propagate.
+    """
+    from pathlib import Path
+
+    from kornia_ilum.estimators import list_estimators
+
+    names = list(list_estimators() if estimators is None else estimators)
+    jobs: list[tuple[str, str, Any]] = [(n, n, None) for n in names]
+    jobs += [(f"{n}@{Path(p).name}", n, p) for n, p in (weights or {}).items()]
+    methods: dict[str, Any] = {}
+    skipped: dict[str, str] = {}
+    gt = eval_set.mirror_ball
+    for label, name, path in jobs:
+        try:
+            model = load_estimator(name, path)
+        except MissingWeightsError as e:
+            skipped[label] = f"MissingWeightsError: {e}"
+            continue
+        t0 = time.perf_counter()
+        pred = predict(model, eval_set.images, batch_size)
+        methods[label] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
+    if oracles:
+        t0 = time.perf_counter()
+        preds = oracle_predictions(gt)
+        for label, pred in preds.items():
+            methods[label] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
+    return {"methods": methods, "skipped": skipped}

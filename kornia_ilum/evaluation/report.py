@@ -1,0 +1,148 @@
+r"""The evaluation's tables: summaries of the per-sample scores, as Markdown and JSON.
+
+- **Table 1**: ``L_rec`` per reference sphere (diffuse, matte silver, mirror) for the indoor, outdoor and all
+  samples: means over samples (lower is better).
+- **Table 2**: relative radiance per channel, ``(sum L_gt - sum L_pred) / sum L_gt`` (solid-angle weighted):
+  mean (the bias; negative: too much light) and mean absolute value.
+- **Table 3**: per skin tone (the subject's Monk tone): ``L_rec`` per sphere and the mean relative radiance per
+  channel.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet
+
+__all__ = ["format_markdown", "summarize", "write_report"]
+
+_GROUPS = ("indoor", "outdoor", "all")
+_CHANNELS = ("r", "g", "b")
+
+
+def _mean(x: torch.Tensor) -> float | None:
+    return None if x.numel() == 0 else float(x.double().mean())
+
+
+def _means(x: torch.Tensor) -> list[float] | None:
+    return None if x.numel() == 0 else [float(v) for v in x.double().mean(0)]
+
+
+def summarize(results: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
+    r"""The tables as a JSON-ready dict.
+
+    Args:
+        results: from :func:`~kornia_ilum.evaluation.evaluate`.
+        eval_set: the set that was scored.
+
+    Returns:
+        ``{"eval_set": description, "skipped": {name: reason}, "seconds": {name: s}, "table1_l_rec":
+        {method: {group: {brdf: mean}}}, "table2_relative_radiance": {method: {group: {"mean": [r, g, b],
+        "mean_abs": [r, g, b]}}}, "per_skin_tone": {method: {tone: {"count": n, brdf: mean, ...,
+        "relative_radiance": [r, g, b], "relative_radiance_abs": [r, g, b]}}}}``; groups ``indoor``,
+        ``outdoor``, ``all`` (a group without samples holds ``None``).
+    """
+    labels = eval_set.label
+    masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
+    tones = torch.tensor(eval_set.skin_tone)
+    t1: dict[str, Any] = {}
+    t2: dict[str, Any] = {}
+    t3: dict[str, Any] = {}
+    for name, method in results["methods"].items():
+        s = method["scores"]
+        rr = s["relative_radiance"]
+        t1[name] = {g: {b: _mean(s[b][m]) for b in BRDF_NAMES} for g, m in masks.items()}
+        t2[name] = {g: {"mean": _means(rr[m]), "mean_abs": _means(rr[m].abs())} for g, m in masks.items()}
+        t3[name] = {}
+        for tone in sorted(set(eval_set.skin_tone)):
+            m = tones == tone
+            t3[name][str(tone)] = {"count": int(m.sum()), **{b: _mean(s[b][m]) for b in BRDF_NAMES},
+                                   "relative_radiance": _means(rr[m]), "relative_radiance_abs": _means(rr[m].abs())}
+    return {
+        "eval_set": eval_set.description,
+        "skipped": dict(results["skipped"]),
+        "seconds": {n: m["seconds"] for n, m in results["methods"].items()},
+        "table1_l_rec": t1,
+        "table2_relative_radiance": t2,
+        "per_skin_tone": t3,
+    }
+
+
+def _f(x: float | None, digits: int = 4) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def _rgb(x: list[float] | None) -> str:
+    return "-" if x is None else " / ".join(f"{v:+.3f}" for v in x)
+
+
+def format_markdown(summary: dict[str, Any]) -> str:
+    r"""The tables of :func:`summarize` as Markdown (with a line on the eval set and the skipped estimators)."""
+    d = summary["eval_set"]
+    lab = d.get("labels", {})
+    n_maps = sum(len(v) for v in d.get("eval_maps", {}).values())
+    lines = [
+        "# Held-out evaluation",
+        "",
+        (f"{d.get('samples')} portraits ({lab.get('indoor', 0)} indoor, {lab.get('outdoor', 0)} outdoor) of "
+         f"{len(d.get('subjects', []))} eval subjects ({d.get('fields')} views), seed {d.get('seed')}; "
+         f"environments: {', '.join(f'{k} {v}' for k, v in d.get('sources', {}).items())} "
+         f"({n_maps} held-out real maps)."),
+        "",
+        "## Table 1: L_rec (lower is better), mean over samples",
+        "",
+        "| method | " + " | ".join(f"{g} {b}" for g in _GROUPS for b in BRDF_NAMES) + " |",
+        "|---|" + "---:|" * (len(_GROUPS) * len(BRDF_NAMES)),
+    ]
+    for name, groups in summary["table1_l_rec"].items():
+        lines.append(f"| {name} | " + " | ".join(_f(groups[g][b]) for g in _GROUPS for b in BRDF_NAMES) + " |")
+    lines += [
+        "",
+        "## Table 2: relative radiance (sum L_gt - sum L_pred) / sum L_gt, R / G / B",
+        "",
+        "| method | " + " | ".join(f"{g} mean | {g} mean abs" for g in _GROUPS) + " |",
+        "|---|" + "---:|" * (2 * len(_GROUPS)),
+    ]
+    for name, groups in summary["table2_relative_radiance"].items():
+        cells = [c for g in _GROUPS for c in (_rgb(groups[g]["mean"]), _rgb(groups[g]["mean_abs"]))]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "## Per skin tone (Monk scale): L_rec and relative radiance (mean, R / G / B)",
+        "",
+        "| method | tone | samples | " + " | ".join(BRDF_NAMES) + " | relative radiance | mean abs |",
+        "|---|---:|---:|" + "---:|" * (len(BRDF_NAMES) + 2),
+    ]
+    for name, tones in summary["per_skin_tone"].items():
+        for tone, row in tones.items():
+            lines.append(f"| {name} | {tone} | {row['count']} | " + " | ".join(_f(row[b]) for b in BRDF_NAMES)
+                         + f" | {_rgb(row['relative_radiance'])} | {_rgb(row['relative_radiance_abs'])} |")
+    if summary["skipped"]:
+        lines += ["", "Skipped:"] + [f"- {n}: {' '.join(r.split())}" for n, r in summary["skipped"].items()]
+    if d.get("eval_maps"):
+        lines += ["", "Held-out real maps:"]
+        for folder, maps in d["eval_maps"].items():
+            lines.append(f"- {folder}: " + ", ".join(f"{n} ({v})" for n, v in maps.items()))
+    return "\n".join(lines) + "\n"
+
+
+def write_report(summary: dict[str, Any], markdown: str | os.PathLike[str] | None = None,
+                 json_path: str | os.PathLike[str] | None = None) -> list[Path]:
+    """Write the Markdown and / or JSON files (parents created); returns the paths written."""
+    written = []
+    if markdown is not None:
+        path = Path(markdown)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(format_markdown(summary))
+        written.append(path)
+    if json_path is not None:
+        path = Path(json_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(summary, indent=1, sort_keys=False) + "\n")
+        written.append(path)
+    return written
