@@ -294,6 +294,7 @@ examples:
   kornia-ilum synth subjects --seeds 0-59 --views 4 --out lightstage/
   kornia-ilum synth subjects --source makehuman --assets ~/makehuman --seeds 0-99 --worker 3/8 --sheet 0 --out /shared/ls/
   kornia-ilum synth subjects --source mannequin --seeds 0-2 --size 64 --spp 4 --lighting-size 8 --out tiny/
+  kornia-ilum synth subjects --split eval --seeds 200-399 --sheet 0 --out eval_subjects/   # eval seeds only
 """
 
 

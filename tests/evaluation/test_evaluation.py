@@ -230,3 +230,16 @@ class TestEvaluate:
         assert parse_weights("a=b.safetensors") == ("a", "b.safetensors")
         with pytest.raises(argparse.ArgumentTypeError):
             parse_weights("nothing")
+
+
+def test_synth_subjects_split_flag_is_marked_only_when_given() -> None:
+    from kornia_ilum.synth.cli import add_synth_subjects_parser
+
+    parser = argparse.ArgumentParser(prog="kornia-ilum")
+    sub = parser.add_subparsers(dest="command")
+    add_synth_subjects_parser(sub)
+    default = parser.parse_args(["synth", "subjects", "--seeds", "0-5"])
+    given = parser.parse_args(["synth", "subjects", "--seeds", "0-5", "--split", "eval"])
+    assert default.split == "train" and not getattr(default, "split_given", False)  # renders every seed
+    assert given.split == "eval" and given.split_given
+    assert split_seeds(given.seeds, given.split) == [1, 3]
