@@ -460,39 +460,38 @@ def background_pyramid(latlong: torch.Tensor, levels: int = 4) -> tuple[torch.Te
     return tuple(out)
 
 
-@functools.lru_cache(maxsize=64)
-def _frame_angles(fov_deg: float, size: int, mirrored: bool) -> tuple[torch.Tensor, torch.Tensor]:
-    """The camera's rays as lat-long fractions ``(u, t)`` in ``[0, 1]`` (column and row), ``(size, size)``."""
-    from kornia_ilum.geometry import direction_to_latlong
+def _view_matrices(b: int, mirror: list[bool], turn: list[float], rotation: torch.Tensor | None) -> torch.Tensor:
+    """``(B, 3, 3)`` float64 ``Q = M^T T^{-1} F``: a camera ray ``r`` of sample ``b`` looks up direction ``Q r`` of
+    its map (``F`` the mirror ``x -> -x`` or the identity, ``T`` the turn, ``M`` the map's direction map)."""
+    alpha = 2.0 * math.pi * torch.tensor(turn, dtype=torch.float64)
+    c, s = torch.cos(alpha), torch.sin(alpha)
+    q = torch.zeros(b, 3, 3, dtype=torch.float64)  # T^{-1}: azimuth phi -> phi - alpha (the column u -> u - turn)
+    q[:, 0, 0], q[:, 0, 2], q[:, 1, 1], q[:, 2, 0], q[:, 2, 2] = c, s, 1.0, -s, c
+    q[:, :, 0] *= torch.tensor([-1.0 if m else 1.0 for m in mirror], dtype=torch.float64)[:, None]  # T^{-1} F
+    if rotation is not None:
+        q = rotation.to(torch.float64).transpose(-1, -2) @ q
+    return q
 
-    rays = camera_rays((size, size), fov_deg, torch.eye(3, dtype=torch.float64))
-    if mirrored:
-        rays[..., 0] = -rays[..., 0]
-    phi, el = direction_to_latlong(rays)
-    return ((phi + math.pi) / (2 * math.pi)).float(), ((math.pi / 2 - el) / math.pi).float()
 
+def _rotated_grid(fov_deg: float, size: int, rows: int, q: torch.Tensor) -> torch.Tensor:
+    """The padded map's ``grid_sample`` grid (``align_corners=True``) of the directions ``q r`` of a square camera's
+    rays ``r``, ``(1, size, size, 2)`` (a permuted view of planar ``(2, size, size)`` coordinates).
 
-def _pyramid_grid(fov_deg: float, size: int, mirrored: bool, rows: int, turn: float) -> torch.Tensor:
-    """The padded map's ``grid_sample`` grid (``align_corners=True``) of the camera's rays turned by ``turn``,
-    ``(1, size, size, 2)``.
-
-    The rows' coordinates do not depend on the turn: they come from a cached grid, copied, and the columns'
-    ``(u - turn) mod 1`` are written in place (5 passes over the pixels instead of 10).
+    The rays need no normalising (``q`` is orthogonal and the angles are ratios): the unnormalised ray of pixel
+    ``(i, j)`` is ``(x_j, y_i, -f)``, so each rotated coordinate is a row term plus a column term (one broadcast
+    add for all three), then two ``atan2`` and a ``hypot``. In the padded map, column ``u W + 1/2`` of
+    ``W + 2`` and row ``t H + 1/2`` of ``H + 2`` (:func:`background_pyramid`) are simply
+    ``phi W / (pi (W + 1))`` and ``-el 2 H / (pi (H + 1))`` in normalised coordinates.
     """
-    u, _ = _frame_angles(fov_deg, size, mirrored)
+    focal = (size / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
+    centres = torch.arange(size, dtype=torch.float32) + (0.5 - size / 2.0)  # x_j; y_i = -centres[i]
+    q = q.float() * torch.tensor([1.0, 1.0, -1.0])[:, None]  # rows: x, y, -z of the direction
+    d = (centres[None, :, None] * -q[:, 1:2, None] - focal * q[:, 2:3, None]) + centres[None, None, :] * q[:, 0:1, None]
     w = 2 * rows
-    grid = _row_grid(fov_deg, size, mirrored, rows).clone()
-    gx = torch.sub(u, turn).remainder_(1.0).mul_(w).add_(0.5).mul_(2.0 / (w + 1)).sub_(1.0)
-    grid[0, ..., 0] = gx
-    return grid
-
-
-@functools.lru_cache(maxsize=64)
-def _row_grid(fov_deg: float, size: int, mirrored: bool, rows: int) -> torch.Tensor:
-    """:func:`_pyramid_grid` with the rows' coordinates filled in and the columns' at 0."""
-    _, t = _frame_angles(fov_deg, size, mirrored)
-    gy = t.mul(rows).add_(0.5).mul_(2.0 / (rows + 1)).sub_(1.0)
-    return torch.stack([torch.zeros_like(gy), gy], -1)[None]
+    grid = torch.empty(2, size, size)
+    torch.atan2(d[0], d[2], out=grid[0]).mul_(w / (math.pi * (w + 1)))
+    torch.atan2(d[1], torch.hypot(d[0], d[2]), out=grid[1]).mul_(-2.0 * rows / (math.pi * (rows + 1)))
+    return grid.permute(1, 2, 0)[None]
 
 
 #: Blurs of more than this many frame pixels are made at a coarser level of :func:`background_pyramid`.
@@ -505,13 +504,19 @@ def frame_backgrounds(
     mirror: torch.Tensor | None = None,
     turn: torch.Tensor | None = None,
     sigma: torch.Tensor | None = None,
+    rotation: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    r"""The camera's view of each environment from full-resolution maps, turned, mirrored, with depth of field.
+    r"""The camera's view of each environment from full-resolution maps, rotated, turned, mirrored, with depth of
+    field.
 
-    Sample ``b`` sees environment ``pyramids[b]`` (:func:`background_pyramid`) turned about the vertical axis by
-    ``turn[b]`` of a full turn (what rolling the lat-long map by ``turn * W`` columns does:
-    ``x.roll(k, -1)`` is ``turn = k / W``) and mirrored (``x -> -x``) when ``mirror[b]``, exactly as
-    :func:`frame_background` would see the rolled map (the lookups are the same up to float rounding).
+    Sample ``b`` sees environment ``pyramids[b]`` (:func:`background_pyramid`) rotated by ``rotation[b]`` (a
+    direction map ``M``: a light from ``d`` now comes from ``M d``, as the sampler's augmentation records it in
+    ``params["augment"]["direction_map"]``; a rotation, possibly times a mirror), then turned about the vertical
+    axis by ``turn[b]`` of a full turn (what rolling the lat-long map by ``turn * W`` columns does:
+    ``x.roll(k, -1)`` is ``turn = k / W``) and mirrored (``x -> -x``) when ``mirror[b]``. Without a rotation this
+    is what :func:`frame_background` would see of the rolled map; with one, what it would see of the map
+    resampled by ``M`` first (the same up to interpolation: here the map is looked up once, at the frame's rays
+    ``M^T T^{-1} F r``, computed per sample in one pass of trigonometry, instead of resampling the whole map).
 
     Depth of field: the background is blurred by a Gaussian of ``sigma[b]`` pixels of the frame (0.5 or less:
     sharp). The blur is made at a coarser level ``k = max(1, ceil(log2 sigma))`` of the pyramid: the view is
@@ -529,6 +534,7 @@ def frame_backgrounds(
         mirror: ``(B,)`` bool, default none.
         turn: ``(B,)`` fractions of a turn, default 0.
         sigma: ``(B,)`` blur in frame pixels, default 0.
+        rotation: ``(B, 3, 3)`` direction maps ``M`` (orthogonal), default the identity.
 
     Returns:
         ``(B, 3, size, size)`` linear float32.
@@ -551,6 +557,9 @@ def frame_backgrounds(
     sigma_l = [0.0] * b if sigma is None else [max(0.0, float(x)) for x in sigma.tolist()]
     if len(turn_l) != b or len(sigma_l) != b:
         raise ShapeError(f"turn and sigma must have shape ({b},)")
+    if rotation is not None:
+        check_tensor(rotation, "rotation", [str(b), "3", "3"], finite=True)
+    views = _view_matrices(b, [bool(m) for m in mirror_l], turn_l, rotation)
     out = torch.empty(b, 3, size, size)
     groups: dict[int, list[int]] = {}
     for j, s in enumerate(sigma_l):
@@ -562,7 +571,7 @@ def frame_backgrounds(
         frames = torch.empty(len(members), 3, side, side) if k else out[members[0] : members[0]]
         for n, j in enumerate(members):
             level = pyramids[j][k]
-            grid = _pyramid_grid(fov, side, bool(mirror_l[j]), level.shape[-2] - 2, turn_l[j])
+            grid = _rotated_grid(fov, side, level.shape[-2] - 2, views[j])
             view = F.grid_sample(level, grid, mode="bilinear", padding_mode="border", align_corners=True)[0]
             if k:
                 frames[n] = view

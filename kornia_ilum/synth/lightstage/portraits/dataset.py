@@ -224,6 +224,43 @@ def _read_full(path: str, height: int | None) -> torch.Tensor:
     return image
 
 
+def _background_source(
+    env: Environment,
+    sampler: EnvironmentSampler,
+    height: int | None,
+    procedural_height: int,
+    room_height: int | None,
+) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
+    """:func:`environment_background` before the augmentation: ``(map, M, gains)``, float32 (``M`` float64); the
+    map is ``env.latlong`` itself (already augmented) with ``M`` and ``gains`` ``None`` when nothing is finer."""
+    from kornia_ilum.synth.environments import (
+        HDRFolderSource,
+        IndoorSource,
+        SkySource,
+        render_outdoor,
+        render_room,
+    )
+
+    params = env.params
+    k = params.get("sampler", {}).get("source")
+    source = sampler.sources[k] if isinstance(k, int) and 0 <= k < len(sampler.sources) else None
+    rows = env.latlong.shape[-2]
+    full = None
+    if isinstance(source, HDRFolderSource) and "map" in params and (height is None or height > rows):
+        full = _read_full(str(source.folder / params["map"]), height)
+    elif isinstance(source, SkySource) and procedural_height > rows:
+        full = render_outdoor(params, procedural_height)
+    elif isinstance(source, IndoorSource) and (room_height or procedural_height) > rows:
+        full = render_room(params, room_height or procedural_height)
+    if full is None or full.shape[-2] <= rows:
+        return env.latlong.float(), None, None
+    augment = params.get("augment")
+    if augment is None:
+        return full.float(), None, None
+    return (full.float(), torch.tensor(augment["direction_map"], dtype=torch.float64),
+            torch.tensor(augment["gains"], dtype=torch.float32))
+
+
 def environment_background(
     env: Environment,
     sampler: EnvironmentSampler,
@@ -244,6 +281,10 @@ def environment_background(
     direction (a picture, not lighting: no energy bookkeeping needed). Other sources, and heights not above the
     working height, give ``env.latlong`` itself.
 
+    :class:`PortraitDataset` does not resample the whole map (43 ms at 512 rows): it keeps the source map,
+    applies the gains to its :func:`background_pyramid` and folds the rotation into the frame's lookup
+    (``rotation`` of :func:`frame_backgrounds`), which sees the same background up to interpolation.
+
     Args:
         env: an environment drawn by ``sampler`` (``params["sampler"]`` names its source).
         sampler: the sampler that drew it.
@@ -254,29 +295,12 @@ def environment_background(
     Returns:
         ``(3, H, 2H)`` float32 linear.
     """
-    from kornia_ilum.synth.environments import HDRFolderSource, IndoorSource, SkySource, render_outdoor, render_room
-
-    params = env.params
-    k = params.get("sampler", {}).get("source")
-    source = sampler.sources[k] if isinstance(k, int) and 0 <= k < len(sampler.sources) else None
-    rows = env.latlong.shape[-2]
-    full = None
-    if isinstance(source, HDRFolderSource) and "map" in params and (height is None or height > rows):
-        full = _read_full(str(source.folder / params["map"]), height)
-    elif isinstance(source, SkySource) and procedural_height > rows:
-        full = render_outdoor(params, procedural_height)
-    elif isinstance(source, IndoorSource) and (room_height or procedural_height) > rows:
-        full = render_room(params, room_height or procedural_height)
-    if full is None or full.shape[-2] <= rows:
-        return env.latlong.float()
-    augment = params.get("augment")
-    if augment is None:
-        return full.float()
-    m = torch.tensor(augment["direction_map"], dtype=torch.float64)  # a light from d now comes from M d
+    full, m, gains = _background_source(env, sampler, height, procedural_height, room_height)
+    if m is None or gains is None:
+        return full
     h = full.shape[-2]
     grid = latlong_grid(_latlong_directions(h) @ m, h).float()  # A(r) = g L(M^T r); (M^T r)^T = r^T M
-    gains = torch.tensor(augment["gains"], dtype=torch.float32)
-    return (lookup_latlong(full.float()[None], grid[None])[0] * gains[:, None, None]).clamp_(min=0.0)
+    return (lookup_latlong(full[None], grid[None])[0] * gains[:, None, None]).clamp_(min=0.0)
 
 
 class PortraitDataset(IterableDataset):
@@ -349,7 +373,7 @@ class PortraitDataset(IterableDataset):
         self.length = config.length
         self.shuffle = config.shuffle
         self._envs: OrderedDict[int, Environment] = OrderedDict()
-        self._backgrounds: OrderedDict[int, tuple[torch.Tensor, ...]] = OrderedDict()
+        self._backgrounds: OrderedDict[int, tuple[tuple[torch.Tensor, ...], torch.Tensor]] = OrderedDict()
         self._noise_bank: torch.Tensor | None = None
 
     def __getstate__(self) -> dict[str, Any]:  # workers start with empty caches
@@ -369,16 +393,24 @@ class PortraitDataset(IterableDataset):
         worker = 0 if info is None else info.id
         if worker >= MAX_WORKERS:
             raise ValueCheckError(f"at most {MAX_WORKERS} workers, got worker {worker}")
-        count, group = 0, 0
+        for count, sample in enumerate(self.samples(worker)):
+            if self.length is not None and count >= self.length:
+                return
+            yield sample
+
+    def samples(self, worker: int, start: int = 0) -> Iterator[dict[str, Any]]:
+        """The endless sample stream of ``worker`` (what iteration yields, ignoring ``length``) from sample
+        ``start`` on; only the group of chunks that ``start`` falls in is made again (training resumes here)."""
+        cfg = self.config
+        per_group = self.shuffle * cfg.fields_per_chunk * cfg.lightings_per_field
+        group, skip = divmod(int(start), per_group)
         while True:
             samples = [s for index in range(group * self.shuffle, (group + 1) * self.shuffle)
                        for s in self.chunk(worker, index)]
             order = torch.randperm(len(samples), generator=_generator(self.seed, worker, group, -2)).tolist()
-            for k in order:
-                if self.length is not None and count >= self.length:
-                    return
+            for k in order[skip:]:
                 yield samples[k]
-                count += 1
+            skip = 0
             group += 1
 
     def _environment(self, worker: int, j: int) -> tuple[int, Environment]:
@@ -391,21 +423,30 @@ class PortraitDataset(IterableDataset):
                 self._envs.popitem(last=False)
         return key, env
 
-    def _background(self, key: int, env: Environment) -> tuple[torch.Tensor, ...]:
-        """The background pyramid of environment ``key`` (cached for the pool's environments)."""
-        pyramid = self._backgrounds.get(key)
-        if pyramid is None:
+    def _background(self, key: int, env: Environment) -> tuple[tuple[torch.Tensor, ...], torch.Tensor]:
+        """The background pyramid of environment ``key`` and its direction map ``(3, 3)`` (cached for the pool's
+        environments).
+
+        The pyramid is that of the source map (:func:`environment_background` before the augmentation) times the
+        augmentation's gains (on the pyramid's levels: a third fewer values than the 64 frames that use it); the
+        augmentation's rotation is left to the frame's lookup (:func:`frame_backgrounds`).
+        """
+        entry = self._backgrounds.get(key)
+        if entry is None:
             cfg = self.config
-            latlong = environment_background(env, self.environments, height=cfg.background_height,
-                                             procedural_height=cfg.procedural_background_height,
-                                             room_height=cfg.room_background_height)
-            pyramid = background_pyramid(latlong)
-            self._backgrounds[key] = pyramid
+            latlong, m, gains = _background_source(env, self.environments, cfg.background_height,
+                                                   cfg.procedural_background_height, cfg.room_background_height)
+            pyramid = background_pyramid(latlong)  # new tensors: scaled in place
+            if gains is not None:
+                for level in pyramid:
+                    level.mul_(gains[:, None, None])
+            entry = pyramid, torch.eye(3, dtype=torch.float64) if m is None else m
+            self._backgrounds[key] = entry
             while len(self._backgrounds) > cfg.env_pool + cfg.env_refresh:
                 self._backgrounds.popitem(last=False)
         else:
             self._backgrounds.move_to_end(key)
-        return pyramid
+        return entry
 
     def _lightings(self, worker: int, index: int, n: int, g: torch.Generator
                    ) -> tuple[torch.Tensor, list[Environment], list[int], torch.Tensor]:
@@ -459,11 +500,11 @@ class PortraitDataset(IterableDataset):
             for out, (latlong, envs, env_keys, turns), key, blur, fx in zip(
                 renders, lightings, keys, blurs, effects, strict=True
             ):
-                pyramids = None
+                backgrounds = None
                 if cfg.background == "environment":
-                    pyramids = [self._background(kk, e) for kk, e in zip(env_keys[rows], envs[rows], strict=True)]
+                    backgrounds = [self._background(kk, e) for kk, e in zip(env_keys[rows], envs[rows], strict=True)]
                 params = {name: v[rows] for name, v in fx.items()}
-                out.append(self._render(rf, latlong[rows], pyramids, turns[rows], blur[rows], flips[rows],
+                out.append(self._render(rf, latlong[rows], backgrounds, turns[rows], blur[rows], flips[rows],
                                         boxes[-1], key[rows], params, g))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
@@ -513,12 +554,13 @@ class PortraitDataset(IterableDataset):
         return [self._noise_bank[int(neg), :, i : i + size, j : j + size] for (i, j), neg in zip(offsets, signs,
                                                                                                    strict=True)]
 
-    def _render(self, rf: ReflectanceField, latlong: torch.Tensor, pyramids: list | None, turn: torch.Tensor,
+    def _render(self, rf: ReflectanceField, latlong: torch.Tensor, backgrounds: list | None, turn: torch.Tensor,
                 blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor, key: torch.Tensor,
                 effects: dict[str, torch.Tensor], g: torch.Generator
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring).
 
+        ``backgrounds`` are :meth:`_background` pairs (pyramid, direction map) or ``None`` (black);
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
         with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
         the mirrored box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
@@ -528,8 +570,9 @@ class PortraitDataset(IterableDataset):
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
         source_boxes = boxes.clone()
         source_boxes[flip, 0], source_boxes[flip, 2] = rf.size - boxes[flip, 2], rf.size - boxes[flip, 0]
-        if pyramids is not None:
-            frame = frame_backgrounds(pyramids, rf.camera, flip, turn, blur)
+        if backgrounds is not None:
+            pyramids, rotations = zip(*backgrounds, strict=True)
+            frame = frame_backgrounds(pyramids, rf.camera, flip, turn, blur, torch.stack(rotations))
             if cfg.subject:
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
