@@ -71,16 +71,23 @@ def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
     return rgb_to_linear_rgb(image)
 
 
-def gamma_encode(x: torch.Tensor, gamma: float = 2.2) -> torch.Tensor:
-    r"""``x^(1/gamma)`` with a finite gradient at 0.
+def gamma_encode(x: torch.Tensor, gamma: float = 2.2, *, knee: float = GAMMA_KNEE) -> torch.Tensor:
+    r"""``x^(1/gamma)``, by default with a finite gradient at 0.
 
-    Exact for ``x >= GAMMA_KNEE`` (1e-5); below it the curve is the chord ``x * knee^(1/gamma - 1)``
-    through the origin, continuous at the knee, with slope ``knee^(1/gamma - 1)`` (about 530 for 2.2)
-    instead of infinity. Negative values map to their chord value (negative), never NaN.
+    Exact for ``x >= knee`` (default :data:`GAMMA_KNEE`, 1e-5); below it the curve is the chord
+    ``x * knee^(1/gamma - 1)`` through the origin, continuous at the knee, with slope
+    ``knee^(1/gamma - 1)`` (about 530 for 2.2 and the default knee) instead of infinity. Negative values
+    map to their chord value (negative), never NaN. The chord lies below the curve by at most
+    ``0.28 knee^(1/gamma)`` for ``gamma = 2.2`` (1.5e-3 at the default knee, 5.3e-4 at 1e-6).
+
+    ``knee=0`` is the exact power: ``x^(1/gamma)`` for ``x > 0`` and 0 for ``x <= 0``. Its gradient is
+    finite everywhere (0 at and below 0; the power is evaluated at ``max(x, tiny)`` so that no ``inf``
+    reaches the backward pass) but unbounded near 0: use it to evaluate, a positive knee to train.
 
     Args:
         x: linear values of any shape.
         gamma: the display gamma, > 0.
+        knee: where the chord meets the curve, ``>= 0``; 0 for the exact power.
 
     Returns:
         encoded values of the same shape and dtype.
@@ -88,12 +95,23 @@ def gamma_encode(x: torch.Tensor, gamma: float = 2.2) -> torch.Tensor:
     Examples:
         >>> gamma_encode(torch.tensor([0.0, 0.25, 1.0]))
         tensor([0.0000, 0.5325, 1.0000])
+        >>> bool(gamma_encode(torch.tensor([1e-6]), knee=0.0) > gamma_encode(torch.tensor([1e-6])))
+        True
     """
     check_tensor(x, "x", None, nonempty=False)
     if not gamma > 0:
         raise ValueCheckError(f"gamma must be positive, got {gamma}")
+    if isinstance(knee, bool) or not isinstance(knee, (int, float)) or not 0.0 <= knee < 1.0:
+        raise ValueCheckError(f"knee must be a number in [0, 1), got {knee!r}")
+    return _gamma_encode(x, float(gamma), float(knee))
+
+
+def _gamma_encode(x: torch.Tensor, gamma: float = 2.2, knee: float = GAMMA_KNEE) -> torch.Tensor:
+    """:func:`gamma_encode` without the argument checks (for callers that checked their inputs)."""
     inv = 1.0 / gamma
-    knee = GAMMA_KNEE
+    if knee == 0.0:
+        tiny = torch.finfo(x.dtype).tiny if x.is_floating_point() else 1e-30
+        return torch.where(x > 0, x.clamp(min=tiny).pow(inv), torch.zeros_like(x))
     curve = x.clamp(min=knee).pow(inv)
     chord = x * (knee ** (inv - 1.0))
     return torch.where(x >= knee, curve, chord)
@@ -214,12 +232,13 @@ class SrgbToLinear(nn.Module):
 class GammaEncode(nn.Module):
     """Module twin of :func:`gamma_encode`."""
 
-    def __init__(self, gamma: float = 2.2) -> None:
+    def __init__(self, gamma: float = 2.2, knee: float = GAMMA_KNEE) -> None:
         super().__init__()
         self.gamma = gamma
+        self.knee = knee
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return gamma_encode(x, self.gamma)
+        return gamma_encode(x, self.gamma, knee=self.knee)
 
 
 class Quantize(nn.Module):

@@ -3,26 +3,28 @@ r"""Lighting errors of LeGendre et al. 2020: sphere-render loss ``L_rec``, relat
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import torch
 from torch import nn
 
-from kornia_ilum.color.transfer import gamma_encode
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.filters.soft_clip import soft_clip
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_solid_angles,
     mirror_ball_to_lights,
     mirror_ball_valid,
 )
-from kornia_ilum.render.relight import relight
 from kornia_ilum.render.spheres import (
     SPHERE_SIZES,
     _check_brdf,
+    _check_gamma,
+    _check_sizes,
     _lighting_size,
-    _shared_field,
-    sphere_reflectance_field,
+    _encode,
+    _Plan,
+    _render_plan,
+    _stacked_plan,
 )
 
 __all__ = [
@@ -57,25 +59,48 @@ def _reduce(x: torch.Tensor, reduction: str) -> torch.Tensor:
     return x.mean() if reduction == "mean" else x.sum() if reduction == "sum" else x
 
 
-def _l_rec(field: torch.Tensor, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """Per-item ``L_rec``, ``(B,)``, given the on-sphere rows ``(P_valid, N)`` of one sphere's field."""
-    size = (1, field.shape[0])
-    render_pred = relight(field, mirror_ball_to_lights(pred), size)
-    render_target = relight(field, mirror_ball_to_lights(target), size)
-    diff = gamma_encode(soft_clip(render_pred), 2.2) - gamma_encode(soft_clip(render_target), 2.2)
-    return diff.abs().flatten(1).mean(1)
+def _l_rec(
+    plan: _Plan, counts: tuple[int, ...], pred: torch.Tensor, target: torch.Tensor, knee: float
+) -> torch.Tensor:
+    """Per-item ``L_rec`` averaged over the scales, ``(B,)``, from a render plan of one sphere at all scales.
+
+    The target's renders are made without autograd unless it requires a gradient.
+    """
+    encoded_pred = _encode(_render_plan(plan, mirror_ball_to_lights(pred)), knee)
+    with torch.set_grad_enabled(torch.is_grad_enabled() and target.requires_grad):
+        encoded_target = _encode(_render_plan(plan, mirror_ball_to_lights(target)), knee)
+    diff = (encoded_pred - encoded_target).abs().sum(1)  # (B, sum P)
+    if len(counts) == 1:
+        return diff.mean(1) / 3.0
+    weights = torch.cat([diff.new_full((n,), 1.0 / (3 * n * len(counts))) for n in counts])
+    return diff @ weights
+
+
+@lru_cache(maxsize=16)
+def _counts(sizes: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(int(mirror_ball_valid(s).sum()) for s in sizes)
 
 
 def reconstruction_loss(
-    pred: torch.Tensor, target: torch.Tensor, brdf: str, size: int = 32, reduction: str = "mean"
+    pred: torch.Tensor,
+    target: torch.Tensor,
+    brdf: str,
+    size: int = 32,
+    reduction: str = "mean",
+    *,
+    gamma: str = "exact",
 ) -> torch.Tensor:
     r"""The sphere-render loss ``L_rec`` of LeGendre et al. 2020 for one reference sphere.
 
-    Both lightings render the sphere ``brdf`` (:func:`~kornia_ilum.render.render_spheres`); the loss is the
-    mean over the pixels on the sphere and the channels of
-    ``| softclip(I_pred)^(1/2.2) - softclip(I_gt)^(1/2.2) |``, with
-    :func:`~kornia_ilum.filters.soft_clip` and :func:`~kornia_ilum.color.gamma_encode` (``x^(1/2.2)`` with a
-    finite slope at 0, so the gradient stays finite on black pixels).
+    Both lightings render the sphere ``brdf`` at ``size`` (:func:`~kornia_ilum.render.render_spheres`:
+    from the lighting brought down to ``size`` by the energy-keeping pyramid, so a coarse sphere sees all
+    of the lighting); the loss is the mean over the pixels on the sphere and the channels of
+    ``| softclip(I_pred)^(1/2.2) - softclip(I_gt)^(1/2.2) |`` (:func:`~kornia_ilum.render.encode_sphere`:
+    :func:`~kornia_ilum.filters.soft_clip`, which counts negative values as 0, then the power).
+
+    Use ``gamma="exact"`` (the default) to evaluate: it is SPEC's metric. Train with ``gamma="safe"``,
+    whose gradient stays bounded on black pixels; targets precomputed for it with
+    :func:`~kornia_ilum.render.sphere_pyramid` must use the same mode.
 
     Args:
         pred: predicted linear mirror-ball lighting ``(B, 3, S_L, S_L)`` (``S_L = 32`` in the paper).
@@ -83,6 +108,9 @@ def reconstruction_loss(
         brdf: the sphere, ``"diffuse"``, ``"matte_silver"`` or ``"mirror"``.
         size: side of the sphere render in pixels, one of :data:`~kornia_ilum.render.SPHERE_SIZES`.
         reduction: ``"mean"`` over the batch (a scalar), ``"sum"``, or ``"none"`` (one loss per item).
+        gamma: the power ``x^(1/2.2)``: ``"exact"`` (default; SPEC's metric, gradient unbounded near 0)
+            or ``"safe"`` (for training: the chord below 1e-6, finite slope at 0, at most 5.3e-4 below
+            the exact power), see :func:`~kornia_ilum.render.encode_sphere`.
 
     Returns:
         the loss: a scalar, or ``(B,)`` for ``reduction="none"``.
@@ -92,22 +120,26 @@ def reconstruction_loss(
         - Output: :math:`()` or :math:`(B,)`
 
     Convention:
-        SPEC.md, "The paper's error measure L_rec": the spheres of SPEC.md, "Reference spheres", shaded
-        with lighting in the units of the input image, so the soft clip at 1 is the camera's white point.
+        SPEC.md, "The paper's error measure L_rec" and "Reference spheres" (multi-scale): the spheres
+        shaded with lighting in the units of the input image, so the soft clip at 1 is the camera's white
+        point.
 
     Examples:
         >>> gt = torch.ones(2, 3, 32, 32)
         >>> reconstruction_loss(gt, gt, "diffuse").item()
         0.0
-        >>> round(reconstruction_loss(0.5 * gt, gt, "mirror", size=16).item(), 4)
-        0.2471
+        >>> round(reconstruction_loss(0.5 * gt, gt, "mirror", size=16).item(), 3)
+        0.247
+        >>> round(reconstruction_loss(-0.1 * gt, gt, "diffuse").item(), 3)  # negative light counts as 0
+        0.903
     """
     s_l = _check_pair(pred, target)
     _check_brdf(brdf)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_reduction(reduction)
-    field = _shared_field(brdf, size, s_l, pred.device, pred.dtype, on_sphere=True)
-    return _reduce(_l_rec(field, pred, target), reduction)
+    knee = _check_gamma(gamma)
+    plan = _stacked_plan((brdf,), (size,), s_l, pred.device, pred.dtype)
+    return _reduce(_l_rec(plan, _counts((size,)), pred, target, knee), reduction)
 
 
 def multiscale_reconstruction_loss(
@@ -116,14 +148,18 @@ def multiscale_reconstruction_loss(
     brdf: str,
     sizes: Sequence[int] = (4, 8, 16, 32),
     reduction: str = "mean",
+    *,
+    gamma: str = "exact",
 ) -> torch.Tensor:
     r"""``L_rec`` averaged over several sphere resolutions.
 
-    ``(1 / K) sum_k reconstruction_loss(pred, target, brdf, sizes[k])``: the spheres are rendered from the
-    same lighting at every size in ``sizes``, shaded at each pixel centre; the coarse renders weigh the
-    low-frequency content (overall level and colour) as much as the 32 x 32 render weighs detail. Each
+    ``(1 / K) sum_k reconstruction_loss(pred, target, brdf, sizes[k])``: the sphere of size ``s`` is
+    rendered from the lighting brought down to ``s`` by the energy-keeping pyramid (SPEC.md, multi-scale;
+    :func:`~kornia_ilum.render.mirror_ball_pyramid`), shaded at each pixel centre; the coarse renders weigh
+    the low-frequency content (overall level and colour) as much as the 32 x 32 render weighs detail. Each
     scale is a mean over its own sphere pixels, so every scale counts equally whatever its pixel count.
-    For a generator with one output per scale (MSG-GAN style), call :func:`reconstruction_loss` on each.
+    All the scales are one matrix product per lighting. For a generator with one output per scale
+    (MSG-GAN style), call :func:`reconstruction_loss` on each.
 
     Args:
         pred: predicted linear mirror-ball lighting ``(B, 3, S_L, S_L)``.
@@ -131,6 +167,7 @@ def multiscale_reconstruction_loss(
         brdf: the sphere, ``"diffuse"``, ``"matte_silver"`` or ``"mirror"``.
         sizes: sphere resolutions, each in :data:`~kornia_ilum.render.SPHERE_SIZES`.
         reduction: ``"mean"``, ``"sum"`` (over the batch) or ``"none"``.
+        gamma: ``"exact"`` (default, the metric) or ``"safe"`` (training), see :func:`reconstruction_loss`.
 
     Returns:
         a scalar, or ``(B,)`` for ``reduction="none"``.
@@ -139,24 +176,18 @@ def multiscale_reconstruction_loss(
         >>> gt = torch.ones(1, 3, 32, 32)
         >>> multiscale_reconstruction_loss(gt, gt, "matte_silver").item()
         0.0
+        >>> pred = gt.clone()
+        >>> pred[0, :, 16, 16] = 50.0  # one bright pixel: every scale sees it
+        >>> bool(multiscale_reconstruction_loss(pred, gt, "mirror", sizes=(4,), gamma="safe") > 0)
+        True
     """
     s_l = _check_pair(pred, target)
     _check_brdf(brdf)
     sizes = _check_sizes(sizes)
     _check_reduction(reduction)
-    per_scale = [
-        _l_rec(_shared_field(brdf, s, s_l, pred.device, pred.dtype, True), pred, target) for s in sizes
-    ]
-    return _reduce(torch.stack(per_scale).mean(0), reduction)
-
-
-def _check_sizes(sizes: Sequence[int]) -> tuple[int, ...]:
-    sizes = tuple(sizes) if not isinstance(sizes, int) else (sizes,)
-    if not sizes:
-        raise ValueCheckError("sizes must name at least one sphere size")
-    for s in sizes:
-        check_positive_int(s, "sizes", allowed=SPHERE_SIZES)
-    return sizes
+    knee = _check_gamma(gamma)
+    plan = _stacked_plan((brdf,), sizes, s_l, pred.device, pred.dtype)
+    return _reduce(_l_rec(plan, _counts(sizes), pred, target, knee), reduction)
 
 
 def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -203,7 +234,21 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return ((total_gt - total_pred) / total_gt).to(pred.dtype)
 
 
-class ReconstructionLoss(nn.Module):
+class _PlanBuffers(nn.Module):
+    """Holds a render plan of one sphere at several scales as non-persistent buffers."""
+
+    def _register_plan(self, brdf: str, sizes: tuple[int, ...], lighting_size: int) -> None:
+        plan = _stacked_plan((brdf,), sizes, lighting_size, torch.device("cpu"), torch.float32)
+        self.register_buffer("field", plan.field.clone(), persistent=False)
+        self.register_buffer("index", plan.index.clone(), persistent=False)
+        self.register_buffer("order", None if plan.order is None else plan.order.clone(), persistent=False)
+        self.counts = _counts(sizes)
+
+    def _plan(self, dtype: torch.dtype) -> _Plan:
+        return _Plan(self.field.to(dtype), self.index, self.order)
+
+
+class ReconstructionLoss(_PlanBuffers):
     r"""Module twin of :func:`reconstruction_loss`; the sphere's field is a non-persistent buffer.
 
     Args:
@@ -211,31 +256,49 @@ class ReconstructionLoss(nn.Module):
         size: side of the sphere render.
         reduction: ``"mean"``, ``"sum"`` or ``"none"``.
         lighting_size: side ``S_L`` of the lighting the module accepts.
+        gamma: ``"exact"`` (default, the metric) or ``"safe"`` (training), see :func:`reconstruction_loss`.
 
     Examples:
-        >>> loss = ReconstructionLoss("mirror")
+        >>> loss = ReconstructionLoss("mirror", gamma="safe")
         >>> loss(torch.zeros(1, 3, 32, 32), torch.zeros(1, 3, 32, 32)).item()
         0.0
     """
 
-    def __init__(self, brdf: str, size: int = 32, reduction: str = "mean", lighting_size: int = 32) -> None:
+    def __init__(
+        self, brdf: str, size: int = 32, reduction: str = "mean", lighting_size: int = 32, *, gamma: str = "exact"
+    ) -> None:
         super().__init__()
         _check_reduction(reduction)
-        self.brdf, self.size, self.reduction, self.lighting_size = brdf, size, reduction, lighting_size
+        _check_brdf(brdf)
         check_positive_int(size, "size", allowed=SPHERE_SIZES)
-        field = sphere_reflectance_field(brdf, size, lighting_size)[mirror_ball_valid(size).flatten()]
-        self.register_buffer("field", field, persistent=False)
+        check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
+        self.knee = _check_gamma(gamma)
+        self.brdf, self.size, self.reduction, self.lighting_size, self.gamma = (
+            brdf,
+            size,
+            reduction,
+            lighting_size,
+            gamma,
+        )
+        self._register_plan(brdf, (size,), lighting_size)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         _check_lighting_size(_check_pair(pred, target), self.lighting_size, pred)
-        return _reduce(_l_rec(self.field.to(pred.dtype), pred, target), self.reduction)
+        return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
 
     def extra_repr(self) -> str:
-        return f"brdf={self.brdf!r}, size={self.size}, reduction={self.reduction!r}"
+        return f"brdf={self.brdf!r}, size={self.size}, reduction={self.reduction!r}, gamma={self.gamma!r}"
 
 
-class MultiscaleReconstructionLoss(nn.Module):
-    r"""Module twin of :func:`multiscale_reconstruction_loss`; one field buffer per size.
+class MultiscaleReconstructionLoss(_PlanBuffers):
+    r"""Module twin of :func:`multiscale_reconstruction_loss`; the fields of all sizes are one buffer.
+
+    Args:
+        brdf: the sphere, ``"diffuse"``, ``"matte_silver"`` or ``"mirror"``.
+        sizes: sphere resolutions.
+        reduction: ``"mean"``, ``"sum"`` or ``"none"``.
+        lighting_size: side ``S_L`` of the lighting the module accepts.
+        gamma: ``"exact"`` (default, the metric) or ``"safe"`` (training), see :func:`reconstruction_loss`.
 
     Examples:
         >>> loss = MultiscaleReconstructionLoss("diffuse", sizes=(4, 8))
@@ -249,26 +312,29 @@ class MultiscaleReconstructionLoss(nn.Module):
         sizes: Sequence[int] = (4, 8, 16, 32),
         reduction: str = "mean",
         lighting_size: int = 32,
+        *,
+        gamma: str = "exact",
     ) -> None:
         super().__init__()
         _check_reduction(reduction)
-        self.brdf, self.sizes, self.reduction, self.lighting_size = (
+        _check_brdf(brdf)
+        check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
+        self.knee = _check_gamma(gamma)
+        self.brdf, self.sizes, self.reduction, self.lighting_size, self.gamma = (
             brdf,
             _check_sizes(sizes),
             reduction,
             lighting_size,
+            gamma,
         )
-        for s in self.sizes:
-            field = sphere_reflectance_field(brdf, s, lighting_size)[mirror_ball_valid(s).flatten()]
-            self.register_buffer(f"field_{s}", field, persistent=False)
+        self._register_plan(brdf, self.sizes, lighting_size)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         _check_lighting_size(_check_pair(pred, target), self.lighting_size, pred)
-        per_scale = [_l_rec(getattr(self, f"field_{s}").to(pred.dtype), pred, target) for s in self.sizes]
-        return _reduce(torch.stack(per_scale).mean(0), self.reduction)
+        return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
 
     def extra_repr(self) -> str:
-        return f"brdf={self.brdf!r}, sizes={self.sizes}, reduction={self.reduction!r}"
+        return f"brdf={self.brdf!r}, sizes={self.sizes}, reduction={self.reduction!r}, gamma={self.gamma!r}"
 
 
 class RelativeRadiance(nn.Module):

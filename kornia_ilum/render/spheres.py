@@ -19,13 +19,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import NamedTuple
 
 import torch
 from torch import nn
 
+from kornia_ilum.color.transfer import _gamma_encode
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor
 from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.filters.soft_clip import _soft_clip
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_pixel_index,
     mirror_ball_solid_angles,
@@ -34,17 +37,22 @@ from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_uv,
     mirror_ball_valid,
 )
-from kornia_ilum.render.relight import relight
+from kornia_ilum.render.pyramid import _downsample_f64
+from kornia_ilum.render.relight import _product, relight
 
 __all__ = [
     "BRDFS",
     "DIFFUSE_ALBEDO",
+    "GAMMA_MODES",
     "MIRROR_REFLECTIVITY",
+    "SAFE_GAMMA_KNEE",
     "SILVER_ALPHA",
     "SILVER_F0",
     "SPHERE_SIZES",
     "RenderSpheres",
+    "encode_sphere",
     "render_spheres",
+    "sphere_pyramid",
     "sphere_reflectance_field",
 ]
 
@@ -60,6 +68,11 @@ MIRROR_REFLECTIVITY = 0.827
 SILVER_F0 = 0.827
 #: GGX ``alpha`` of the matte-silver sphere (the alpha of the distribution itself, not a "roughness").
 SILVER_ALPHA = 0.3
+#: The two forms of the power ``x^(1/2.2)`` of ``L_rec``: ``"exact"`` (the metric) and ``"safe"`` (training).
+GAMMA_MODES: tuple[str, ...] = ("exact", "safe")
+#: Knee of the ``"safe"`` power (:func:`~kornia_ilum.color.gamma_encode`): slope 1874 at 0, and at most
+#: 5.3e-4 below the exact power.
+SAFE_GAMMA_KNEE = 1e-6
 
 _SUPERSAMPLES = 8  # sub-samples per lighting pixel and axis (64 per pixel)
 _CHUNK = 8  # sphere pixels per chunk: float64 temporaries of _CHUNK * 51k samples stay in cache
@@ -181,6 +194,7 @@ def sphere_reflectance_field(
     size: int,
     lighting_size: int = 32,
     *,
+    multiscale: bool = False,
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
 ) -> torch.Tensor:
@@ -210,10 +224,19 @@ def sphere_reflectance_field(
     there is no disk cache), cached in memory, and returned as a fresh copy. Against 16 x 16 sub-samples,
     renders differ by at most 0.25% (matte silver) and 0.01% (diffuse).
 
+    With ``multiscale=True`` and ``size < lighting_size`` the field is the one that
+    :func:`render_spheres` and the losses use (SPEC.md, multi-scale): the lighting is first brought down to
+    ``size`` by the energy-keeping pyramid (:func:`~kornia_ilum.render.mirror_ball_downsample_matrix`
+    ``D``), and the sphere is rendered from it, ``R_multiscale = R(size, size) D``. So a coarse sphere sees
+    all of the lighting (the coarse mirror shows ``0.827`` times the pyramid level, a bright pixel
+    included), where the plain ``R(size, lighting_size)`` samples the mirror direction at each pixel centre
+    and misses most lighting pixels. For ``size >= lighting_size`` both are the same field.
+
     Args:
         brdf: one of :data:`BRDFS`: ``"diffuse"``, ``"matte_silver"``, ``"mirror"``.
         size: sphere image side ``S`` in pixels, one of :data:`SPHERE_SIZES`.
         lighting_size: mirror-ball lighting side ``S_L``, one of :data:`SPHERE_SIZES`.
+        multiscale: render from the lighting brought down to ``size`` (see above).
         device: device of the result.
         dtype: floating dtype of the result.
 
@@ -243,7 +266,31 @@ def sphere_reflectance_field(
     _check_brdf(brdf)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
-    return _field_f64(brdf, size, lighting_size).to(device=device, dtype=dtype, copy=True)
+    field = _multiscale_f64(brdf, size, lighting_size) if multiscale else _field_f64(brdf, size, lighting_size)
+    return field.to(device=device, dtype=dtype, copy=True)
+
+
+@lru_cache(maxsize=2 * len(BRDFS) * len(SPHERE_SIZES))
+def _multiscale_f64(brdf: str, size: int, lighting_size: int) -> torch.Tensor:
+    """The field of :func:`render_spheres`: the sphere of size ``s`` lit by the lighting brought down to ``s``.
+
+    For ``size < lighting_size``: ``R_s D`` with ``D = D(lighting_size -> size)`` (the pyramid) and ``R_s``
+    the field of the ``size`` sphere over the ``size x size`` lighting pixels. For the mirror
+    ``R_s = 0.827 I`` exactly. For the other two, ``R_s`` integrates the BRDF over each coarse pixel's
+    region with the fine quadrature, ``R_s = R(size, lighting_size) U``, where
+    ``U[f, c] = D[c, f] omega_c / omega_f`` is the share of fine pixel ``f`` in coarse pixel ``c`` (the same
+    overlaps as ``D``, rows summing to 1): 64 times the samples of ``R(size, size)``, whose 8 x 8 samples per
+    4 x 4 pixel are 1 % off. Otherwise ``R(size, lighting_size)``.
+    """
+    if size >= lighting_size:
+        return _field_f64(brdf, size, lighting_size)
+    down = _downsample_f64(lighting_size, size)
+    if brdf == "mirror":
+        return MIRROR_REFLECTIVITY * down
+    omega_f = mirror_ball_solid_angles(lighting_size, dtype=torch.float64).flatten()
+    omega_c = mirror_ball_solid_angles(size, dtype=torch.float64).flatten()
+    up = down.T * omega_c[None, :] / torch.where(omega_f > 0, omega_f, 1.0)[:, None]
+    return (_field_f64(brdf, size, lighting_size) @ up) @ down
 
 
 @compiler_disable  # called eagerly from compiled code: Dynamo would otherwise trace the build itself
@@ -255,15 +302,67 @@ def _shared_field(
     device: torch.device,
     dtype: torch.dtype,
     on_sphere: bool = False,
+    multiscale: bool = False,
 ) -> torch.Tensor:
     """Cached field on ``device`` in ``dtype`` for internal, read-only use (no copy per call).
 
     With ``on_sphere`` only the rows of the pixels on the sphere, ``(P_valid, N)``, in row-major order.
+    With ``multiscale`` the field of :func:`render_spheres` (:func:`sphere_reflectance_field`).
     """
-    field = _field_f64(brdf, size, lighting_size)
+    field = _multiscale_f64(brdf, size, lighting_size) if multiscale else _field_f64(brdf, size, lighting_size)
     if on_sphere:
         field = field[mirror_ball_valid(size).flatten()]
     return field.to(device=device, dtype=dtype)
+
+
+class _Plan(NamedTuple):
+    """How to render the on-sphere pixels of several ``(brdf, size)`` at once (see :func:`_stacked_plan`)."""
+
+    field: torch.Tensor  # (P_mm, N): the rows rendered by one matrix product
+    index: torch.Tensor  # (P_copy,): lighting pixels shown as they are, times MIRROR_REFLECTIVITY
+    order: torch.Tensor | None  # (P,): cat([product, copies])[..., order] is brdf-major, in ``sizes`` order
+
+
+@compiler_disable
+@lru_cache(maxsize=64)
+def _stacked_plan(
+    brdfs: tuple[str, ...], sizes: tuple[int, ...], lighting_size: int, device: torch.device, dtype: torch.dtype
+) -> _Plan:
+    """The on-sphere rows of the multi-scale fields of every ``(brdf, size)``, brdf-major, as one product.
+
+    The mirror at ``size == lighting_size`` is ``0.827`` times the lighting on the valid pixels: those rows
+    are copies (a gather), not rows of a dense product, which saves most of the mirror's cost.
+    """
+    rows, copies, kinds = [], [], []
+    for b in brdfs:
+        for s in sizes:
+            valid = mirror_ball_valid(s).flatten()
+            if b == "mirror" and s == lighting_size:
+                copies.append(valid.nonzero().squeeze(1))
+                kinds.append(torch.ones(copies[-1].numel(), dtype=torch.bool))
+            else:
+                rows.append(_multiscale_f64(b, s, lighting_size)[valid])
+                kinds.append(torch.zeros(rows[-1].shape[0], dtype=torch.bool))
+    n = lighting_size * lighting_size
+    field = torch.cat(rows) if rows else torch.zeros(0, n, dtype=torch.float64)
+    index = torch.cat(copies) if copies else torch.zeros(0, dtype=torch.long)
+    is_copy = torch.cat(kinds)
+    position = torch.empty(is_copy.numel(), dtype=torch.long)  # where each output row sits in cat([mm, copy])
+    position[~is_copy] = torch.arange(field.shape[0])
+    position[is_copy] = field.shape[0] + torch.arange(index.numel())
+    order = None if bool((position == torch.arange(position.numel())).all()) else position.to(device)
+    return _Plan(field.to(device=device, dtype=dtype), index.to(device), order)
+
+
+def _render_plan(plan: _Plan, lights: torch.Tensor) -> torch.Tensor:
+    """``(B, 3, P)`` renders of a checked ``(B, N, 3)`` light list through a :class:`_Plan`."""
+    parts = []
+    if plan.field.shape[0]:
+        parts.append(_product(plan.field, lights.to(plan.field.dtype)))
+    if plan.index.numel():
+        parts.append(MIRROR_REFLECTIVITY * lights.index_select(1, plan.index).transpose(1, 2))
+    out = parts[0] if len(parts) == 1 else torch.cat(parts, -1)
+    return out if plan.order is None else out.index_select(-1, plan.order)
 
 
 def _lighting_size(lighting: torch.Tensor, name: str = "lighting") -> int:
@@ -288,10 +387,62 @@ def _check_brdfs(brdfs: Sequence[str]) -> tuple[str, ...]:
     return names
 
 
+def _check_sizes(sizes: Sequence[int]) -> tuple[int, ...]:
+    sizes = tuple(sizes) if not isinstance(sizes, int) else (sizes,)
+    if not sizes:
+        raise ValueCheckError("sizes must name at least one sphere size")
+    for s in sizes:
+        check_positive_int(s, "sizes", allowed=SPHERE_SIZES)
+    return sizes
+
+
+def _check_gamma(gamma: str) -> float:
+    """Check a gamma mode and return the knee for :func:`~kornia_ilum.color.gamma_encode`."""
+    check_choice(gamma, "gamma", GAMMA_MODES)
+    return 0.0 if gamma == "exact" else SAFE_GAMMA_KNEE
+
+
+def encode_sphere(render: torch.Tensor, gamma: str = "exact") -> torch.Tensor:
+    r"""A sphere render as ``L_rec`` compares it: ``softclip(I)^(1/2.2)``.
+
+    :func:`~kornia_ilum.filters.soft_clip` (negative values count as 0) then the power ``1/2.2``:
+
+    - ``gamma="exact"``: the exact ``x^(1/2.2)`` (SPEC.md: the metric). Its gradient is finite but
+      unbounded near 0 (0 at exactly 0).
+    - ``gamma="safe"``: :func:`~kornia_ilum.color.gamma_encode` with knee :data:`SAFE_GAMMA_KNEE` (1e-6): the
+      chord through 0 below the knee, slope 1874 there, at most 5.3e-4 below the exact power. For training.
+
+    Args:
+        render: linear sphere renders of any shape.
+        gamma: ``"exact"`` or ``"safe"``.
+
+    Returns:
+        encoded values in ``[0, 1]``, same shape and dtype.
+
+    Examples:
+        >>> encode_sphere(torch.tensor([-0.5, 0.0, 0.25, 100.0]))
+        tensor([0.0000, 0.0000, 0.5325, 1.0000])
+    """
+    check_tensor(render, "render", None, nonempty=False)
+    return _encode(render, _check_gamma(gamma))
+
+
+def _encode(render: torch.Tensor, knee: float) -> torch.Tensor:
+    """:func:`encode_sphere` without the checks."""
+    return _gamma_encode(_soft_clip(render), 2.2, knee)
+
+
 def render_spheres(
     lighting: torch.Tensor, size: int = 32, brdfs: Sequence[str] = BRDFS
 ) -> dict[str, torch.Tensor]:
     r"""Render the reference spheres from mirror-ball lighting.
+
+    A sphere of size ``S`` is rendered from the lighting of size ``S`` (SPEC.md, multi-scale): lighting
+    larger than ``size`` is first brought down by the energy-keeping pyramid
+    (:func:`~kornia_ilum.render.mirror_ball_pyramid`), so a coarse sphere sees all of the lighting, a single
+    bright pixel included. Spheres larger than the lighting are rendered from it directly (the field
+    integrates each lighting pixel over its solid angle). This is ``sphere_reflectance_field(brdf, size,
+    S_L, multiscale=True)`` applied to the lighting.
 
     Args:
         lighting: linear mirror-ball lighting in radiance, ``(B, 3, S_L, S_L)``, ``S_L`` in
@@ -324,8 +475,80 @@ def render_spheres(
     names = _check_brdfs(brdfs)
     lights = mirror_ball_to_lights(lighting)
     return {
-        b: relight(_shared_field(b, size, s_l, lighting.device, lighting.dtype), lights, size) for b in names
+        b: relight(_shared_field(b, size, s_l, lighting.device, lighting.dtype, multiscale=True), lights, size)
+        for b in names
     }
+
+
+def _scatter_on_sphere(
+    values: torch.Tensor, brdfs: tuple[str, ...], sizes: tuple[int, ...]
+) -> dict[str, torch.Tensor]:
+    """Split ``(B, 3, sum P_valid)`` brdf-major rows into ``{f"{brdf}_{size}": (B, 3, s, s)}``, 0 off-sphere."""
+    b = values.shape[0]
+    out, start = {}, 0
+    for name in brdfs:
+        for s in sizes:
+            mask = mirror_ball_valid(s, device=values.device).flatten()
+            n = int(mask.sum())
+            image = values.new_zeros(b, 3, s * s)
+            image[:, :, mask] = values[:, :, start : start + n]
+            out[f"{name}_{s}"] = image.reshape(b, 3, s, s)
+            start += n
+    return out
+
+
+def sphere_pyramid(
+    lighting: torch.Tensor,
+    sizes: Sequence[int] = (4, 8, 16, 32),
+    brdfs: Sequence[str] = BRDFS,
+    encode: bool = True,
+    gamma: str = "exact",
+) -> dict[str, torch.Tensor]:
+    r"""The reference spheres at several sizes, as the multi-scale loss compares them.
+
+    Each sphere of size ``s`` is rendered from the lighting brought down to ``s``
+    (:func:`render_spheres`), and with ``encode`` mapped through :func:`encode_sphere`:
+    ``softclip(I)^(1/2.2)``. These are exactly the values that
+    :func:`~kornia_ilum.metrics.reconstruction_loss` (with the same ``gamma``) takes the mean absolute
+    difference of over the on-sphere pixels, so they can be stored as training targets: the loss of a
+    prediction ``p`` is ``mean(|sphere_pyramid(p)[k] - target[k]|)`` over ``mirror_ball_valid(s)``. All the
+    renders are one matrix product.
+
+    Args:
+        lighting: linear mirror-ball lighting ``(B, 3, S_L, S_L)``, ``S_L`` in :data:`SPHERE_SIZES`.
+        sizes: sphere sides, each in :data:`SPHERE_SIZES`.
+        brdfs: the spheres, names from :data:`BRDFS`.
+        encode: apply :func:`encode_sphere`; otherwise return the linear renders.
+        gamma: ``"exact"`` (the metric) or ``"safe"`` (training targets: use the same mode as the
+            training loss), see :func:`encode_sphere`.
+
+    Returns:
+        ``{f"{brdf}_{size}": (B, 3, size, size)}`` in the dtype and device of ``lighting``, 0 off the
+        sphere.
+
+    Shape:
+        - Input: :math:`(B, 3, S_L, S_L)`
+        - Output: ``{key:`` :math:`(B, 3, s, s)` ``}``
+
+    Convention:
+        SPEC.md, "Reference spheres" (multi-scale) and "The paper's error measure L_rec".
+
+    Examples:
+        >>> out = sphere_pyramid(torch.ones(1, 3, 32, 32), sizes=(4, 16), gamma="safe")
+        >>> sorted(out)
+        ['diffuse_16', 'diffuse_4', 'matte_silver_16', 'matte_silver_4', 'mirror_16', 'mirror_4']
+        >>> round(out["diffuse_4"][0, 0, 1, 1].item(), 3)  # softclip(0.8)^(1/2.2)
+        0.903
+    """
+    s_l = _lighting_size(lighting)
+    sizes = _check_sizes(sizes)
+    names = _check_brdfs(brdfs)
+    knee = _check_gamma(gamma)
+    plan = _stacked_plan(names, sizes, s_l, lighting.device, lighting.dtype)
+    values = _render_plan(plan, mirror_ball_to_lights(lighting))
+    if encode:
+        values = _encode(values, knee)
+    return _scatter_on_sphere(values, names, sizes)
 
 
 class RenderSpheres(nn.Module):
@@ -338,7 +561,7 @@ class RenderSpheres(nn.Module):
 
     Examples:
         >>> render = RenderSpheres(8, brdfs=("mirror",))
-        >>> round(render(torch.ones(1, 3, 32, 32))["mirror"].amax().item(), 4)
+        >>> round(render(torch.ones(1, 3, 32, 32))["mirror"][0, 0, 4, 4].item(), 4)
         0.827
     """
 
@@ -351,7 +574,7 @@ class RenderSpheres(nn.Module):
         self.brdfs = _check_brdfs(brdfs)
         for b in self.brdfs:
             self.register_buffer(
-                f"field_{b}", sphere_reflectance_field(b, size, lighting_size), persistent=False
+                f"field_{b}", sphere_reflectance_field(b, size, lighting_size, multiscale=True), persistent=False
             )
 
     def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:

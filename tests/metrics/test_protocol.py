@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
-from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.geometry import mirror_ball_to_lights, mirror_ball_valid
 from kornia_ilum.metrics import (
     METRICS,
     ThreeSphereMetrics,
@@ -20,7 +20,7 @@ from kornia_ilum.metrics import (
     tonemap_stylelight,
 )
 from kornia_ilum.metrics.protocol import _sphere_metrics
-from kornia_ilum.render import BRDFS, render_spheres
+from kornia_ilum.render import BRDFS, relight, sphere_reflectance_field
 from tests.conftest import assert_close_dtype, hdr_lighting
 
 F64 = torch.float64
@@ -61,6 +61,11 @@ def stylelight_tonemap(img, gamma=2.4, percentile=50, max_mapping=0.5):
     return max_mapping / (r + 1e-10) * power
 
 
+def _plain_renders(lighting: np.ndarray, size: int) -> dict[str, torch.Tensor]:
+    lights = mirror_ball_to_lights(torch.from_numpy(lighting)[None])
+    return {b: relight(sphere_reflectance_field(b, size, 32, dtype=F64), lights, size) for b in BRDFS}
+
+
 class TestThreeSphereMetrics:
     def test_smoke(self, device, dtype):
         pred, target = _lighting(seed=1, dtype=dtype).to(device), _lighting(seed=2, dtype=dtype).to(device)
@@ -82,8 +87,9 @@ class TestThreeSphereMetrics:
             p, t = pred[i].numpy(), target[i].numpy()
             if tonemap:
                 p, t = stylelight_tonemap(p), stylelight_tonemap(t)
-            renders_p = render_spheres(torch.from_numpy(p)[None], size)
-            renders_t = render_spheres(torch.from_numpy(t)[None], size)
+            # the protocol renders with the plain fields R(size, 32) (render_spheres brings the lighting
+            # down to the sphere's size first, which differs at size < 32)
+            renders_p, renders_t = _plain_renders(p, size), _plain_renders(t, size)
             for brdf in BRDFS:
                 rp = renders_p[brdf][0].permute(1, 2, 0).numpy()
                 rt = renders_t[brdf][0].permute(1, 2, 0).numpy()

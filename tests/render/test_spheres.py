@@ -244,4 +244,6 @@ class TestRenderSpheres:
         expected = {"diffuse": 0.8, "mirror": 0.827, "matte_silver": albedo}
         for name, render in out.items():
             want = (colour[:, None, None] * expected[name]).expand(3, size, size)
-            torch.testing.assert_close(render[0][:, valid], want[:, valid], rtol=1e-4, atol=1e-12)
+            # the pyramid keeps a constant map constant to 0.03 % (32 -> 16), and the mirror shows it as is
+            rtol = 4e-4 if name == "mirror" and size < 32 else 1e-4
+            torch.testing.assert_close(render[0][:, valid], want[:, valid], rtol=rtol, atol=1e-12)
