@@ -114,3 +114,14 @@ class TestSoftClip:
         torch.testing.assert_close(torch.compile(soft_clip)(x), soft_clip(x))
         module = SoftClip(10.0)
         torch.testing.assert_close(torch.compile(module)(x), module(x))
+
+
+class TestSoftClipNegatives:
+    def test_negatives_count_as_zero(self):
+        """SPEC: negative sphere values count as 0; monotone, f(0) = 0, finite gradients at the kink."""
+        x = torch.tensor([-1e6, -1.0, -1e-9, 0.0, 1e-9, 0.5], dtype=F64, requires_grad=True)
+        y = soft_clip(x)
+        assert (y[:4] == 0).all() and (y.diff() >= 0).all()
+        y.sum().backward()
+        assert torch.isfinite(x.grad).all()
+        assert (x.grad[:3] == 0).all() and x.grad[3].item() == pytest.approx(1.0, abs=1e-6)
