@@ -6,6 +6,9 @@ Subcommands:
   ``.hdr`` (and a preview PNG of the three reference spheres); with no image, the astronaut portrait that
   ships with scikit-image (:func:`skimage.data.astronaut`).
 - ``kornia-ilum list``: the registered estimators and face detectors, with their metadata.
+- ``kornia-ilum synth ...``: the light stage (environments, subject caches).
+- ``kornia-ilum train``: train an estimator on the light stage (:mod:`kornia_ilum.train`).
+- ``kornia-ilum evaluate``: the paper's tables on the project's held-out split (:mod:`kornia_ilum.evaluation`).
 
 Errors print one line, ``kornia-ilum: error: ...``, on stderr, never a traceback (set
 ``KORNIA_ILUM_DEBUG=1`` to get one), and exit with status 2 for usage errors (bad options) or 1 for
@@ -122,6 +125,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)
+    from kornia_ilum.evaluation.cli import add_evaluate_parser
+    from kornia_ilum.train.cli import add_train_parser
+
+    add_train_parser(sub)
+    add_evaluate_parser(sub)
     return parser
 
 
@@ -306,7 +314,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = _warn
         try:
             args = parser.parse_args(argv)
-            if args.command == "synth":
+            if args.command in ("synth", "train", "evaluate"):
                 return args.func(args)
             return _cmd_list() if args.command == "list" else _cmd_estimate(args)
         except SystemExit as e:  # --help / --version

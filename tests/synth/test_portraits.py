@@ -14,7 +14,7 @@ from kornia_ilum.color import gamma_encode, srgb_to_linear
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.render import render_spheres
+from kornia_ilum.render import render_spheres, sphere_pyramid
 from kornia_ilum.synth.background import camera_rays, sample_latlong
 from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
@@ -368,10 +368,15 @@ class TestImageOps:
     def test_sphere_targets_are_the_rendered_spheres_encoded(self) -> None:
         lighting = torch.rand(3, 3, 16, 16) * 4.0 * mirror_ball_valid(16)
         targets = sphere_targets(lighting, (4, 16))
+        expected = sphere_pyramid(lighting, (4, 16), gamma="safe")
         assert len(targets) == 6
-        for size in (4, 16):
+        assert targets.keys() == expected.keys()
+        for key, value in expected.items():  # the training loss's targets: gamma="safe"
+            torch.testing.assert_close(targets[key], value)
+        for size in (4, 16):  # and the spheres of render_spheres, encoded
             for brdf, render in render_spheres(lighting, size=size).items():
-                torch.testing.assert_close(targets[f"{brdf}_{size}"], gamma_encode(soft_clip(render), 2.2))
+                torch.testing.assert_close(targets[f"{brdf}_{size}"], gamma_encode(soft_clip(render), 2.2),
+                                           atol=1e-3, rtol=0)
         with pytest.raises(ShapeError):
             sphere_targets(torch.ones(1, 3, 12, 12))
 

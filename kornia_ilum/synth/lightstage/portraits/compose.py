@@ -18,14 +18,11 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
-from kornia_ilum.color import gamma_encode
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError
 from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
-from kornia_ilum.filters import soft_clip
-from kornia_ilum.geometry import mirror_ball_to_lights, mirror_ball_valid
-from kornia_ilum.render import BRDFS, SPHERE_SIZES, relight
-from kornia_ilum.render.spheres import _shared_field
+from kornia_ilum.geometry import mirror_ball_to_lights
+from kornia_ilum.render import SPHERE_SIZES, relight, sphere_pyramid
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, latlong_grid, lookup_latlong
 from kornia_ilum.synth.lightstage.olat import ReflectanceField
 from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
@@ -386,36 +383,20 @@ def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 
 
     Returns:
         ``{f"{brdf}_{size}": (B, 3, size, size)}`` for each of :data:`~kornia_ilum.render.BRDFS`; off-sphere
-        pixels are 0. Exactly what :func:`~kornia_ilum.metrics.reconstruction_loss` compares.
+        pixels are 0. Exactly what the training loss compares (:func:`~kornia_ilum.render.sphere_pyramid`,
+        ``gamma="safe"``): spheres of size ``s`` rendered from the energy-keeping lighting of size ``s``.
 
     Examples:
         >>> sorted(sphere_targets(torch.ones(1, 3, 32, 32), sizes=(4,)))
         ['diffuse_4', 'matte_silver_4', 'mirror_4']
     """
     check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"], nonnegative=True)
-    b, _, s_l = mirror_ball.shape[:3]
+    s_l = mirror_ball.shape[-2]
     if mirror_ball.shape[-1] != s_l or s_l not in SPHERE_SIZES:
         raise ShapeError(f"mirror_ball must be (B, 3, S, S) with S in {SPHERE_SIZES}, got {tuple(mirror_ball.shape)}")
-    lights = mirror_ball_to_lights(mirror_ball)
-    keys, masks, parts = [], [], []
-    for s in sizes:  # render the on-sphere pixels only, then encode all the renders in one pass
-        check_positive_int(s, "sizes", allowed=SPHERE_SIZES)
-        for brdf in BRDFS:
-            field = _shared_field(brdf, s, s_l, mirror_ball.device, mirror_ball.dtype, on_sphere=True)
-            keys.append(f"{brdf}_{s}")
-            masks.append(mirror_ball_valid(s, device=mirror_ball.device).flatten())
-            parts.append(relight(field, lights, (1, field.shape[0]))[:, :, 0])
-    if not parts:
-        return {}
-    encoded = gamma_encode(soft_clip(torch.cat(parts, -1)), 2.2)
-    out, start = {}, 0
-    for key, mask, part in zip(keys, masks, parts, strict=True):
-        image = encoded.new_zeros(b, 3, mask.numel())
-        image[:, :, mask] = encoded[:, :, start : start + part.shape[-1]]
-        start += part.shape[-1]
-        side = math.isqrt(mask.numel())
-        out[key] = image.reshape(b, 3, side, side)
-    return out
+    for size in sizes:
+        check_positive_int(size, "sizes", allowed=SPHERE_SIZES)
+    return sphere_pyramid(mirror_ball, tuple(sizes), gamma="safe") if sizes else {}
 
 
 

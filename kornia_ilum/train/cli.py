@@ -1,0 +1,91 @@
+"""``kornia-ilum train``: train an estimator on the light stage (:func:`kornia_ilum.train.train`)."""
+
+from __future__ import annotations
+
+import argparse
+
+_HELP = """\
+Train a lighting estimator on the virtual light stage, as LeGendre et al. 2020 did: portraits relit on the
+fly from the reflectance fields of a cache (kornia-ilum synth subjects) with procedural skies and rooms plus
+the real maps of --hdri (only their "train" split: the "eval" maps are held out for kornia-ilum evaluate),
+multi-scale sphere-render losses and the MSG-GAN discriminator.
+
+The run's folder OUT gets log.csv, loss.png, checkpoint.pt (atomic, every --checkpoint-every steps),
+summary.json and at the end the weights NAME.safetensors. Running the same command again resumes from the
+checkpoint and gives the weights of an uninterrupted run.
+
+multi-process (DDP: gloo on CPU, NCCL on GPU):
+  torchrun --standalone --nproc-per-node 2 -m kornia_ilum train --cache CACHE --out OUT ...
+
+examples:
+  kornia-ilum train --cache cache/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out runs/ours
+  kornia-ilum train --cache cache/ --out runs/gpu --device cuda --workers 8 --steps 20000
+"""
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def _setting(text: str) -> tuple[str, object]:
+    import ast
+
+    key, sep, value = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"must be KEY=VALUE, got {text!r}")
+    try:
+        return key, ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        return key, value
+
+
+def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``train`` to the ``kornia-ilum`` subcommands."""
+    from kornia_ilum.train.loop import BRDF_WEIGHTS, TrainConfig
+
+    d = TrainConfig(out="", cache=("-",))
+    cmd = subparsers.add_parser("train", help="train an estimator on the light stage",
+                                description=_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    cmd.add_argument("--estimator", default=d.estimator, help=f"what to train (default: {d.estimator})")
+    cmd.add_argument("--cache", nargs="+", required=True, metavar="DIR", help="light-stage cache folders")
+    cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="folders of real lat-long HDR maps")
+    cmd.add_argument("--out", required=True, metavar="OUT", help="the run's folder (resumed if it has a checkpoint)")
+    cmd.add_argument("--steps", type=_positive, default=d.steps, help=f"generator steps (default: {d.steps})")
+    cmd.add_argument("--batch", type=_positive, default=d.batch, help=f"samples per step (default: {d.batch})")
+    cmd.add_argument("--lr", type=float, default=d.lr, help=f"generator learning rate (default: {d.lr})")
+    cmd.add_argument("--seed", type=int, default=d.seed, help="seed of the data and the initialisation")
+    cmd.add_argument("--workers", type=int, default=d.workers, help=f"data workers per process (default: {d.workers})")
+    cmd.add_argument("--threads", type=_positive, default=None, help="torch threads of the training process")
+    cmd.add_argument("--device", default=d.device, help="cpu, cuda or cuda:N (default: cpu)")
+    cmd.add_argument("--bf16", action=argparse.BooleanOptionalAction, default=d.bf16,
+                     help="bfloat16 autocast for the networks (default: off; see benchmarks/bench_train.py)")
+    cmd.add_argument("--channels-last", action=argparse.BooleanOptionalAction, default=d.channels_last,
+                     help="channels-last memory format (default: off; see benchmarks/bench_train.py)")
+    cmd.add_argument("--checkpoint-every", type=_positive, default=d.checkpoint_every, metavar="N")
+    cmd.add_argument("--log-every", type=_positive, default=d.log_every, metavar="N")
+    cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
+                     help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
+    cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
+                     help="PortraitConfig settings of the light-stage data, e.g. fields_per_chunk=8 shuffle=2")
+    cmd.set_defaults(func=run_train, brdf_weights=dict(BRDF_WEIGHTS))
+    return cmd
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """Run ``kornia-ilum train``; prints the weight file and its SHA-256."""
+    from kornia_ilum.train.loop import TrainConfig, train
+
+    config = TrainConfig(out=args.out, cache=tuple(args.cache), hdri=tuple(args.hdri), estimator=args.estimator,
+                         steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
+                         threads=args.threads, device=args.device, bf16=args.bf16,
+                         channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
+                         log_every=args.log_every, lambda_adv=args.lambda_adv, data=dict(args.data))
+    summary = train(config)
+    if "weights" in summary:
+        w = summary["weights"]
+        print(f"{args.out}/{w['file']}  {w['dtype']}  sha256 {w['sha256']}  "
+              f"{summary['steps']} steps in {summary['wall_time_s'] / 60:.1f} min")
+    return 0

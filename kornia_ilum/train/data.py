@@ -1,0 +1,83 @@
+r"""Training batches from the light stage, addressable by step, so that a resumed run sees the same data.
+
+Batch ``t`` of rank ``r`` with ``W`` loader workers is batch ``t // W`` of the stream
+``r * W + t % W`` of a :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`: each stream is the
+dataset's own sample order for that worker (:meth:`PortraitDataset.samples`), cut into batches. A loader
+worker owns the streams of every ``W``-th step, so the :class:`~torch.utils.data.DataLoader`'s round robin
+over workers yields the steps in order; starting at step ``t0`` only regenerates the group of chunks that
+step ``t0`` falls in. The streams depend on ``W`` and the world size, which a checkpoint records.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import torch
+from torch.utils.data import DataLoader, IterableDataset, get_worker_info
+
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+
+__all__ = ["StepBatches", "batch_loader", "collate"]
+
+
+def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
+    """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels."""
+    return {
+        "image": torch.stack([s["image"] for s in samples]),
+        "mirror_ball": torch.stack([s["mirror_ball"] for s in samples]),
+        "label": [s["label"] for s in samples],
+        "skin_tone": torch.tensor([s["skin_tone"] for s in samples]),
+    }
+
+
+class StepBatches(IterableDataset):
+    r"""The batches of steps ``start, start + 1, ...`` of one rank (module docstring).
+
+    Args:
+        dataset: the portraits (endless: ``config.length`` is ``None``).
+        batch: samples per batch on this rank.
+        start: the first step.
+        rank, world: this process's rank and the number of processes.
+        workers: the loader's workers (0: the batches are made in the iterating process).
+    """
+
+    def __init__(self, dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
+                 workers: int = 0) -> None:
+        super().__init__()
+        self.dataset, self.batch, self.start = dataset, batch, start
+        self.rank, self.world, self.workers = rank, world, workers
+
+    def _stream(self, step: int) -> int:
+        w = max(self.workers, 1)
+        return self.rank * w + step % w
+
+    def _batches(self, first: int, every: int) -> Iterator[dict[str, Any]]:
+        """Batches of steps ``first, first + every, ...`` (all in one stream: ``every`` is ``W``)."""
+        w = max(self.workers, 1)
+        position = first // w  # the batch's index within its stream
+        samples = self.dataset.samples(self._stream(first), start=position * self.batch)
+        while True:
+            yield collate([next(samples) for _ in range(self.batch)])
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        info = get_worker_info()
+        if info is None:  # in process: interleave the streams of all the steps' residues
+            w = max(self.workers, 1)
+            streams = [self._batches(self.start + k, w) for k in range(w)]
+            while True:
+                for stream in streams:
+                    yield next(stream)
+        torch.set_num_threads(1)
+        yield from self._batches(self.start + info.id, info.num_workers)
+
+
+def batch_loader(dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
+                 workers: int = 0) -> Iterator[dict[str, Any]]:
+    """An endless iterator of the batches of steps ``start, start + 1, ...`` (:class:`StepBatches`)."""
+    steps = StepBatches(dataset, batch, start, rank, world, workers)
+    if workers == 0:
+        return iter(steps)
+    loader = DataLoader(steps, batch_size=None, num_workers=workers, persistent_workers=False,
+                        prefetch_factor=2, multiprocessing_context="fork")
+    return iter(loader)
