@@ -15,7 +15,8 @@ A training portrait is made the way LeGendre et al. 2020 made theirs from light-
 3. **Composite** over a background rendered from the same environment, through the same camera, at full
    resolution and with a random depth of field: the frame's rays looked up in the environment's
    full-resolution lat-long map (:func:`environment_background`: a real map's file at 1024 x 512, a procedural
-   sky rendered again at 256 rows (rooms stay at 128: 7 times costlier), with the sampler's augmentation; the lighting keeps the sampler's
+   sky rendered again at 256 rows (rooms stay at 128: 7 times costlier), with the sampler's augmentation: its
+   rotation folded into the frame's lookup, its gains into the map's pyramid; the lighting keeps the sampler's
    128-row map and its 32-pixel mirror ball), blurred by a Gaussian of 0 to 8 frame pixels (none for 30 % of
    the samples; :func:`frame_backgrounds`, on a coarser level of the map's pyramid for strong blurs) and cropped
    with the same sampling grid as the subject, ``I + (1 - alpha) B``.
