@@ -61,9 +61,10 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--threads", type=_positive, default=None, help="torch threads of the training process")
     cmd.add_argument("--device", default=d.device, help="cpu, cuda or cuda:N (default: cpu)")
     cmd.add_argument("--bf16", action=argparse.BooleanOptionalAction, default=d.bf16,
-                     help="bfloat16 autocast for the networks (default: off; see benchmarks/bench_train.py)")
+                     help="bfloat16 autocast for the networks (default: on CUDA and on CPUs with native bf16; "
+                     "see benchmarks/bench_train.py)")
     cmd.add_argument("--channels-last", action=argparse.BooleanOptionalAction, default=d.channels_last,
-                     help="channels-last memory format (default: off; see benchmarks/bench_train.py)")
+                     help="channels-last memory format (default: on)")
     cmd.add_argument("--checkpoint-every", type=_positive, default=d.checkpoint_every, metavar="N")
     cmd.add_argument("--log-every", type=_positive, default=d.log_every, metavar="N")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,

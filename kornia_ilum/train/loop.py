@@ -69,8 +69,10 @@ class TrainConfig:
         workers: data-loader worker processes per rank (0: in the training process).
         threads: torch threads of the training process (``None``: torch's default).
         device: ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (under ``torchrun`` each rank takes its local GPU).
-        bf16: run the networks under bfloat16 autocast (losses stay float32).
-        channels_last: the networks and crops in channels-last memory format.
+        bf16: run the networks under bfloat16 autocast (losses stay float32); ``None``: on CUDA, and on CPUs
+            with native bfloat16 (AVX-512 BF16 or AMX, oneDNN's check), where ``benchmarks/bench_train.py``
+            measured a step at 0.53x the float32 time together with ``channels_last`` (AMD EPYC Zen 4).
+        channels_last: the networks and crops in channels-last memory format; ``None``: on (0.65x alone).
         checkpoint_every, log_every: in steps.
         data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
             example ``{"fields_per_chunk": 8}``); ``split`` and ``environments`` are set by the trainer.
@@ -91,8 +93,8 @@ class TrainConfig:
     workers: int = 1
     threads: int | None = None
     device: str = "cpu"
-    bf16: bool = False
-    channels_last: bool = False
+    bf16: bool | None = None
+    channels_last: bool | None = None
     checkpoint_every: int = 100
     log_every: int = 10
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
@@ -159,6 +161,15 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
             if s == max(pred):
                 parts[f"rec_{brdf}"] = term.detach()
     return total, parts
+
+
+def resolve_precision(config: TrainConfig, device: torch.device) -> TrainConfig:
+    """``config`` with ``bf16`` and ``channels_last`` decided where they are ``None`` (see :class:`TrainConfig`)."""
+    bf16 = config.bf16
+    if bf16 is None:
+        bf16 = device.type == "cuda" or (device.type == "cpu" and torch.ops.mkldnn._is_mkldnn_bf16_supported())
+    channels_last = True if config.channels_last is None else config.channels_last
+    return dataclasses.replace(config, bf16=bool(bf16), channels_last=bool(channels_last))
 
 
 def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torch.optim.Optimizer,
@@ -334,6 +345,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
     if config.threads is not None:
         torch.set_num_threads(config.threads)
+    precision = resolve_precision(config, device)
     out = Path(config.out)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
@@ -348,7 +360,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
         if disc is not None:
             disc.load_state_dict(state["disc"])
         start, elapsed = int(state["step"]), float(state["elapsed_s"])
-    memory = torch.channels_last if config.channels_last else torch.contiguous_format
+    memory = torch.channels_last if precision.channels_last else torch.contiguous_format
     model = model.to(device, memory_format=memory)
     disc = disc.to(device, memory_format=memory) if disc is not None else None
     opt_g = torch.optim.Adam(model.parameters(), lr=config.lr, betas=config.betas)
@@ -378,7 +390,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
         crops = batch["image"].to(device, non_blocking=True).float().div_(255.0)
         crops = crops.contiguous(memory_format=memory)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
-        losses = train_step(model_ddp, disc_ddp, opt_g, opt_d, crops, target, config)
+        losses = train_step(model_ddp, disc_ddp, opt_g, opt_d, crops, target, precision)
         loss, rec, adv, disc_loss = (losses[k] for k in ("loss", "rec", "adv", "disc"))
         parts = {k: v for k, v in losses.items() if k.startswith("rec_")}
         if not torch.isfinite(loss):
@@ -415,6 +427,8 @@ def _finish(config: TrainConfig, out: Path, recipe, model, dataset, rows, elapse
         "estimator": config.estimator, "steps": step, "samples": step * config.batch, "wall_time_s": elapsed,
         "world_size": _world()[1], "device": config.device, "threads": torch.get_num_threads(),
         "cpu": _cpu_name(), "torch": torch.__version__, "config": dataclasses.asdict(config),
+        "bf16": resolve_precision(config, torch.device(config.device)).bf16,
+        "channels_last": resolve_precision(config, torch.device(config.device)).channels_last,
         "final": rows[-1] if rows else None,
     }
     if rank == 0:
