@@ -171,7 +171,7 @@ def three_sphere_metrics(
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_tonemap(tonemap)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
-    fields = {b: _shared_field(b, size, s_l, pred.device, work, True) for b in BRDFS}
+    fields = {b: _shared_field(b, size, s_l, pred.device, work, True, multiscale=True) for b in BRDFS}
     return _three_sphere(fields, pred, target, tonemap)
 
 
@@ -196,7 +196,7 @@ class ThreeSphereMetrics(nn.Module):
         _check_tonemap(tonemap)
         self.size, self.tonemap, self.lighting_size = size, tonemap, lighting_size
         for b in BRDFS:
-            field = sphere_reflectance_field(b, size, lighting_size)[mirror_ball_valid(size).flatten()]
+            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)[mirror_ball_valid(size).flatten()]
             self.register_buffer(f"field_{b}", field, persistent=False)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> dict[tuple[str, str], torch.Tensor]:

@@ -63,7 +63,8 @@ def stylelight_tonemap(img, gamma=2.4, percentile=50, max_mapping=0.5):
 
 def _plain_renders(lighting: np.ndarray, size: int) -> dict[str, torch.Tensor]:
     lights = mirror_ball_to_lights(torch.from_numpy(lighting)[None])
-    return {b: relight(sphere_reflectance_field(b, size, 32, dtype=F64), lights, size) for b in BRDFS}
+    return {b: relight(sphere_reflectance_field(b, size, 32, dtype=F64, multiscale=True), lights, size)
+            for b in BRDFS}
 
 
 class TestThreeSphereMetrics:
@@ -87,8 +88,8 @@ class TestThreeSphereMetrics:
             p, t = pred[i].numpy(), target[i].numpy()
             if tonemap:
                 p, t = stylelight_tonemap(p), stylelight_tonemap(t)
-            # the protocol renders with the plain fields R(size, 32) (render_spheres brings the lighting
-            # down to the sphere's size first, which differs at size < 32)
+            # the protocol renders as render_spheres does (SPEC multi-scale: lighting brought down to the
+            # sphere's size first when it is smaller)
             renders_p, renders_t = _plain_renders(p, size), _plain_renders(t, size)
             for brdf in BRDFS:
                 rp = renders_p[brdf][0].permute(1, 2, 0).numpy()
