@@ -57,7 +57,8 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--batch", type=_positive, default=d.batch, help=f"samples per step (default: {d.batch})")
     cmd.add_argument("--lr", type=float, default=d.lr, help=f"generator learning rate (default: {d.lr})")
     cmd.add_argument("--seed", type=int, default=d.seed, help="seed of the data and the initialisation")
-    cmd.add_argument("--workers", type=int, default=d.workers, help=f"data workers per process (default: {d.workers})")
+    cmd.add_argument("--workers", type=int, default=None,
+                     help="data workers per process (default: 1 on CPU, min(8, cores - 1) on CUDA)")
     cmd.add_argument("--threads", type=_positive, default=None, help="torch threads of the training process")
     cmd.add_argument("--device", default=d.device, help="cpu, cuda or cuda:N (default: cpu)")
     cmd.add_argument("--bf16", action=argparse.BooleanOptionalAction, default=d.bf16,
