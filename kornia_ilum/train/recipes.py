@@ -3,6 +3,9 @@ r"""Training recipes: what :func:`~kornia_ilum.train.train` builds, feeds and ex
 A recipe names the trainable model (and its discriminator, if adversarial), how the light-stage dataset is
 configured for it, and how the trained model becomes a registered :class:`~kornia_ilum.estimators.LightingEstimator`.
 The loop itself (losses, checkpoints, logs, DDP) is the same for every recipe.
+
+Plugins bring their own: an estimator class with a ``training_recipe`` class attribute (a :class:`Recipe`
+subclass) is trainable by its registry name, ``kornia-ilum train --estimator NAME``.
 """
 
 from __future__ import annotations
@@ -69,9 +72,19 @@ class OursRecipe(Recipe):
 _RECIPES: dict[str, type[Recipe]] = {"ours": OursRecipe}
 
 
+def _plugin_recipe(name: str) -> type[Recipe] | None:
+    from kornia_ilum.estimators import estimator_registry
+
+    cls = estimator_registry().get(name)
+    recipe = getattr(cls, "training_recipe", None)
+    return recipe if isinstance(recipe, type) and issubclass(recipe, Recipe) else None
+
+
 def list_recipes() -> list[str]:
-    """The estimators that ``kornia-ilum train`` can train."""
-    return sorted(_RECIPES)
+    """The estimators that ``kornia-ilum train`` can train (built-in recipes and plugins' ``training_recipe``)."""
+    from kornia_ilum.estimators import list_estimators
+
+    return sorted(set(_RECIPES) | {n for n in list_estimators() if _plugin_recipe(n) is not None})
 
 
 def get_recipe(name: str) -> Recipe:
@@ -80,6 +93,7 @@ def get_recipe(name: str) -> Recipe:
     Raises:
         ValueCheckError: no recipe for ``name``.
     """
-    if name not in _RECIPES:
+    recipe = _RECIPES.get(name) or _plugin_recipe(name)
+    if recipe is None:
         raise ValueCheckError(f"no training recipe for estimator {name!r}; trainable: {', '.join(list_recipes())}")
-    return _RECIPES[name]()
+    return recipe()
