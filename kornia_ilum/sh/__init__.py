@@ -1,4 +1,4 @@
-"""Spherical harmonics (order 2) of lighting, and converters to other SH layouts (DECA, ARCore, WebXR)."""
+"""Spherical harmonics (order 2) of lighting; converters to the SH of DPR, SfSNet, DECA, ARCore, WebXR."""
 
 from kornia_ilum.sh.harmonics import (
     LAYOUTS,
@@ -15,15 +15,21 @@ from kornia_ilum.sh.harmonics import (
     sh_reconstruct,
 )
 from kornia_ilum.sh.layouts import (
+    DPR_CHANNELS,
     sh_from_arcore,
     sh_from_deca,
+    sh_from_dpr,
+    sh_from_sfsnet,
     sh_from_webxr,
     sh_to_arcore,
     sh_to_deca,
+    sh_to_dpr,
+    sh_to_sfsnet,
     sh_to_webxr,
 )
 
 __all__ = [
+    "DPR_CHANNELS",
     "LAYOUTS",
     "SH_CONSTANTS",
     "SH_IRRADIANCE_FACTORS",
@@ -38,8 +44,12 @@ __all__ = [
     "sh_reconstruct",
     "sh_from_arcore",
     "sh_from_deca",
+    "sh_from_dpr",
+    "sh_from_sfsnet",
     "sh_from_webxr",
     "sh_to_arcore",
     "sh_to_deca",
+    "sh_to_dpr",
+    "sh_to_sfsnet",
     "sh_to_webxr",
 ]

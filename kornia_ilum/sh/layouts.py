@@ -1,21 +1,50 @@
-r"""Converters between SPEC's SH lighting and the 27-float SH layouts of DECA, ARCore and WebXR.
+r"""Converters between SPEC's SH lighting and the SH layouts of DPR, SfSNet, DECA, ARCore and WebXR.
 
-Every converter is linear (a fixed permutation, sign and scale per coefficient), so round trips are exact
-to rounding (bit-exact for ARCore / WebXR, whose conversion is only signs) and gradients pass through.
+Every converter is linear (a fixed signed permutation, for DPR a rotation, and a scale per coefficient), so
+round trips are exact to rounding (bit-exact for ARCore / WebXR, whose conversion is only signs) and
+gradients pass through.
 
 Convention:
-    SPEC side: ``(B, 9, 3)`` radiance coefficients in the orthonormal real basis of
+    SPEC side: ``(B, 9, 3)`` radiance coefficients ``L_lm`` in the orthonormal real basis of
     :mod:`kornia_ilum.sh.harmonics` (SPEC order, no Condon-Shortley phase, frame +X right, +Y up, +Z toward
-    the camera). A white Lambertian surface with normal ``n`` shows ``E(n) / pi`` where
-    ``E = sum_lm A_l L_lm Y_lm(n)`` (:func:`~kornia_ilum.sh.sh_irradiance_at`).
+    the camera; a direction means "light arriving from it"). A white Lambertian surface with normal ``n``
+    shows ``E(n) / pi`` where ``E = sum_lm A_l L_lm Y_lm(n)`` and ``A = (pi, 2 pi / 3, pi / 4)``
+    (:func:`~kornia_ilum.sh.sh_irradiance_at`). Every converter here is defined so that the other project's
+    own shading formula of the converted coefficients gives exactly that ``E(n) / pi`` (SPEC.md, units:
+    the same pixels for the same albedo), which fixes the factors in the last column.
 
-    ===========  =========================  ==========================================  ==================
-    layout       shape                      coefficient order                           frame
-    ===========  =========================  ==========================================  ==================
-    DECA         ``(B, 9, 3)``              ``1, x, y, z, xy, xz, yz, x2-y2, 3z2-1``    = SPEC
-    ARCore       ``(B, 27)`` RGB per coeff  SPEC order, Condon-Shortley signs           ARCore world
-    WebXR        ``(B, 27)`` RGB per coeff  identical to ARCore (aliases)               probe space
-    ===========  =========================  ==========================================  ==================
+    The conventions, as read from each project's own code (sources in each function). "Axes" gives their
+    ``x, y, z`` in SPEC's ``X, Y, Z``; "shading" is what their renderer multiplies the albedo with, as a
+    function of their coefficients ``c`` read as radiance; the last column is the converter.
+
+    ======  ===============  =================  =================  ===========  ======================
+    layout  shape            basis order        axes (up;          shading      SPEC ``L`` from
+                             (own axes)         toward camera)                  their ``c``
+    ======  ===============  =================  =================  ===========  ======================
+    SPEC    ``(B, 9, 3)``    1 y z x xy yz      X Y Z              ``E/pi``     ``L = c``
+                             3z2-1 xz x2-y2     (+y; +z)
+    DPR     ``(B, 9)`` grey  as SPEC (shtools,  X -Z Y             ``E``        ``pi R^T c``, ``R``
+                             no CS phase)       (+z; -y)                        the axes' rotation
+    SfSNet  ``(B, 27)``      1 z x y 3z2-1      -Y X Z             ``E``        ``pi`` times a signed
+            R, then G, B     xz yz x2-y2 xy     (-x; +z)                        permutation
+    DECA    ``(B, 9, 3)``    1 x y z xy xz      X Y Z              ``E``, but   ``c0``, ``pi c1..c8``,
+                             yz x2-y2 3z2-1     (+y; +z)           ``A_0 = 1``  reordered
+    ARCore  ``(B, 27)`` RGB  as SPEC, with the  X Y Z (world,      ``E/pi``     signs ``(-1)^m``
+            per coefficient  phase ``(-1)^m``   camera at origin)
+    WebXR   = ARCore         = ARCore           probe space        ``E/pi``     = ARCore
+    ======  ===============  =================  =================  ===========  ======================
+
+    What the numbers mean:
+
+    - DPR and SfSNet coefficients are radiance coefficients in the orthonormal basis (DPR projects HDR
+      environment maps with shtools, ``norm=4``), and their renderers multiply the albedo by the irradiance
+      ``E`` itself, not ``E / pi``; to keep the same pixels, SPEC's coefficients are ``pi`` times theirs.
+      Divide :func:`sh_from_dpr` / :func:`sh_from_sfsnet` by ``pi`` for the other reading (the same
+      environment-map radiance, a ``pi`` times darker render under SPEC's units).
+    - DECA's band 0 lacks ``A_0 = pi``; the code that reproduces its shading has ``c[0] = L_00`` and
+      ``c[i] = L_lm / pi`` for the rest.
+    - DPR, SfSNet and DECA all fit sRGB-encoded (not linearised) photographs, DPR the ``L`` of CIE Lab, so
+      their absolute scale is only "sRGB-ish"; nothing here linearises. ARCore's units are relative.
 """
 
 from __future__ import annotations
@@ -24,9 +53,14 @@ import math
 
 import torch
 
-from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.check import check_choice, check_tensor
 
 __all__ = [
+    "DPR_CHANNELS",
+    "sh_to_dpr",
+    "sh_from_dpr",
+    "sh_to_sfsnet",
+    "sh_from_sfsnet",
     "sh_to_deca",
     "sh_from_deca",
     "sh_to_arcore",
@@ -44,8 +78,44 @@ _DECA_SCALE = (1.0,) + (1.0 / math.pi,) * 8
 _ARCORE_SIGN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0)
 
 
+_S3 = math.sqrt(3.0) / 2.0
+
+# DPR: its basis function k, evaluated in its own axes (x, y, z) = (X, -Z, Y), is sum_j R[k][j] Y_j(SPEC);
+# e.g. its y = -Z, and its 3 z^2 - 1 = 3 Y^2 - 1 = -(3 Z^2 - 1) / 2 - 3 (X^2 - Y^2) / 2.
+_DPR_ROTATION = (
+    (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    (0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),  # y = -Z
+    (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),  # z = Y
+    (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0),  # x = X
+    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0),  # x y = -X Z
+    (0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0),  # y z = -Z Y
+    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -0.5, 0.0, -_S3),  # 3 z^2 - 1 = 3 Y^2 - 1
+    (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0),  # x z = X Y
+    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -_S3, 0.0, 0.5),  # x^2 - y^2 = X^2 - Z^2
+)
+
+# SfSNet: its basis function k in its axes (x, y, z) = (-Y, X, Z) is
+# _SFSNET_SIGN[k] * Y_{_SFSNET_FROM_SPEC[k]} (SPEC's basis).
+_SFSNET_FROM_SPEC = (0, 2, 1, 3, 6, 5, 7, 8, 4)  # 1, z, x, y, 3z^2-1, xz, yz, x^2-y^2, xy
+_SFSNET_SIGN = (1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, -1.0)
+_SPEC_FROM_SFSNET = tuple(_SFSNET_FROM_SPEC.index(j) for j in range(9))
+
+#: Channel choices of :func:`sh_to_dpr`, with the RGB weights of each (luminance: Rec. 709 / sRGB primaries).
+DPR_CHANNELS: dict[str, tuple[float, float, float]] = {
+    "luminance": (0.2126, 0.7152, 0.0722),
+    "r": (1.0, 0.0, 0.0),
+    "g": (0.0, 1.0, 0.0),
+    "b": (0.0, 0.0, 1.0),
+}
+
+
 def _const(values: tuple[float, ...], like: torch.Tensor) -> torch.Tensor:
     return torch.tensor(values, device=like.device, dtype=like.dtype)[:, None]
+
+
+def _work(x: torch.Tensor) -> torch.Tensor:
+    """Half-precision inputs are computed in float32 (and cast back by the caller)."""
+    return x.float() if x.dtype in (torch.float16, torch.bfloat16) else x
 
 
 def _index(values: tuple[int, ...], like: torch.Tensor) -> torch.Tensor:
@@ -190,3 +260,190 @@ sh_to_webxr = sh_to_arcore
 
 #: Inverse of :data:`sh_to_webxr`; an alias of :func:`sh_from_arcore` (see :data:`sh_to_webxr`).
 sh_from_webxr = sh_from_arcore
+
+
+def _matrix(values: tuple[tuple[float, ...], ...], like: torch.Tensor) -> torch.Tensor:
+    return torch.tensor(values, device=like.device, dtype=like.dtype)
+
+
+def sh_to_dpr(sh: torch.Tensor, channel: str = "luminance") -> torch.Tensor:
+    r"""Convert SPEC SH lighting to DPR's 9 grey SH coefficients.
+
+    DPR (Zhou et al. 2019, "Deep Single-Image Portrait Relighting") relights the ``L`` channel of CIE Lab
+    with one grey SH lighting of 9 coefficients. Its renderer (``utils/utils_SH.py``, ``SH_basis`` and
+    ``get_shading``) shades ``shading(n) = sum_k c_k A_l Y_k(n')``: the orthonormal basis in SPEC's order
+    and signs (``1, y, z, x, yx, yz, 3z^2 - 1, xz, x^2 - y^2``, shtools' real SH without Condon-Shortley
+    phase) times ``att = pi (1, 2/3, 1/4)``, evaluated at the normal ``n'`` in DPR's axes. ``c`` are
+    radiance coefficients (DPR's lightings are shtools projections of environment maps) and ``shading`` is
+    their irradiance ``E``, not ``E / pi``.
+
+    DPR's axes are shtools' (``utils/utils_normal.py``, ``sh_cvt``; the half sphere of
+    ``testNetwork_demo_512.py``): x right, **z up**, **y away from the camera** (the visible half sphere has
+    ``y = -sqrt(1 - x^2 - z^2)``). So ``n' = (X, -Z, Y)`` for a SPEC normal ``(X, Y, Z)``, and in SPEC's
+    basis DPR's function ``k`` is ``sum_j R_kj Y_j`` with ``R`` a rotation that keeps bands (signed
+    permutation except for ``3z^2 - 1`` and ``x^2 - y^2``, which mix). This function returns
+    ``c = R L_grey / pi``, for which DPR's shading is exactly ``E(n) / pi`` of the grey lighting: the value
+    that a white Lambertian surface shows under ``sh`` (SPEC.md, units).
+
+    Args:
+        sh: ``(B, 9, 3)`` SPEC SH lighting.
+        channel: which grey lighting DPR gets: ``"luminance"`` (default; ``0.2126 R + 0.7152 G + 0.0722 B``,
+            the linear luminance of Rec. 709 / sRGB primaries), or one of ``"r"``, ``"g"``, ``"b"``. The
+            conversion is linear, so DPR's shading of the result is that channel (or the luminance) of
+            SPEC's shading. See :data:`DPR_CHANNELS`.
+
+    Returns:
+        ``(B, 9)`` DPR coefficients (DPR's network takes them as ``(B, 9, 1, 1)``: ``reshape(B, 9, 1, 1)``).
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9)`
+
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+        ValueCheckError: ``channel`` is not one of :data:`DPR_CHANNELS`.
+
+    Convention:
+        Source: https://github.com/zhhoper/DPR, ``utils/utils_SH.py`` (basis, constants, ``att``),
+        ``utils/utils_shtools.py`` (shtools order of the 9 coefficients), ``utils/utils_normal.py`` (axes),
+        ``testNetwork_demo_512.py`` (the rendered half sphere). Round trip: ``sh_from_dpr(sh_to_dpr(sh))``
+        is the grey lighting of ``sh`` in every channel.
+
+        Uncertain: the absolute scale. DPR works on the Lab ``L`` of sRGB photographs divided by 255, which
+        is not linear in radiance; and its demo scales the shipped lightings by 0.7. No factor is applied
+        for either.
+
+    Examples:
+        >>> sh = torch.zeros(1, 9, 3)
+        >>> sh[:, 1] = 1.0  # light from +Y: DPR's z coefficient (index 2), divided by pi
+        >>> sh_to_dpr(sh, "g")[0]
+        tensor([0.0000, 0.0000, 0.3183, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000])
+    """
+    check_tensor(sh, "sh", ["B", "9", "3"])
+    check_choice(channel, "channel", tuple(DPR_CHANNELS))
+    work = _work(sh)
+    grey = work @ torch.tensor(DPR_CHANNELS[channel], device=sh.device, dtype=work.dtype)  # (B, 9)
+    out = grey @ (_matrix(_DPR_ROTATION, work).T / math.pi)
+    return out.to(sh.dtype)
+
+
+def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
+    r"""Convert DPR's 9 grey SH coefficients to (grey) SPEC SH lighting; the inverse of :func:`sh_to_dpr`.
+
+    Returns ``L = pi R^T c`` in all three channels, so that a white Lambertian surface under the SPEC
+    lighting shows DPR's shading of ``c`` (see :func:`sh_to_dpr` for the convention and its sources).
+    Divide by ``pi`` to read ``c`` as the radiance of an environment map instead.
+
+    Args:
+        coefficients: ``(B, 9)`` DPR coefficients (flatten DPR's ``(B, 9, 1, 1)`` first).
+
+    Returns:
+        ``(B, 9, 3)`` SPEC SH lighting, the same in R, G and B.
+
+    Shape:
+        - Input: :math:`(B, 9)`
+        - Output: :math:`(B, 9, 3)`
+
+    Raises:
+        ShapeError: ``coefficients`` is not ``(B, 9)``.
+
+    Examples:
+        >>> c = torch.zeros(1, 9)
+        >>> c[:, 1] = 1.0  # DPR's y: light from behind the subject (SPEC -Z)
+        >>> (sh_from_dpr(c)[0, :, 0] / math.pi).round(decimals=4) + 0.0
+        tensor([ 0.,  0., -1.,  0.,  0.,  0.,  0.,  0.,  0.])
+    """
+    check_tensor(coefficients, "coefficients", ["B", "9"])
+    work = _work(coefficients)
+    spec = work @ (_matrix(_DPR_ROTATION, work) * math.pi)  # (B, 9): pi R^T c, as row vectors
+    return spec[:, :, None].expand(-1, -1, 3).to(coefficients.dtype).contiguous()
+
+
+def sh_to_sfsnet(sh: torch.Tensor) -> torch.Tensor:
+    r"""Convert SPEC SH lighting to SfSNet's 27 lighting values.
+
+    SfSNet (Sengupta et al. 2018, "SfSNet: Learning Shape, Reflectance and Illuminance of Faces in the
+    Wild") predicts ``fc_light``, 27 values: 9 for R, then 9 for G, then 9 for B. Its shading layer
+    (``SfSNet_train/python/Shading_Layer.py``, ``functions/normal_harmonics.m``) computes
+    ``shading = sum_k c_k H_k(n')`` with ``H = att * (1/sqrt(4 pi), sqrt(3/(4 pi)) (z, x, y),
+    1/2 sqrt(5/(4 pi)) (2z^2 - x^2 - y^2), 3 sqrt(5/(12 pi)) (xz, yz), 3 sqrt(5/(48 pi)) (x^2 - y^2),
+    3 sqrt(5/(12 pi)) xy)`` and ``att = pi (1, 2/3, 1/4)`` (``c1 .. c5`` of the Python port): the orthonormal
+    basis in its own order times the Ramamoorthi-Hanrahan factors, i.e. the irradiance ``E`` of radiance
+    coefficients ``c`` (not ``E / pi``). The reconstruction is ``albedo * shading``.
+
+    SfSNet's normal axes are **x down**, y right, z toward the camera: ``n' = (-Y, X, Z)`` for a SPEC normal
+    ``(X, Y, Z)``. Then every SfSNet function is a SPEC function up to sign (``x = -Y``, ``xz = -YZ``,
+    ``x^2 - y^2 = -(X^2 - Y^2)``, ``xy = -XY``), and this function returns the signed permutation of
+    ``L / pi``, for which SfSNet's shading is exactly ``E(n) / pi``, what a white Lambertian surface shows
+    under ``sh`` (SPEC.md, units).
+
+    Args:
+        sh: ``(B, 9, 3)`` SPEC SH lighting.
+
+    Returns:
+        ``(B, 27)`` SfSNet ``fc_light``: ``[R c_0..c_8, G c_0..c_8, B c_0..c_8]``.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 27)`
+
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+
+    Convention:
+        Source: https://github.com/senguptaumd/SfSNet: ``SfSNet_train/python/Shading_Layer.py`` and
+        ``functions/normal_harmonics.m`` / ``lambertian_attenuation.m`` (basis, order, ``att``),
+        ``SfSNet_train/sfsnet_train.prototxt`` (the ``ChangeFormLayer`` turns Caffe's BGR normals, albedo
+        and image into RGB before ``recon = shading * albedo``, so the first 9 values light R, and the
+        normal's x, y, z are the R, G, B of the normal map), ``test_SfSNet.m`` / ``create_shading_recon.m``
+        (``light_out(1:9)`` shades R).
+
+        Axes: the repository states no frame. ``x`` along image rows (down), ``y`` along columns (right) and
+        ``z`` toward the viewer is what its Python demo uses to render the lighting on a sphere
+        (``spherical_harmonics.py``, ``get_sphere_normals``: ``x = (row - c) / r``, ``y = (col - c) / r``,
+        ``z = +sqrt(1 - x^2 - y^2)``) and what DPR's ``utils/utils_normal.py`` draws as "the sfs lighting
+        coordinate". Uncertain: not checked against SfSNet's released normal maps.
+
+        Uncertain: the absolute scale; SfSNet fits sRGB-encoded images divided by 255 (not linearised).
+
+    Examples:
+        >>> sh = torch.zeros(1, 9, 3)
+        >>> sh[:, 1] = 1.0  # light from +Y (up) is light from SfSNet's -x (coefficient 2, negative)
+        >>> [round(v, 4) + 0.0 for v in sh_to_sfsnet(sh)[0, :9].tolist()]  # red; + 0.0 turns -0.0 into 0.0
+        [0.0, 0.0, -0.3183, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    """
+    check_tensor(sh, "sh", ["B", "9", "3"])
+    light = sh.index_select(1, _index(_SFSNET_FROM_SPEC, sh)) * (_const(_SFSNET_SIGN, sh) / math.pi)
+    return light.transpose(1, 2).reshape(sh.shape[0], 27)
+
+
+def sh_from_sfsnet(light: torch.Tensor) -> torch.Tensor:
+    r"""Convert SfSNet's 27 lighting values to SPEC SH lighting; the inverse of :func:`sh_to_sfsnet`.
+
+    Returns the SPEC lighting under which a white Lambertian surface shows SfSNet's shading of ``light``
+    (``L = pi *`` a signed permutation of each channel's 9 values; see :func:`sh_to_sfsnet` for the
+    convention and its sources). Divide by ``pi`` to read ``light`` as environment-map radiance instead.
+
+    Args:
+        light: ``(B, 27)`` SfSNet ``fc_light`` (R, then G, then B).
+
+    Returns:
+        ``(B, 9, 3)`` SPEC SH lighting.
+
+    Shape:
+        - Input: :math:`(B, 27)`
+        - Output: :math:`(B, 9, 3)`
+
+    Raises:
+        ShapeError: ``light`` is not ``(B, 27)``.
+
+    Examples:
+        >>> light = torch.zeros(1, 27)
+        >>> light[:, 1] = 1.0  # SfSNet's z of the red channel: light from the camera side (SPEC +Z)
+        >>> (sh_from_sfsnet(light)[0, :, 0] / math.pi).round(decimals=4) + 0.0  # the red channel
+        tensor([0., 0., 1., 0., 0., 0., 0., 0., 0.])
+    """
+    check_tensor(light, "light", ["B", "27"])
+    c = light.reshape(light.shape[0], 3, 9).transpose(1, 2)  # (B, 9, 3), SfSNet order
+    spec = c * (_const(_SFSNET_SIGN, light) * math.pi)
+    return spec.index_select(1, _index(_SPEC_FROM_SFSNET, light))
