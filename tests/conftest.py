@@ -76,3 +76,29 @@ def hdr_lighting(
         r, c = torch.randint(s // 4, 3 * s // 4, (2,), generator=g).tolist()
         x[i, :, r, c] += 30.0 * (torch.rand(3, generator=g, dtype=torch.float64) if coloured else 1.0)
     return (x * mirror_ball_valid(s)).to(dtype)
+
+
+@pytest.fixture
+def untrained_name():
+    """A registered estimator that needs weights and ships none (``"untrained"``, an ``OursEstimator``
+    subclass): the MissingWeightsError paths, now that ``ours`` ships its weights."""
+    import dataclasses
+
+    from kornia_ilum.estimators import OursEstimator, registry
+
+    class Untrained(OursEstimator):
+        info = dataclasses.replace(OursEstimator.info, name="untrained", weights=(), install_hint="")
+
+    registry.register_estimator("untrained", Untrained)
+    yield "untrained"
+    registry._reset()
+
+
+@pytest.fixture(scope="session")
+def tiny_cache(tmp_path_factory):
+    """A tiny light-stage cache for the training tests: two train mannequins, one 48 px view each."""
+    from kornia_ilum.synth.lightstage import build_cache
+
+    out = tmp_path_factory.mktemp("train_cache")
+    build_cache("mannequin", [0, 2], out, views_per_subject=1, size=48, spp=4, workers=1, progress=False)
+    return out

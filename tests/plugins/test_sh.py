@@ -27,7 +27,6 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_project, sh_reconstruct
 from kornia_ilum.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
 from kornia_ilum.train.recipes import get_recipe, list_recipes
-from tests.train.conftest import tiny_cache  # noqa: F401  (the session fixture of the training tests)
 from tests.train.test_train import SMALL
 
 VALID = mirror_ball_valid(32)
