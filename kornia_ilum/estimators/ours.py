@@ -1,9 +1,9 @@
 r"""``ours``: the lighting network of LeGendre et al. 2020, "Learning Illumination from Diverse Portraits".
 
 An encoder-decoder from a 256 x 256 sRGB face crop to a 32 x 32 log-HDR mirror ball (SPEC.md). It ships
-no trained weights yet (the training issue adds them): ``create_estimator("ours")`` raises
-:class:`~kornia_ilum.core.errors.MissingWeightsError`, ``create_estimator("ours", pretrained=False)`` gives
-the untrained network.
+trained weights (``weights/ours.safetensors``, trained by ``kornia-ilum train`` on the light stage; its model
+card is ``weights/MODEL_CARD.md``): ``create_estimator("ours")`` loads them (SHA-256 checked, safetensors),
+``create_estimator("ours", pretrained=False)`` gives the untrained network.
 
 Architecture (9,219,779 parameters at the default ``latent_dim=1024``, the paper's network size of
 about 9.2 M). From the paper's description:
@@ -41,7 +41,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
 
@@ -106,8 +106,8 @@ class OursEstimator(LightingEstimator):
         "256 x 256 face crop -> 32 x 32 log-HDR mirror ball",
         paper=PAPER,
         input_size=_INPUT_SIZE,
-        weights=(),
-        install_hint="trained weights are not released yet; pass pretrained=False for the untrained network",
+        weights=(WeightFile("ours.safetensors", "be81e5bb50ec6ea11173c6f561cf3bd22609286c5823165038293353d097ae87"),),
+        install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
     )
 
     def __init__(self, latent_dim: int = 1024) -> None:

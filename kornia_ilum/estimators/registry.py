@@ -16,8 +16,8 @@ broken plugins warn) and fsspec (a read-only :class:`~types.MappingProxyType` vi
   For two distributions with one name, the first found on ``sys.path`` wins.
 - **Runtime registration.** :func:`register_estimator` adds a class, or a ``"module:attr"`` string that
   is imported on first use. Runtime names take precedence over entry points.
-- **Defaults.** :data:`DEFAULT_ESTIMATOR` is ``"uniform"``, a baseline without trained parameters from the
-  ``kornia_ilum_uniform`` plugin. It becomes ``"ours"`` once ``ours`` ships trained weights.
+- **Defaults.** :data:`DEFAULT_ESTIMATOR` is ``"ours"``, with the weights that ship inside kornia_ilum
+  (trained by ``kornia-ilum train``; model card ``kornia_ilum/estimators/weights/MODEL_CARD.md``).
 - **Weights.** ``create_estimator(name)`` (``pretrained=True``) calls
   :meth:`LightingEstimator.from_pretrained`: weight files are SHA-256-checked and read with safetensors.
   Estimators without trained parameters declare ``EstimatorInfo(needs_weights=False)`` and are built as
@@ -49,12 +49,14 @@ __all__ = [
 
 #: The entry-point group that plugins (and the built-ins) declare estimators in.
 ENTRY_POINT_GROUP = "kornia_ilum.estimators"
-#: The estimator used when none is named: ``"uniform"`` now; ``"ours"`` once it ships trained weights.
-DEFAULT_ESTIMATOR = "uniform"
+#: The estimator used when none is named: ``"ours"``, with its shipped weights.
+DEFAULT_ESTIMATOR = "ours"
 
 #: Estimators that live in plugin packages of this project: the install hint for an unknown name.
 _KNOWN_PLUGINS = {
     "uniform": "it is provided by the plugin package kornia_ilum_uniform: pip install ./plugins/uniform "
+    "(from the kornia_ilum source tree)",
+    "sh": "it is provided by the plugin package kornia_ilum_sh: pip install ./plugins/sh "
     "(from the kornia_ilum source tree)",
 }
 
