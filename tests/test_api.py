@@ -81,12 +81,15 @@ class TestEstimateLighting:
         assert 150 < (x0 + x1) / 2 < 300 and 60 < (y0 + y1) / 2 < 190  # the face, not the flag or the suit
         assert 60 < x1 - x0 < 160 and 60 < y1 - y0 < 160
 
-    def test_astronaut_lighting(self, astronaut_estimate):
+    def test_astronaut_lighting(self, astronaut_estimate, astronaut):
+        """The default (ours, trained): HDR lighting on the ball; brighter above the astronaut than below."""
         mb, valid = astronaut_estimate.mirror_ball, astronaut_estimate.valid
         assert mb.shape == (1, 3, 32, 32) and mb.dtype == torch.float32
         assert torch.isfinite(mb).all() and (mb >= 0).all()
         assert torch.equal(valid, mirror_ball_valid(32))
         assert (mb[..., ~valid] == 0).all()
+        assert astronaut_estimate.log_mirror_ball is not None and mb[0][:, valid].std() > 0
+        mb = estimate_lighting(astronaut, estimator="uniform").mirror_ball  # the uniform baseline
         colour = mb[0][:, valid]  # (3, P): uniform lighting is one colour over the ball
         torch.testing.assert_close(colour, colour[:, :1].expand_as(colour))
         rgb = colour[:, 0]
@@ -166,7 +169,7 @@ class TestEstimateLighting:
 
     def test_detector_none_and_instances(self, astronaut):
         crop = astronaut[FACE][:150, :150]
-        est = estimate_lighting(crop, detector="none")
+        est = estimate_lighting(crop, detector="none", estimator="uniform")
         torch.testing.assert_close(est.boxes, torch.tensor([[0.0, 0.0, 150.0, 150.0]]))
         estimator = create_estimator("uniform")
         estimator.train()
@@ -184,9 +187,9 @@ class TestEstimateLighting:
 
         api._named_estimator.cache_clear()
         monkeypatch.setattr(api, "create_estimator", counting)
-        estimate_lighting(astronaut, estimator="uniform")
-        estimate_lighting(astronaut)  # None = DEFAULT_ESTIMATOR = "uniform": the same cached model
-        assert calls == ["uniform"]
+        estimate_lighting(astronaut, estimator="ours")
+        estimate_lighting(astronaut)  # None = DEFAULT_ESTIMATOR = "ours": the same cached model
+        assert calls == ["ours"]
         api._named_estimator.cache_clear()
 
     def test_yunet(self, astronaut, shared_data):
@@ -207,7 +210,7 @@ class TestEstimateLighting:
         assert est.mirror_ball.device.type == device.type
         assert est.boxes.device.type == device.type and est.image_index.device.type == device.type
 
-    def test_exception(self, astronaut):
+    def test_exception(self, astronaut, untrained_name):
         with pytest.raises(TypeCheckError, match=r"image must be .*torch.Tensor.*NumPy array.*path.*got list"):
             estimate_lighting([astronaut])
         with pytest.raises(TypeCheckError, match=r"image \(NumPy array\) must be uint8, uint16 or float.*int32"):
@@ -248,14 +251,16 @@ class TestEstimateLighting:
             estimate_lighting(astronaut, estimator="nope")
         with pytest.raises(ValueError, match=r"unknown detector 'haar'.*opencv"):
             estimate_lighting(astronaut, detector="haar")
-        with pytest.raises(MissingWeightsError, match=r"'ours' is registered but ships no trained weights yet"):
-            estimate_lighting(astronaut, estimator="ours")
+        with pytest.raises(MissingWeightsError, match=r"'untrained' is registered but ships no trained weights"):
+            estimate_lighting(astronaut, estimator=untrained_name)
         with pytest.raises(HDRIOError, match=r"cannot read .*missing.png: no such file"):
             estimate_lighting("missing.png")
 
     def test_top_level_export(self):
         assert kornia_ilum.estimate_lighting is estimate_lighting
         assert "estimate_lighting" in kornia_ilum.__all__
+        assert kornia_ilum.create_estimator is create_estimator and "ours" in kornia_ilum.list_estimators()
+        assert {"create_estimator", "list_estimators"} <= set(kornia_ilum.__all__)
 
 
 class TestInputs:
@@ -297,7 +302,7 @@ class TestInputs:
         from_file = estimate_lighting(tmp_path / "grey.png")
         for image in (grey, grey[..., None]):
             torch.testing.assert_close(estimate_lighting(image).mirror_ball, from_file.mirror_ball)
-        rgb = from_file.mirror_ball[0, :, 16, 16]
+        rgb = estimate_lighting(tmp_path / "grey.png", estimator="uniform").mirror_ball[0, :, 16, 16]
         # a grey photo: the same linear mean in R, G and B, divided by the coloured skin albedo
         torch.testing.assert_close(rgb * torch.tensor(SKIN_ALBEDO), (rgb * torch.tensor(SKIN_ALBEDO))[:1].expand(3))
 

@@ -115,9 +115,9 @@ class TestErrors:
         assert main(["estimate", str(tmp_path / "bad.png"), "-o", str(tmp_path / "x.exr")]) == 1
         assert "cannot read" in _error_line(capsys)
 
-    def test_no_weights(self, capsys, tmp_path):
-        assert main(["estimate", "--estimator", "ours", "-o", str(tmp_path / "x.exr")]) == 1
-        assert "'ours' is registered but ships no trained weights yet" in _error_line(capsys)
+    def test_no_weights(self, capsys, tmp_path, untrained_name):
+        assert main(["estimate", "--estimator", untrained_name, "-o", str(tmp_path / "x.exr")]) == 1
+        assert "'untrained' is registered but ships no trained weights yet" in _error_line(capsys)
 
     @pytest.mark.parametrize(
         "argv, message",

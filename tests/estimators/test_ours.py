@@ -52,7 +52,7 @@ class TestOursEstimator:
 
     def test_smoke(self, net):
         assert isinstance(net, LightingEstimator) and net.info.name == "ours"
-        assert "LeGendre" in net.info.paper and net.info.input_size == 256 and net.info.weights == ()
+        assert "LeGendre" in net.info.paper and net.info.input_size == 256 and len(net.info.weights) == 1
         assert net.state_dict().keys() == {k for k, _ in net.named_parameters()}  # no persistent buffers
 
     def test_cardinality(self, net):
@@ -92,12 +92,24 @@ class TestOursEstimator:
         with pytest.raises(ValueCheckError, match="latent_dim must be positive"):
             OursEstimator(latent_dim=0)
 
-    def test_no_weights_yet(self):
-        with pytest.raises(
-            MissingWeightsError, match="'ours' is registered but ships no trained weights yet"
-        ):
-            OursEstimator.from_pretrained()
+    def test_shipped_weights(self):
+        """The shipped weights load (SHA-256 checked, safetensors) and give finite, positive lighting."""
+        (weight,) = OursEstimator.info.weights
+        path = OursEstimator.default_weights_dir() / weight.name
+        assert path.is_file() and weight.name == "ours.safetensors"
+        net = create_estimator("ours")
+        assert isinstance(net, OursEstimator) and not net.training
+        with torch.no_grad():
+            est = net(crops(2))
+        assert torch.isfinite(est.mirror_ball).all() and (est.mirror_ball[:, :, VALID] > 0).all()
+        trained = {k: v.float() for k, v in net.state_dict().items()}
+        fresh = OursEstimator().state_dict()
+        assert any(not torch.equal(trained[k], fresh[k]) for k in fresh)
         assert count(create_estimator("ours", pretrained=False, latent_dim=64)) < OURS_PARAMETERS
+
+    def test_missing_weights(self, untrained_name):
+        with pytest.raises(MissingWeightsError, match="'untrained' is registered but ships no trained weights yet"):
+            create_estimator(untrained_name)
 
     def test_gradients_flow(self):
         torch.manual_seed(1)

@@ -109,21 +109,23 @@ class TestInstalledEntryPoints:
         assert estimator_registry()["ours"] is OursEstimator
         assert estimator_registry()["uniform"] is UniformEstimator
 
-    def test_default_estimator_needs_no_weights(self):
-        assert DEFAULT_ESTIMATOR == "uniform"
+    def test_default_estimator_is_the_trained_ours(self):
+        assert DEFAULT_ESTIMATOR == "ours"
         info = estimator_info(DEFAULT_ESTIMATOR)
-        assert info.weights == () and not info.needs_weights and info.pretrained_available
+        assert len(info.weights) == 1 and info.needs_weights and info.pretrained_available
         est = create_estimator(DEFAULT_ESTIMATOR)  # pretrained=True
-        assert type(est).__name__ == "UniformEstimator" and not est.training
+        assert isinstance(est, OursEstimator) and not est.training
         assert len(est(torch.full((2, 3, 256, 256), 0.5))) == 2
+        uniform = create_estimator("uniform")  # the baseline needs no weights
+        assert type(uniform).__name__ == "UniformEstimator" and not estimator_info("uniform").needs_weights
 
-    def test_ours_without_weights(self):
+    def test_estimator_without_weights(self, untrained_name):
         with pytest.raises(
             MissingWeightsError,
-            match=r"^'ours' is registered but ships no trained weights yet; pass pretrained=False for an "
-            r"untrained model or pick one of: uniform$",
+            match=r"^'untrained' is registered but ships no trained weights yet; pass pretrained=False for an "
+            r"untrained model or pick one of: ours, uniform$",
         ):
-            create_estimator("ours")
+            create_estimator(untrained_name)
         net = create_estimator("ours", pretrained=False)
         assert isinstance(net, OursEstimator)
         assert create_estimator("ours", pretrained=False, latent_dim=8).latent_dim == 8
@@ -132,13 +134,13 @@ class TestInstalledEntryPoints:
         ours, uniform = estimator_info("ours"), estimator_info("uniform")
         assert "LeGendre" in ours.paper and "Learning Illumination from Diverse Portraits" in ours.paper
         assert ours.input_size == uniform.input_size == 256
-        assert ours.weights == () and ours.needs_weights and not ours.pretrained_available
+        assert len(ours.weights) == 1 and ours.needs_weights and ours.pretrained_available
         assert uniform.paper.startswith("none") and uniform.description
 
     def test_unknown_name_lists_valid_names(self):
-        with pytest.raises(ValueError, match=r"unknown estimator 'nope'\. Valid names: ours, uniform$"):
+        with pytest.raises(ValueError, match=r"unknown estimator 'nope'\. Valid names: ours, sh, uniform$"):
             create_estimator("nope")
-        with pytest.raises(ValueError, match="Valid names: ours, uniform"):
+        with pytest.raises(ValueError, match="Valid names: ours, sh, uniform"):
             estimator_info("nope")
 
     def test_list_pattern(self):
@@ -227,9 +229,8 @@ class TestPatchedEntryPoints:
             match=r"unknown estimator 'uniform'; .*pip install \./plugins/uniform.*"
             r"Valid names: ours$",
         ):
-            create_estimator(DEFAULT_ESTIMATOR)
-        with pytest.raises(MissingWeightsError, match=r"pick one of: none installed"):
-            create_estimator("ours")
+            create_estimator("uniform")
+        assert isinstance(create_estimator(DEFAULT_ESTIMATOR), OursEstimator)  # ships in kornia_ilum itself
 
     def test_no_plugins(self, patch_entry_points):
         patch_entry_points()

@@ -182,10 +182,10 @@ class TestScores:
 
 
 class TestEvaluate:
-    def test_tables(self, eval_set) -> None:
-        results = evaluate(eval_set, ["uniform", "ours"])
+    def test_tables(self, eval_set, untrained_name) -> None:
+        results = evaluate(eval_set, ["uniform", untrained_name])
         assert set(results["methods"]) == {"uniform", *ORACLES}
-        assert "MissingWeightsError" in results["skipped"]["ours"]
+        assert "MissingWeightsError" in results["skipped"][untrained_name]
         summary = summarize(results, eval_set)
         t1, t2 = summary["table1_l_rec"], summary["table2_relative_radiance"]
         for name in ("uniform", *ORACLES):
@@ -196,7 +196,7 @@ class TestEvaluate:
             assert sum(row["count"] for row in tones.values()) == N
         assert max(abs(v) for v in t2["mean of GT"]["all"]["mean"]) < 1e-4
         markdown = format_markdown(summary)
-        assert "## Table 1" in markdown and "| uniform |" in markdown and "ours: MissingWeightsError" in markdown
+        assert "## Table 1" in markdown and "| uniform |" in markdown and "untrained: MissingWeightsError" in markdown
         json.dumps(summary)  # JSON-ready
 
     def test_weights_checkpoint(self, eval_set, tmp_path) -> None:
@@ -222,9 +222,9 @@ class TestEvaluate:
                                   "--out", str(tmp_path)])
         assert args.func(args) == 0
         printed = capsys.readouterr().out
-        assert "## Table 1" in printed and "ours: MissingWeightsError" in printed
+        assert "## Table 1" in printed and "| ours |" in printed
         summary = json.loads((tmp_path / "evaluation.json").read_text())
-        assert set(summary["table1_l_rec"]) == {"uniform", *ORACLES} and summary["eval_set"]["samples"] == 8
+        assert set(summary["table1_l_rec"]) == {"uniform", "ours", *ORACLES} and summary["eval_set"]["samples"] == 8
         assert (tmp_path / "evaluation.md").read_text().startswith("# Held-out evaluation")
         assert run_evaluate is args.func
         assert parse_weights("a=b.safetensors") == ("a", "b.safetensors")
