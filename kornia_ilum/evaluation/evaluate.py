@@ -177,8 +177,8 @@ def oracle_predictions(mirror_ball: torch.Tensor) -> dict[str, torch.Tensor]:
         mirror_ball: ground-truth linear lighting.
 
     Returns:
-        ``{"SH of GT": sh_reconstruct(sh_project(gt)) (unclamped), "mean of GT": the constant lighting with the
-        solid-angle weighted mean of ``gt`` per channel on the valid pixels}``.
+        a dict: ``"SH of GT"`` is ``sh_reconstruct(sh_project(gt))``, unclamped; ``"mean of GT"`` is the
+        constant lighting with the solid-angle weighted mean of ``gt`` per channel, on the valid pixels.
 
     Shape:
         - mirror_ball: :math:`(B, 3, S, S)`

@@ -41,11 +41,12 @@ def summarize(results: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
         eval_set: the set that was scored.
 
     Returns:
-        ``{"eval_set": description, "skipped": {name: reason}, "seconds": {name: s}, "table1_l_rec":
-        {method: {group: {brdf: mean}}}, "table2_relative_radiance": {method: {group: {"mean": [r, g, b],
-        "mean_abs": [r, g, b]}}}, "per_skin_tone": {method: {tone: {"count": n, brdf: mean, ...,
-        "relative_radiance": [r, g, b], "relative_radiance_abs": [r, g, b]}}}}``; groups ``indoor``,
-        ``outdoor``, ``all`` (a group without samples holds ``None``).
+        a dict with the keys ``eval_set`` (the set's description), ``skipped`` (name to reason),
+        ``seconds`` (name to seconds), ``table1_l_rec`` (method, group, brdf to the mean),
+        ``table2_relative_radiance`` (method, group to ``mean`` and ``mean_abs``, each ``[r, g, b]``) and
+        ``per_skin_tone`` (method, tone to ``count``, the mean per brdf, ``relative_radiance`` and
+        ``relative_radiance_abs``); the groups are ``indoor``, ``outdoor`` and ``all`` (a group without
+        samples holds ``None``).
     """
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
