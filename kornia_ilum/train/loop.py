@@ -236,6 +236,10 @@ def _dataset(config: TrainConfig):
     from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
 
     fields = [f for folder in config.cache for f in load_fields(folder, split="train")]
+    allowed = {f.name for f in dataclasses.fields(PortraitConfig)} - {"split", "environments"}
+    unknown = sorted(set(config.data) - allowed)
+    if unknown:
+        raise ValueCheckError(f"unknown data settings {unknown}; PortraitConfig has: {', '.join(sorted(allowed))}")
     overrides = {k: tuple(v) if isinstance(v, list) else v for k, v in config.data.items()}
     return PortraitDataset(fields, PortraitConfig(**{**overrides, "split": "train",
                                                      "environments": _environments(config)}), seed=config.seed)
@@ -353,11 +357,11 @@ def train(config: TrainConfig) -> dict[str, Any]:
     if config.threads is not None:
         torch.set_num_threads(config.threads)
     precision = resolve_defaults(config, device)
+    recipe = _recipe(config.estimator)
+    dataset = recipe.dataset(_dataset(config))  # checks the caches, maps and data settings before any file
     out = Path(config.out)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
-
-    recipe = _recipe(config.estimator)
     torch.manual_seed(config.seed)
     model, disc = recipe.build()
     state = _load_checkpoint(out, config)
@@ -386,7 +390,6 @@ def train(config: TrainConfig) -> dict[str, Any]:
         disc_ddp = DDP(disc, device_ids=ids) if disc is not None else None
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
-    dataset = recipe.dataset(_dataset(config))
     if start >= config.steps:
         return _finish(config, out, recipe, model, dataset, rows, elapsed, start, rank)
     batches = recipe.batches(dataset, config.batch // world, start, rank, world, precision.workers)

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 
+import pytest
 import safetensors.torch
 import torch
 
@@ -147,3 +148,19 @@ class TestTrainCommand:
         summary = json.loads((out / "summary.json").read_text())
         assert summary["world_size"] == 2 and summary["steps"] == 2
         assert set(_weights(out)) == set(OursEstimator().state_dict())
+
+
+class TestBadInput:
+    def test_errors_leave_no_folder(self, tiny_cache, tmp_path) -> None:
+        from kornia_ilum.core.errors import ValueCheckError
+        from kornia_ilum.train import train
+
+        with pytest.raises(ValueCheckError, match="no reflectance field"):
+            train(TrainConfig(out=str(tmp_path / "a"), cache=(str(tmp_path / "missing"),)))
+        with pytest.raises(ValueCheckError, match=r"unknown data settings \['nope'\]"):
+            train(TrainConfig(out=str(tmp_path / "b"), cache=(str(tiny_cache),), data={"nope": 1}))
+        with pytest.raises(ValueCheckError, match="no training recipe for estimator 'uniform'"):
+            train(TrainConfig(out=str(tmp_path / "c"), cache=(str(tiny_cache),), estimator="uniform"))
+        with pytest.raises(ValueCheckError, match="steps must be a positive integer"):
+            TrainConfig(out=str(tmp_path / "d"), cache=(str(tiny_cache),), steps=0)
+        assert not any((tmp_path / n).exists() for n in "abcd")
