@@ -44,7 +44,7 @@ __all__ = ["BRDF_WEIGHTS", "TrainConfig", "export_weights", "read_log", "train",
 
 #: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
 BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
-_LOG_FIELDS = ("step", "samples", "elapsed_s", "samples_per_s", "loss", "rec", "adv", "disc",
+_LOG_FIELDS = ("step", "samples", "elapsed_s", "samples_per_s", "loss", "rec", "adv", "disc", "extra",
                "rec_diffuse", "rec_matte_silver", "rec_mirror")
 
 
@@ -181,7 +181,7 @@ def resolve_defaults(config: TrainConfig, device: torch.device) -> TrainConfig:
 
 def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torch.optim.Optimizer,
                opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
-               config: TrainConfig) -> dict[str, torch.Tensor]:
+               config: TrainConfig, recipe: Any = None) -> dict[str, torch.Tensor]:
     r"""One discriminator step, then one generator step (module docstring); returns the detached losses.
 
     Args:
@@ -191,6 +191,7 @@ def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torc
         crops: ``(B, 3, 256, 256)`` sRGB in ``[0, 1]``, in the networks' memory format.
         target: ``(B, 3, 32, 32)`` linear ground-truth lighting.
         config: ``bf16``, ``channels_last``, the loss weights.
+        recipe: its :meth:`~kornia_ilum.train.recipes.Recipe.extra_losses` join the generator's loss.
     """
     memory = torch.channels_last if config.channels_last else torch.contiguous_format
     autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=config.bf16)
@@ -212,10 +213,17 @@ def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torc
         with autocast:
             adv = F.softplus(-plain({s: v.contiguous(memory_format=memory) for s, v in fake.items()}).float()).mean()
     loss = rec + config.lambda_adv * adv
+    extras = recipe.extra_losses(pred) if recipe is not None else {}
+    extra = rec.new_zeros(())
+    for term in extras.values():
+        extra = extra + term
+    if extras:
+        loss = loss + extra
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
-    return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(), **parts}
+    return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
+            "extra": extra.detach(), **parts}
 
 
 # ----------------------------------------------------------------------------------------------- helpers
@@ -400,8 +408,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
         crops = batch["image"].to(device, non_blocking=True).float().div_(255.0)
         crops = crops.contiguous(memory_format=memory)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
-        losses = train_step(model_ddp, disc_ddp, opt_g, opt_d, crops, target, precision)
-        loss, rec, adv, disc_loss = (losses[k] for k in ("loss", "rec", "adv", "disc"))
+        losses = train_step(model_ddp, disc_ddp, opt_g, opt_d, crops, target, precision, recipe)
+        loss, rec, adv, disc_loss, extra = (losses[k] for k in ("loss", "rec", "adv", "disc", "extra"))
         parts = {k: v for k, v in losses.items() if k.startswith("rec_")}
         if not torch.isfinite(loss):
             raise FloatingPointError(f"the training loss became {loss.item()} at step {step}; lower --lr")
@@ -412,7 +420,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
             window_t, window_n = now, 0
             row = {"step": step, "samples": step * config.batch, "elapsed_s": elapsed + now - run_t0,
                    "samples_per_s": rate, "loss": loss.item(), "rec": rec.item(), "adv": adv.item(),
-                   "disc": disc_loss.item(), **{k: v.item() for k, v in parts.items()}}
+                   "disc": disc_loss.item(), "extra": extra.item(), **{k: v.item() for k, v in parts.items()}}
             rows.append(row)
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if step % config.checkpoint_every == 0 or step == config.steps:

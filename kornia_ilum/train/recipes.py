@@ -47,6 +47,13 @@ class Recipe:
         """The registered estimator inside the trained model (what is exported)."""
         raise NotImplementedError
 
+    def extra_losses(self, pred: dict[int, Any]) -> dict[str, Any]:
+        """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).
+
+        Their sum is logged as ``extra``; ``ours`` has none.
+        """
+        return {}
+
     def probe(self, dataset: Any) -> dict[str, Any]:
         """A fixed batch of the training distribution that checks the float16 export."""
         from kornia_ilum.train.data import collate

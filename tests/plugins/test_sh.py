@@ -18,7 +18,6 @@ from kornia_ilum_sh import (
     SHRecipe,
     negative_penalty,
 )
-from kornia_ilum_sh.recipe import _NegativePenalty
 
 from kornia_ilum.core.errors import MissingWeightsError
 from kornia_ilum.estimators import LightingEstimator, OursEstimator, create_estimator, list_estimators
@@ -162,7 +161,7 @@ class TestMultiScaleSH:
         assert all(g is not None and torch.isfinite(g).all() for g in grads)
 
     def test_penalty_unsticks_all_negative_lighting(self):
-        """All-negative lighting: softclip gives the loss no gradient; the injected penalty does."""
+        """All-negative lighting: softclip gives the loss no gradient; the recipe's penalty term does."""
         truth = torch.ones(1, 3, 32, 32) * VALID
         sh = torch.zeros(1, 9, 3)
         sh[:, 0] = -1.0
@@ -170,25 +169,20 @@ class TestMultiScaleSH:
         training_losses(mirror_ball_pyramid(sh_reconstruct(plain, 32), SCALES), truth, BRDF_WEIGHTS)[0].backward()
         assert plain.grad.abs().max() == 0  # the stall the penalty is for
         pushed = sh.clone().requires_grad_(True)
-        lighting = _NegativePenalty.apply(sh_reconstruct(pushed, 32), VALID, NEGATIVE_PENALTY)
-        training_losses(mirror_ball_pyramid(lighting, SCALES), truth, BRDF_WEIGHTS)[0].backward()
+        pred = mirror_ball_pyramid(sh_reconstruct(pushed, 32), SCALES)
+        extras = SHRecipe().extra_losses(pred)
+        (training_losses(pred, truth, BRDF_WEIGHTS)[0] + sum(extras.values())).backward()
         assert pushed.grad[0, 0].lt(0).all()  # gradient descent raises the constant term
 
-    def test_injected_gradient_is_the_penalty_gradient(self):
-        sh = sun_sh()
-        truth = (torch.rand(2, 3, 32, 32, generator=torch.Generator().manual_seed(1)) + 0.1) * VALID
-        a = sh.clone().requires_grad_(True)
-        lighting = _NegativePenalty.apply(sh_reconstruct(a, 32), VALID, NEGATIVE_PENALTY)
-        training_losses(mirror_ball_pyramid(lighting, SCALES), truth, BRDF_WEIGHTS)[0].backward()
-        b = sh.clone().requires_grad_(True)
-        lighting = sh_reconstruct(b, 32)
-        loss = training_losses(mirror_ball_pyramid(lighting, SCALES), truth, BRDF_WEIGHTS)[0]
-        (loss + NEGATIVE_PENALTY * negative_penalty(lighting, VALID)).backward()
-        torch.testing.assert_close(a.grad, b.grad)
+    def test_extra_loss_is_the_penalty(self):
+        lighting = sh_reconstruct(sun_sh(), 32)
+        extras = SHRecipe().extra_losses(mirror_ball_pyramid(lighting, SCALES))
+        assert set(extras) == {"negative"} and float(extras["negative"]) > 0
+        torch.testing.assert_close(extras["negative"], NEGATIVE_PENALTY * negative_penalty(lighting, VALID))
 
 
 class TestTraining:
-    def test_two_steps_end_to_end(self, tiny_cache, tmp_path):  # noqa: F811
+    def test_two_steps_end_to_end(self, tiny_cache, tmp_path):
         threads = torch.get_num_threads()
         data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}
         config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sh", steps=2, batch=2,

@@ -19,14 +19,12 @@ every sample the training would stop for good. Two things prevent it:
 
 - the head's bias starts at a positive uniform lighting (:data:`~kornia_ilum_sh.estimator.INIT_RADIANCE`);
 - a penalty ``NEGATIVE_PENALTY * mean(relu(-L))`` on the 32 px reconstruction (mean over the batch,
-  channels and valid pixels, radiance in image units). The loop's loss has no hook for extra terms, so the
-  penalty enters through :class:`_NegativePenalty`, the identity in the forward pass that adds the
-  penalty's gradient ``-NEGATIVE_PENALTY / n`` at each negative value in the backward pass (a gradient
-  injection, as a gradient-reversal layer). It is therefore *not* part of the logged ``loss``/``rec``.
-  At 0.05 its gradient on a negative pixel is about 2 % of the rendering loss's (median over the pixels
-  of random lighting at half the truth, batch 2: 1.0e-5 against 5.8e-4): a tie-breaker where the loss
-  is flat, not a pull away from the (genuinely negative) order-2 fit of a bright light. Adam normalises
-  gradient scales, so where it is the only gradient (every sphere negative) it still moves the weights.
+  channels and valid pixels, radiance in image units), added to the generator's loss through the recipe's
+  :meth:`SHRecipe.extra_losses` and logged as the ``extra`` column of the run's ``log.csv``. At 0.05 its
+  gradient on a negative pixel is about 2 % of the rendering loss's (median over the pixels of random
+  lighting at half the truth, batch 2: 1.0e-5 against 5.8e-4): a tie-breaker where the loss is flat, not
+  a pull away from the (genuinely negative) order-2 fit of a bright light. Adam normalises gradient
+  scales, so where it is the only gradient (every sphere negative) it still moves the weights.
 """
 
 from __future__ import annotations
@@ -70,31 +68,12 @@ def negative_penalty(lighting: Tensor, valid: Tensor) -> Tensor:
     return torch.relu(-lighting)[..., valid].mean()
 
 
-class _NegativePenalty(torch.autograd.Function):
-    """Identity forward; the backward adds ``weight * d negative_penalty / dL`` to the incoming gradient."""
-
-    @staticmethod
-    def forward(ctx, lighting: Tensor, valid: Tensor, weight: float) -> Tensor:
-        ctx.save_for_backward(lighting, valid)
-        ctx.weight = weight
-        return lighting.view_as(lighting)
-
-    @staticmethod
-    def backward(ctx, grad: Tensor):
-        lighting, valid = ctx.saved_tensors
-        count = lighting.shape[0] * lighting.shape[1] * int(valid.sum())
-        push = ((lighting < 0) & valid).to(grad.dtype) * (ctx.weight / max(count, 1))
-        return grad - push, None, None
-
-
 class MultiScaleSH(nn.Module):
     r"""``sh`` for training: face crops -> unclamped SH lighting at 4, 8, 16 and 32 px.
 
     Args:
         estimator: the network to train (a new :class:`~kornia_ilum_sh.SHEstimator` by default);
             :attr:`estimator` is what gets exported.
-        penalty: weight of the negative-radiance penalty injected into the backward pass (module
-            docstring); 0 turns it off.
 
     Returns:
         (``forward``) ``{size: (B, 3, size, size)}`` float32 linear radiance, 0 off the ball, possibly
@@ -107,22 +86,18 @@ class MultiScaleSH(nn.Module):
         [(4, 4), (8, 8), (16, 16), (32, 32)]
     """
 
-    def __init__(self, estimator: SHEstimator | None = None, penalty: float = NEGATIVE_PENALTY) -> None:
+    def __init__(self, estimator: SHEstimator | None = None) -> None:
         super().__init__()
         if estimator is None:
             from kornia_ilum_sh.estimator import SHEstimator
 
             estimator = SHEstimator()
         self.estimator = estimator
-        self.penalty = float(penalty)
-        self.register_buffer("valid", mirror_ball_valid(SCALES[-1]), persistent=False)
 
     def forward(self, crops: Tensor) -> dict[int, Tensor]:
         sh = self.estimator.coefficients(crops)
         with torch.autocast(sh.device.type, enabled=False):
             lighting = sh_reconstruct(sh.float(), SCALES[-1], "mirror_ball")
-            if self.penalty > 0 and lighting.requires_grad:
-                lighting = _NegativePenalty.apply(lighting, self.valid, self.penalty)
             return mirror_ball_pyramid(lighting, SCALES)
 
 
@@ -136,3 +111,9 @@ class SHRecipe(Recipe):
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
+
+    def extra_losses(self, pred: dict[int, Tensor]) -> dict[str, Tensor]:
+        """``{"negative": NEGATIVE_PENALTY * negative_penalty(pred[32])}`` (module docstring)."""
+        lighting = pred[SCALES[-1]]
+        valid = mirror_ball_valid(lighting.shape[-1], device=lighting.device)
+        return {"negative": NEGATIVE_PENALTY * negative_penalty(lighting, valid)}
