@@ -45,7 +45,7 @@ from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, Lightin
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
 
-__all__ = ["OursEstimator", "ENCODER_DEPTHS", "DECODER_DEPTHS", "LIGHTING_SIZE"]
+__all__ = ["DECODER_DEPTHS", "ENCODER_DEPTHS", "LIGHTING_SIZE", "OursEstimator", "build_encoder"]
 
 #: Depths of the five encoder convolutions (each followed by blur-pooling).
 ENCODER_DEPTHS: tuple[int, ...] = (16, 32, 64, 128, 256)
@@ -64,6 +64,26 @@ PAPER = (
     '"Learning Illumination from Diverse Portraits", SIGGRAPH Asia 2020 Technical Communications, '
     "doi:10.1145/3410700.3425432"
 )
+
+
+def build_encoder(latent_dim: int = 1024) -> tuple[nn.Sequential, nn.Linear]:
+    r"""The paper's encoder, ``(encoder, to_latent)``: five 3 x 3 conv + ReLU + blur-pool stages, the 8 x 8
+    convolution, then the fully-connected layer to the ``latent_dim`` bottleneck (also used by plugins that
+    share the encoder, such as ``sh``).
+
+    Examples:
+        >>> encoder, to_latent = build_encoder(64)
+        >>> tuple(to_latent(encoder(torch.rand(1, 3, 256, 256))).shape)
+        (1, 64)
+    """
+    check_positive_int(latent_dim, "latent_dim")
+    layers: list[nn.Module] = []
+    depth_in = 3
+    for depth in ENCODER_DEPTHS:
+        layers += [nn.Conv2d(depth_in, depth, 3, padding=1), nn.ReLU(), BlurPool2D(3, stride=2)]
+        depth_in = depth
+    layers += [nn.Conv2d(depth_in, _BOTTLENECK_DEPTH, _ENCODED_SIDE), nn.ReLU(), nn.Flatten(1)]
+    return nn.Sequential(*layers), nn.Linear(_BOTTLENECK_DEPTH, latent_dim)
 
 
 class OursEstimator(LightingEstimator):
@@ -114,18 +134,7 @@ class OursEstimator(LightingEstimator):
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
-        layers: list[nn.Module] = []
-        depth_in = 3
-        for depth in ENCODER_DEPTHS:
-            layers += [
-                nn.Conv2d(depth_in, depth, 3, padding=1),
-                nn.ReLU(),
-                BlurPool2D(3, stride=2),
-            ]
-            depth_in = depth
-        layers += [nn.Conv2d(depth_in, _BOTTLENECK_DEPTH, _ENCODED_SIDE), nn.ReLU(), nn.Flatten(1)]
-        self.encoder = nn.Sequential(*layers)
-        self.to_latent = nn.Linear(_BOTTLENECK_DEPTH, latent_dim)
+        self.encoder, self.to_latent = build_encoder(latent_dim)
         self.from_latent = nn.Sequential(
             nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.ReLU()
         )

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+
 _HELP = """\
 Train a lighting estimator on the virtual light stage, as LeGendre et al. 2020 did: portraits relit on the
 fly from the reflectance fields of a cache (kornia-ilum synth subjects) with procedural skies and rooms plus
@@ -21,13 +23,6 @@ examples:
   kornia-ilum train --cache cache/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out runs/ours
   kornia-ilum train --cache cache/ --out runs/gpu --device cuda --workers 8 --steps 20000
 """
-
-
-def _positive(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
 
 
 def _setting(text: str) -> tuple[str, object]:
@@ -53,21 +48,21 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--cache", nargs="+", required=True, metavar="DIR", help="light-stage cache folders")
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="folders of real lat-long HDR maps")
     cmd.add_argument("--out", required=True, metavar="OUT", help="the run's folder (resumed if it has a checkpoint)")
-    cmd.add_argument("--steps", type=_positive, default=d.steps, help=f"generator steps (default: {d.steps})")
-    cmd.add_argument("--batch", type=_positive, default=d.batch, help=f"samples per step (default: {d.batch})")
+    cmd.add_argument("--steps", type=_positive_int, default=d.steps, help=f"generator steps (default: {d.steps})")
+    cmd.add_argument("--batch", type=_positive_int, default=d.batch, help=f"samples per step (default: {d.batch})")
     cmd.add_argument("--lr", type=float, default=d.lr, help=f"generator learning rate (default: {d.lr})")
     cmd.add_argument("--seed", type=int, default=d.seed, help="seed of the data and the initialisation")
     cmd.add_argument("--workers", type=int, default=None,
                      help="data workers per process (default: 1 on CPU, min(8, cores - 1) on CUDA)")
-    cmd.add_argument("--threads", type=_positive, default=None, help="torch threads of the training process")
+    cmd.add_argument("--threads", type=_positive_int, default=None, help="torch threads of the training process")
     cmd.add_argument("--device", default=d.device, help="cpu, cuda or cuda:N (default: cpu)")
     cmd.add_argument("--bf16", action=argparse.BooleanOptionalAction, default=d.bf16,
                      help="bfloat16 autocast for the networks (default: on CUDA and on CPUs with native bf16; "
                      "see benchmarks/bench_train.py)")
     cmd.add_argument("--channels-last", action=argparse.BooleanOptionalAction, default=d.channels_last,
                      help="channels-last memory format (default: on)")
-    cmd.add_argument("--checkpoint-every", type=_positive, default=d.checkpoint_every, metavar="N")
-    cmd.add_argument("--log-every", type=_positive, default=d.log_every, metavar="N")
+    cmd.add_argument("--checkpoint-every", type=_positive_int, default=d.checkpoint_every, metavar="N")
+    cmd.add_argument("--log-every", type=_positive_int, default=d.log_every, metavar="N")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,

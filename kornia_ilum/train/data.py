@@ -52,8 +52,8 @@ class StepBatches(IterableDataset):
         w = max(self.workers, 1)
         return self.rank * w + step % w
 
-    def _batches(self, first: int, every: int) -> Iterator[dict[str, Any]]:
-        """Batches of steps ``first, first + every, ...`` (all in one stream: ``every`` is ``W``)."""
+    def _batches(self, first: int) -> Iterator[dict[str, Any]]:
+        """Batches of steps ``first, first + W, ...``: consecutive batches of one stream."""
         w = max(self.workers, 1)
         position = first // w  # the batch's index within its stream
         samples = self.dataset.samples(self._stream(first), start=position * self.batch)
@@ -64,12 +64,12 @@ class StepBatches(IterableDataset):
         info = get_worker_info()
         if info is None:  # in process: interleave the streams of all the steps' residues
             w = max(self.workers, 1)
-            streams = [self._batches(self.start + k, w) for k in range(w)]
+            streams = [self._batches(self.start + k) for k in range(w)]
             while True:
                 for stream in streams:
                     yield next(stream)
         torch.set_num_threads(1)
-        yield from self._batches(self.start + info.id, info.num_workers)
+        yield from self._batches(self.start + info.id)
 
 
 def batch_loader(dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,

@@ -140,7 +140,8 @@ def _mirror_images(lightings: dict[int, torch.Tensor]) -> dict[int, torch.Tensor
 
 
 def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_weights: dict[str, float],
-                    lambda_scale: float = 1.0) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+                    lambda_scale: float = 1.0, truth: dict[int, torch.Tensor] | None = None
+                    ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     r"""The multi-scale rendering loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` (training form).
 
     Args:
@@ -148,13 +149,15 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
         target: ``(B, 3, 32, 32)`` ground-truth lighting; brought to each size by the energy-keeping pyramid.
         brdf_weights: ``lambda_k`` per sphere.
         lambda_scale: ``lambda_s``, the same for every scale.
+        truth: ``target``'s pyramid at the sizes of ``pred``, when the caller has it already.
 
     Returns:
         the loss and its parts: ``rec_<brdf>`` at 32 px (detached).
     """
     from kornia_ilum.metrics import reconstruction_loss
 
-    truth = _pyramid(target, tuple(pred))
+    if truth is None:
+        truth = _pyramid(target, tuple(pred))
     total = target.new_zeros(())
     parts = {}
     for s, x in pred.items():
@@ -197,11 +200,12 @@ def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torc
     autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=config.bf16)
     with autocast:
         pred = model(crops)
-    rec, parts = training_losses(pred, target, config.brdf_weights, config.lambda_scale)
+    truth = _pyramid(target, tuple(pred))  # the losses' targets, and the discriminator's real images
+    rec, parts = training_losses(pred, target, config.brdf_weights, config.lambda_scale, truth)
     adv = disc_loss = rec.new_zeros(())
     if disc is not None:
         plain = getattr(disc, "module", disc)  # the generator's step needs no gradient sync of the discriminator
-        real, fake = _mirror_images(_pyramid(target, tuple(pred))), _mirror_images(pred)
+        real, fake = _mirror_images(truth), _mirror_images(pred)
         both = {s: torch.cat([real[s], fake[s].detach()]).contiguous(memory_format=memory) for s in real}
         with autocast:
             logits = disc(both).float()
@@ -399,7 +403,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
     if start >= config.steps:
-        return _finish(config, out, recipe, model, dataset, rows, elapsed, start, rank)
+        return _finish(config, precision, out, recipe, model, dataset, rows, elapsed, start, rank)
     batches = recipe.batches(dataset, config.batch // world, start, rank, world, precision.workers)
     window_t, window_n = time.perf_counter(), 0
     run_t0 = time.perf_counter()
@@ -436,12 +440,12 @@ def train(config: TrainConfig) -> dict[str, Any]:
             if world > 1:
                 dist.barrier()
     elapsed += time.perf_counter() - run_t0
-    return _finish(config, out, recipe, model, dataset, rows, elapsed, config.steps, rank)
+    return _finish(config, precision, out, recipe, model, dataset, rows, elapsed, config.steps, rank)
 
 
-def _finish(config: TrainConfig, out: Path, recipe, model, dataset, rows, elapsed: float, step: int, rank: int
-            ) -> dict[str, Any]:
-    resolved = resolve_defaults(config, torch.device(config.device))
+def _finish(config: TrainConfig, resolved: TrainConfig, out: Path, recipe, model, dataset, rows, elapsed: float,
+            step: int, rank: int) -> dict[str, Any]:
+    """The summary and the exported weights; ``resolved`` is ``config`` with :func:`resolve_defaults` applied."""
     summary: dict[str, Any] = {
         "estimator": config.estimator, "steps": step, "samples": step * config.batch, "wall_time_s": elapsed,
         "world_size": _world()[1], "device": config.device, "threads": torch.get_num_threads(),

@@ -6,8 +6,8 @@ all predict order-2 SH), trained here on the same data and with the same renderi
 32 x 32 mirror ball.
 
 Network (4,878,011 parameters at ``latent_dim=1024``): the encoder of
-:class:`~kornia_ilum.estimators.OursEstimator`, taken from an instance of it (its ``encoder`` and
-``to_latent`` modules: five 3 x 3 convolutions of depths 16 to 256, each with ReLU and blur-pooling,
+:class:`~kornia_ilum.estimators.OursEstimator`, built by :func:`kornia_ilum.estimators.ours.build_encoder`
+(its ``encoder`` and ``to_latent`` modules: five 3 x 3 convolutions of depths 16 to 256, each with ReLU and blur-pooling,
 256 -> 8 px, the 8 x 8 convolution with ReLU, the fully-connected layer to the 1024-d latent), on the crop
 shifted to ``[-0.5, 0.5]`` as in ``ours``; then a linear head ``1024 -> 27``, read as the ``(B, 9, 3)``
 radiance SH coefficients of SPEC.md ("Spherical harmonics": real, orthonormal, order 2, SPEC order and
@@ -37,7 +37,8 @@ import torch
 from torch import Tensor, nn
 
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, OursEstimator
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators.ours import build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.sh import sh_reconstruct
 from kornia_ilum_sh.recipe import SHRecipe
@@ -115,9 +116,7 @@ class SHEstimator(LightingEstimator):
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
-        ours = OursEstimator(latent_dim)  # the same encoder, by composition; its decoder is dropped
-        self.encoder = ours.encoder
-        self.to_latent = ours.to_latent
+        self.encoder, self.to_latent = build_encoder(latent_dim)  # the same encoder as ours
         self.head = nn.Linear(latent_dim, NUM_COEFFICIENTS * 3)
         with torch.no_grad():
             self.head.bias.zero_()
