@@ -30,6 +30,7 @@ import statistics
 import time
 
 import torch
+from bench_ops import median_ms as _median_ms  # the benchmarks' one timer (run from benchmarks/)
 from torch.utils.data import DataLoader
 
 from kornia_ilum.geometry import mirror_ball_valid
@@ -84,13 +85,8 @@ def rate(data: PortraitDataset, chunks: int, repeats: int) -> tuple[float, int]:
 
 
 def median_ms(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(max(3, repeats)):
-        start = time.perf_counter()
-        fn()
-        times.append(1000 * (time.perf_counter() - start))
-    return statistics.median(times)
+    """:func:`bench_ops.median_ms` with one warm-up call and at least 3 repeats."""
+    return _median_ms(fn, max(3, repeats), warmup=1)
 
 
 def effect_costs(repeats: int) -> None:

@@ -11,10 +11,9 @@ the same process, plus samples/s. The training defaults (``--bf16``, ``--channel
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 
 import torch
+from bench_ops import median_ms  # the benchmarks' one timer (run from benchmarks/)
 
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.train import MSGDiscriminator, MultiScaleOurs, TrainConfig
@@ -30,13 +29,7 @@ def _variant(bf16: bool, channels_last: bool, batch: int, repeats: int) -> float
     opt_d = torch.optim.Adam(disc.parameters(), lr=config.lr * config.disc_lr_ratio)
     crops = torch.rand(batch, 3, 256, 256).contiguous(memory_format=memory)
     target = torch.rand(batch, 3, 32, 32).exp() * mirror_ball_valid(32)
-    times = []
-    for k in range(repeats + 2):
-        t = time.perf_counter()
-        train_step(model, disc, opt_g, opt_d, crops, target, config)
-        if k >= 2:
-            times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return median_ms(lambda: train_step(model, disc, opt_g, opt_d, crops, target, config), repeats, warmup=2) / 1e3
 
 
 def main() -> None:
