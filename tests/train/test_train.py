@@ -164,3 +164,21 @@ class TestBadInput:
         with pytest.raises(ValueCheckError, match="steps must be a positive integer"):
             TrainConfig(out=str(tmp_path / "d"), cache=(str(tiny_cache),), steps=0)
         assert not any((tmp_path / n).exists() for n in "abcd")
+
+
+class TestExport:
+    def test_float16_only_when_l_rec_moves_less_than_the_tolerance(self, tmp_path) -> None:
+        from kornia_ilum.train import export_weights
+
+        torch.manual_seed(0)
+        net = OursEstimator(latent_dim=16).eval()
+        probe = {"image": torch.randint(0, 256, (2, 3, 256, 256), dtype=torch.uint8),
+                 "mirror_ball": torch.rand(2, 3, 32, 32) * mirror_ball_valid(32)}
+        strict = export_weights(net, tmp_path / "strict.safetensors", probe, tolerance=0.0)
+        loose = export_weights(net, tmp_path / "loose.safetensors", probe, tolerance=1.0)
+        assert strict["dtype"] == "float32" and loose["dtype"] == "float16"
+        assert strict["l_rec_change"] == loose["l_rec_change"] < 1.0
+        dtypes = {v.dtype for v in safetensors.torch.load_file(tmp_path / "loose.safetensors").values()}
+        assert dtypes == {torch.float16}
+        strict_dtypes = {v.dtype for v in safetensors.torch.load_file(tmp_path / "strict.safetensors").values()}
+        assert strict_dtypes == {torch.float32}
