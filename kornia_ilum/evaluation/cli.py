@@ -29,6 +29,7 @@ examples:
   kornia-ilum evaluate --cache lightstage/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out eval/
   kornia-ilum evaluate --cache lightstage/ --cache eval_subjects/ --estimator uniform --samples 128
   kornia-ilum evaluate --cache lightstage/ --weights ours=runs/a/best.safetensors --json eval.json
+  kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
 """
 
 
@@ -66,6 +67,9 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR",
                      help="folders of real maps; their eval maps are used (default: procedural only)")
     cmd.add_argument("--samples", type=_positive_int, default=512, metavar="N", help="eval portraits (512)")
+    cmd.add_argument("--background", choices=("environment", "black"), default="environment",
+                     help="the portraits' background: the matching environment (default, as ours is trained) "
+                     "or black (the same portraits, as SIPR is trained)")
     cmd.add_argument("--estimator", action="append", default=None, metavar="NAME",
                      help="score only this registered estimator (repeatable; default: all)")
     cmd.add_argument("--weights", action="append", type=parse_weights, default=[], metavar="NAME=PATH",
@@ -93,7 +97,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     eval_set = build_eval_set(args.cache, getattr(args, "hdri", None) or [], getattr(args, "samples", 512),
-                              progress=True)
+                              background=getattr(args, "background", "environment"), progress=True)
     weights = dict(getattr(args, "weights", None) or [])
     results = evaluate(eval_set, getattr(args, "estimator", None), weights,
                        oracles=not getattr(args, "no_oracles", False), batch_size=getattr(args, "batch_size", 32))

@@ -89,6 +89,7 @@ def build_eval_set(
     size: int = 256,
     fields_per_chunk: int = 4,
     lightings_per_field: int = 8,
+    background: str = "environment",
     progress: bool = False,
 ) -> EvalSet:
     r"""The held-out eval set: ``samples`` portraits of the eval subjects under eval environments.
@@ -105,6 +106,8 @@ def build_eval_set(
         size: the crops' side (the estimators take 256).
         fields_per_chunk, lightings_per_field: the dataset's chunks (:class:`PortraitConfig`); every chunk
             draws ``fields_per_chunk * lightings_per_field`` new environments (``env_pool = env_refresh``).
+        background: ``"environment"`` (the matching background, as in training ``ours``) or ``"black"``
+            (the same portraits, subjects, lightings and crops over black, the variant SIPR was trained on).
         progress: show a progress bar.
 
     Returns:
@@ -127,7 +130,7 @@ def build_eval_set(
     per_chunk = fields_per_chunk * lightings_per_field
     config = PortraitConfig(split="eval", environments=sampler, size=size, length=samples, sphere_sizes=(32,),
                             fields_per_chunk=fields_per_chunk, lightings_per_field=lightings_per_field,
-                            env_pool=per_chunk, env_refresh=per_chunk, shuffle=1)
+                            env_pool=per_chunk, env_refresh=per_chunk, shuffle=1, background=background)
     dataset = PortraitDataset(subjects, config, seed=seed)
     items = dataset if not progress else bar(dataset, samples, "eval set", "sample")
     images, balls, label, tone, subject, source = [], [], [], [], [], []
@@ -148,6 +151,7 @@ def build_eval_set(
         "samples": len(images),
         "seed": seed,
         "size": size,
+        "background": background,
         "labels": {k: label.count(k) for k in ("indoor", "outdoor")},
         "subjects": sorted({f.subject_seed for f in subjects}),
         "fields": len(subjects),

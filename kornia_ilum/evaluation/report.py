@@ -93,7 +93,7 @@ def format_markdown(summary: dict[str, Any]) -> str:
         (f"{d.get('samples')} portraits ({lab.get('indoor', 0)} indoor, {lab.get('outdoor', 0)} outdoor) of "
          f"{len(d.get('subjects', []))} eval subjects ({d.get('fields')} views), seed {d.get('seed')}; "
          f"environments: {', '.join(f'{k} {v}' for k, v in d.get('sources', {}).items())} "
-         f"({n_maps} held-out real maps)."),
+         f"({n_maps} held-out real maps); background: {d.get('background', 'environment')}."),
         "",
         "## Table 1: L_rec (lower is better), mean over samples",
         "",

@@ -22,13 +22,19 @@ __all__ = ["StepBatches", "batch_loader", "collate"]
 
 
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
-    """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels."""
-    return {
+    """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels; for paired
+    samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8)."""
+    batch = {
         "image": torch.stack([s["image"] for s in samples]),
         "mirror_ball": torch.stack([s["mirror_ball"] for s in samples]),
         "label": [s["label"] for s in samples],
         "skin_tone": torch.tensor([s["skin_tone"] for s in samples]),
     }
+    if "pair" in samples[0]:
+        batch["pair_image"] = torch.stack([s["pair"]["image"] for s in samples])
+        batch["pair_mirror_ball"] = torch.stack([s["pair"]["mirror_ball"] for s in samples])
+        batch["alpha"] = torch.stack([s["alpha"] for s in samples])
+    return batch
 
 
 class StepBatches(IterableDataset):

@@ -287,13 +287,13 @@ def read_log(out: str | os.PathLike) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def _write_log(out: Path, rows: list[dict[str, float]]) -> None:
+def _write_log(out: Path, rows: list[dict[str, float]], fields: tuple[str, ...]) -> None:
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=_LOG_FIELDS)
+            w = csv.DictWriter(f, fieldnames=fields)
             w.writeheader()
             for row in rows:
-                w.writerow({k: f"{row[k]:.6g}" for k in _LOG_FIELDS})
+                w.writerow({k: f"{row[k]:.6g}" for k in fields})
 
     atomic_write(out / "log.csv", write)
 
@@ -409,27 +409,21 @@ def train(config: TrainConfig) -> dict[str, Any]:
     run_t0 = time.perf_counter()
     for step in range(start + 1, config.steps + 1):
         batch = next(batches)
-        crops = batch["image"].to(device, non_blocking=True).float().div_(255.0)
-        crops = crops.contiguous(memory_format=memory)
-        target = batch["mirror_ball"].to(device, non_blocking=True).float()
-        losses = train_step(model_ddp, disc_ddp, opt_g, opt_d, crops, target, precision, recipe)
-        loss, rec, adv, disc_loss, extra = (losses[k] for k in ("loss", "rec", "adv", "disc", "extra"))
-        parts = {k: v for k, v in losses.items() if k.startswith("rec_")}
-        if not torch.isfinite(loss):
-            raise FloatingPointError(f"the training loss became {loss.item()} at step {step}; lower --lr")
-        window_n += len(target) * world
+        losses = recipe.step(model_ddp, disc_ddp, opt_g, opt_d, batch, device, precision)
+        if not torch.isfinite(losses["loss"]):
+            raise FloatingPointError(f"the training loss became {losses['loss'].item()} at step {step}; lower --lr")
+        window_n += len(batch["image"]) * world
         if rank == 0 and (step % config.log_every == 0 or step == config.steps):
             now = time.perf_counter()
             rate = window_n / max(now - window_t, 1e-9)
             window_t, window_n = now, 0
             row = {"step": step, "samples": step * config.batch, "elapsed_s": elapsed + now - run_t0,
-                   "samples_per_s": rate, "loss": loss.item(), "rec": rec.item(), "adv": adv.item(),
-                   "disc": disc_loss.item(), "extra": extra.item(), **{k: v.item() for k, v in parts.items()}}
+                   "samples_per_s": rate, **{k: v.item() for k, v in losses.items()}}
             rows.append(row)
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
-                _write_log(out, rows)
+                _write_log(out, rows, _LOG_FIELDS + recipe.log_fields)
                 _save_checkpoint(out, {
                     "step": step, "elapsed_s": elapsed + time.perf_counter() - run_t0,
                     "model": model.state_dict(), "disc": disc.state_dict() if disc is not None else {},

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
+import torch
 from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
@@ -29,6 +30,8 @@ class Recipe:
     """The default recipe: a multi-scale lighting generator plus an optional discriminator."""
 
     name = ""
+    #: Columns of ``log.csv`` beyond the common ones, taken from :meth:`step`'s result by name.
+    log_fields: tuple[str, ...] = ()
 
     def build(self) -> tuple[nn.Module, nn.Module | None]:
         """The model to train (``forward(crops) -> {size: lighting}``) and the discriminator or ``None``."""
@@ -46,6 +49,21 @@ class Recipe:
     def estimator(self, model: nn.Module) -> nn.Module:
         """The registered estimator inside the trained model (what is exported)."""
         raise NotImplementedError
+
+    def step(self, model: nn.Module, disc: nn.Module | None, opt_g: Any, opt_d: Any, batch: dict[str, Any],
+             device: torch.device, config: Any) -> dict[str, torch.Tensor]:
+        """One optimisation step on a collated ``batch`` (:func:`~kornia_ilum.train.data.collate`).
+
+        Returns the detached losses: ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``rec_<brdf>`` and the
+        recipe's :attr:`log_fields`. The default is :func:`~kornia_ilum.train.train_step` on the crops and
+        their ground-truth lighting.
+        """
+        from kornia_ilum.train.loop import train_step
+
+        memory = torch.channels_last if config.channels_last else torch.contiguous_format
+        crops = batch["image"].to(device, non_blocking=True).float().div_(255.0).contiguous(memory_format=memory)
+        target = batch["mirror_ball"].to(device, non_blocking=True).float()
+        return train_step(model, disc, opt_g, opt_d, crops, target, config, self)
 
     def extra_losses(self, pred: dict[int, Any]) -> dict[str, Any]:
         """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).

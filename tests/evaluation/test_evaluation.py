@@ -161,6 +161,18 @@ class TestEvalSet:
         assert torch.equal(again.images, eval_set.images) and torch.equal(again.mirror_ball, eval_set.mirror_ball)
         assert again.label == eval_set.label and again.source == eval_set.source
 
+    def test_black_background_variant_is_the_same_portraits(self, eval_set, caches, hdri) -> None:
+        black = build_eval_set(caches, [hdri], samples=N, fields_per_chunk=2, lightings_per_field=4,
+                               background="black")
+        assert black.description["background"] == "black" and eval_set.description["background"] == "environment"
+        assert black.label == eval_set.label and black.subject_seed == eval_set.subject_seed
+        assert black.source == eval_set.source
+        assert not torch.equal(black.images, eval_set.images)
+        # the same lighting up to the exposure, which meters the (now black) background too
+        ratio = black.mirror_ball.sum((1, 2, 3)) / eval_set.mirror_ball.sum((1, 2, 3))
+        rescaled = eval_set.mirror_ball * ratio[:, None, None, None]
+        torch.testing.assert_close(black.mirror_ball, rescaled, rtol=1e-3, atol=1e-6)
+
 
 class TestScores:
     def test_oracles(self) -> None:

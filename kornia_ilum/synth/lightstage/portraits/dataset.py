@@ -81,7 +81,8 @@ class PortraitConfig:
         crop: ``"face"`` (the jittered face crop) or ``"random"`` (:func:`random_crop_boxes`, missing the face).
         subject: ``False`` renders the background alone (no face), framed as with the subject.
         pairs: also render each sample's subject, view, crop and flip under a second lighting, as
-            ``sample["pair"]`` (for SIPR).
+            ``sample["pair"]``, and give the subject's matte in the crop, ``sample["alpha"]`` (for SIPR: a
+            relit target and the mask of its loss).
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -303,6 +304,13 @@ def environment_background(
     return (lookup_latlong(full[None], grid[None])[0] * gains[:, None, None]).clamp_(min=0.0)
 
 
+def _source_boxes(boxes: torch.Tensor, flip: torch.Tensor, size: int) -> torch.Tensor:
+    """Crop boxes given in the mirrored image (where ``flip``) as boxes of the unmirrored ``size`` render."""
+    source = boxes.clone()
+    source[flip, 0], source[flip, 2] = size - boxes[flip, 2], size - boxes[flip, 0]
+    return source
+
+
 class PortraitDataset(IterableDataset):
     r"""Training portraits synthesised on the fly from cached reflectance fields (package docstring).
 
@@ -331,7 +339,8 @@ class PortraitDataset(IterableDataset):
         environment; ``background_blur`` (the depth of field's sigma, frame pixels); ``camera`` (the effects'
         parameters: ``blur``, ``vignette``, ``noise``, ``jpeg`` and ``tone`` ``(2,)``, identity values where off);
         ``chunk`` ``(worker, index)``; with ``pairs``, ``pair`` holds ``image``, ``mirror_ball``, ``spheres``,
-        ``exposure``, ``label``, ``source``, ``background_blur`` and ``camera`` of the second lighting.
+        ``exposure``, ``label``, ``source``, ``background_blur`` and ``camera`` of the second lighting, and
+        ``alpha`` ``(1, size, size)`` ``uint8`` is the subject's coverage of each crop pixel (255: subject).
 
     Examples:
         >>> from kornia_ilum.synth.lightstage.scene import Camera
@@ -485,7 +494,7 @@ class PortraitDataset(IterableDataset):
             sharp = torch.rand(n, generator=g, dtype=torch.float64) < cfg.background_sharp_probability
             blurs.append(torch.where(sharp, 0.0, _uniform(n, *cfg.background_blur, g)))
         effects = [cfg.camera.draw(n, g) for _ in lightings]
-        boxes, faces, renders = [], [], [[] for _ in lightings]
+        boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)
             rf = self.fields[fid]
@@ -497,6 +506,10 @@ class PortraitDataset(IterableDataset):
                                              position=cfg.crop_position, extent=cfg.crop_extent))
             else:
                 boxes.append(random_crop_boxes(faces[-1], rf.size, g))
+            if cfg.pairs:
+                alpha = crop_images(rf.alpha.float()[None], _source_boxes(boxes[-1], flips[rows], rf.size),
+                                    cfg.size, flips[rows])
+                alphas.append(alpha.mul_(255.0).round_().to(torch.uint8))
             for out, (latlong, envs, env_keys, turns), key, blur, fx in zip(
                 renders, lightings, keys, blurs, effects, strict=True
             ):
@@ -532,6 +545,7 @@ class PortraitDataset(IterableDataset):
             }
             if cfg.pairs:
                 sample["pair"] = one[1]
+                sample["alpha"] = alphas[j // nl][j % nl]
             samples.append(sample)
         return samples
 
@@ -568,8 +582,7 @@ class PortraitDataset(IterableDataset):
         cfg = self.config
         size = cfg.size
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
-        source_boxes = boxes.clone()
-        source_boxes[flip, 0], source_boxes[flip, 2] = rf.size - boxes[flip, 2], rf.size - boxes[flip, 0]
+        source_boxes = _source_boxes(boxes, flip, rf.size)
         if backgrounds is not None:
             pyramids, rotations = zip(*backgrounds, strict=True)
             frame = frame_backgrounds(pyramids, rf.camera, flip, turn, blur, torch.stack(rotations))

@@ -1,0 +1,115 @@
+r"""The ``sipr`` estimator: the encoder and lighting head of the SIPR U-Net (Sun et al. 2019).
+
+Sun et al., "Single Image Portrait Relighting" (SIGGRAPH 2019), train a U-Net that relights a portrait and,
+at its bottleneck, estimates the portrait's lighting; LeGendre et al. 2020 compare against that lighting
+estimate. At inference only the encoder and the lighting head run (:mod:`kornia_ilum_sipr.network`), on
+batches of any size; the relighting decoder is training-only (:mod:`kornia_ilum_sipr.recipe`) and not in the
+shipped weights.
+
+The head predicts a 16 x 32 lat-long ``z = log(1 + L)``; the estimate's ``mirror_ball`` is ``L = exp(z) - 1``
+resampled to the SPEC.md 32 x 32 equal-area mirror ball by energy-conserving area averaging
+(:func:`~kornia_ilum.geometry.latlong_to_mirror_ball`, ``mode="area"``: ``sum(L * omega)`` per channel is
+kept), and ``log_mirror_ball`` is ``log(1 + mirror_ball)``. Lighting is in the units of the input image.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_valid
+from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead
+from kornia_ilum_sipr.recipe import SIPRRecipe
+
+__all__ = ["LIGHTING_SIZE", "PAPER", "SIPREstimator"]
+
+#: Side of the mirror ball of the estimate.
+LIGHTING_SIZE = 32
+_INPUT_SIZE = 256
+
+PAPER = (
+    'Sun et al. 2019, "Single Image Portrait Relighting", ACM TOG 38(4) (SIGGRAPH), doi:10.1145/3306346.3323008; '
+    "the architecture of the public reimplementation ken2576/nelf (network/u_net.py), rewritten, as the "
+    'baseline of LeGendre et al. 2020, "Learning Illumination from Diverse Portraits"'
+)
+
+
+class SIPREstimator(LightingEstimator):
+    r"""The SIPR encoder and lighting head: face crop -> 16 x 32 log lat-long -> 32 x 32 HDR mirror ball.
+
+    See the module docstring and :mod:`kornia_ilum_sipr.network`.
+
+    Returns:
+        (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
+        ``log_mirror_ball`` (``log(1 + mirror_ball)``) and ``valid``.
+
+    Shape:
+        - Input: :math:`(B, 3, 256, 256)`, sRGB in ``[0, 1]``
+        - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`
+
+    Convention:
+        SPEC.md, "Mirror ball" and "Units of lighting". The outputs have the dtype of the module's
+        parameters, also under :func:`torch.autocast` (the resampling runs in float32, then is cast).
+
+    Examples:
+        >>> net = SIPREstimator()
+        >>> sum(p.numel() for p in net.parameters())
+        18874139
+        >>> est = net(torch.rand(2, 3, 256, 256))
+        >>> tuple(est.mirror_ball.shape), bool((est.mirror_ball >= 0).all())
+        ((2, 3, 32, 32), True)
+        >>> tuple(net.latlong(torch.rand(1, 3, 256, 256)).shape)
+        (1, 3, 16, 32)
+    """
+
+    info = EstimatorInfo(
+        name="sipr",
+        description="Sun et al. 2019's portrait-relighting U-Net (GroupNorm, PReLU, /16 bottleneck), its "
+        "confidence-weighted lighting head: 256 x 256 face crop -> 16 x 32 log-HDR lat-long -> 32 x 32 mirror ball",
+        paper=PAPER,
+        input_size=_INPUT_SIZE,
+        weights=(),
+        install_hint="pip install ./plugins/sipr (package kornia_ilum_sipr); trained weights are not released "
+        "yet, pass pretrained=False for the untrained network",
+        needs_weights=True,
+    )
+
+    #: ``kornia-ilum train --estimator sipr`` trains it with this recipe.
+    training_recipe = SIPRRecipe
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.encoder = Encoder()
+        self.head = LightingHead(LIGHTING_SHAPE)
+        self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
+
+    def log_latlong(self, crops: Tensor, features: list[Tensor] | None = None) -> Tensor:
+        r"""The raw network: ``log(1 + L)`` on the 16 x 32 lat-long grid, no input checks (the training path).
+
+        Args:
+            crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, H, W)` (multiples of 16).
+            features: the encoder's outputs for ``crops``, when the caller has them.
+
+        Returns:
+            :math:`(B, 3, 16, 32)` float32, non-negative.
+        """
+        if features is None:
+            features = self.encoder(crops.to(self.head.out.weight.dtype))
+        return self.head(features[-1])
+
+    def latlong(self, crops: Tensor) -> Tensor:
+        r"""The estimate on the network's own grid: linear lat-long lighting :math:`(B, 3, 16, 32)`, float32."""
+        return torch.expm1(self.log_latlong(crops))
+
+    def predict(self, crops: Tensor) -> LightingEstimate:
+        dtype = self.head.out.weight.dtype
+        z = self.log_latlong(crops)
+        with torch.autocast(z.device.type, enabled=False):
+            mirror_ball = latlong_to_mirror_ball(torch.expm1(z.float()), LIGHTING_SIZE, mode="area")
+            log_mirror_ball = torch.log1p(mirror_ball)
+        return LightingEstimate(
+            mirror_ball=mirror_ball.to(dtype).contiguous(),
+            valid=self.valid,
+            log_mirror_ball=log_mirror_ball.to(dtype).contiguous(),
+        )
