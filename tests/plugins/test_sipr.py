@@ -23,6 +23,7 @@ from kornia_ilum_sipr import (
     masked_l1,
 )
 
+from kornia_ilum.core.errors import MissingWeightsError
 from kornia_ilum.estimators import LightingEstimator, create_estimator, list_estimators
 from kornia_ilum.geometry import latlong_solid_angles, mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.synth.camera_effects import CameraEffects
@@ -50,6 +51,10 @@ class TestRegistry:
         assert isinstance(est, SIPREstimator) and isinstance(est, LightingEstimator)
         assert est.info.name == "sipr" and est.info.input_size == 256 and est.info.needs_weights
         assert "Sun et al. 2019" in est.info.paper and kornia_ilum_sipr.__version__
+
+    def test_pretrained_is_missing_until_trained(self):
+        with pytest.raises(MissingWeightsError, match="pretrained=False"):
+            create_estimator("sipr")
 
     def test_training_recipe(self):
         assert SIPREstimator.training_recipe is SIPRRecipe
@@ -188,7 +193,10 @@ class TestData:
 
 
 class TestTraining:
-    def test_two_steps_end_to_end(self, tiny_cache, tmp_path):
+    def test_two_steps_end_to_end(self, tiny_cache, tmp_path, monkeypatch):
+        import kornia_ilum.train.recipes
+
+        monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)  # the float16 probe: 4 crops, not 32
         threads = torch.get_num_threads()
         data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}
         config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sipr", steps=2,
