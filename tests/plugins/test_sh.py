@@ -19,7 +19,7 @@ from kornia_ilum_sh import (
     negative_penalty,
 )
 
-from kornia_ilum.core.errors import MissingWeightsError
+from kornia_ilum.core.files import sha256_file
 from kornia_ilum.estimators import LightingEstimator, OursEstimator, create_estimator, list_estimators
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
@@ -54,12 +54,21 @@ class TestRegistry:
         est = create_estimator("sh", pretrained=False)
         assert isinstance(est, SHEstimator) and isinstance(est, LightingEstimator)
         info = est.info
-        assert info.name == "sh" and info.input_size == 256 and info.weights == () and info.needs_weights
+        assert info.name == "sh" and info.input_size == 256 and info.needs_weights
         assert "LeGendre" in info.paper and kornia_ilum_sh.__version__
 
-    def test_pretrained_is_missing_until_trained(self):
-        with pytest.raises(MissingWeightsError, match="pretrained=False"):
-            create_estimator("sh")
+    def test_shipped_weights(self):
+        (weights,) = SHEstimator.info.weights
+        path = SHEstimator.default_weights_dir() / weights.name
+        assert path.is_file() and sha256_file(path) == weights.sha256
+        assert (SHEstimator.default_weights_dir() / "MODEL_CARD.md").is_file()
+        est = create_estimator("sh")
+        assert isinstance(est, SHEstimator) and not est.training
+        state = safetensors.torch.load_file(path)
+        assert {v.dtype for v in state.values()} == {torch.float16} and state.keys() == est.state_dict().keys()
+        with torch.no_grad():
+            out = est(crops(1))
+        assert torch.isfinite(out.sh).all() and (out.mirror_ball[:, :, VALID] > 0).any()
 
     def test_training_recipe(self):
         assert SHEstimator.training_recipe is SHRecipe and "sh" in list_recipes()

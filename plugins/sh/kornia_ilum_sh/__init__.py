@@ -1,8 +1,8 @@
 """kornia_ilum plugin ``sh``: order-2 spherical-harmonics lighting from the encoder of ``ours``.
 
 Registered with kornia_ilum through the entry point ``sh = "kornia_ilum_sh:SHEstimator"`` (group
-``kornia_ilum.estimators``); use it as ``kornia_ilum.estimators.create_estimator("sh", pretrained=False)``
-(no trained weights yet) and train it with ``kornia-ilum train --estimator sh`` (:class:`SHRecipe`).
+``kornia_ilum.estimators``); use it as ``kornia_ilum.estimators.create_estimator("sh")``
+(the shipped weights, see ``weights/MODEL_CARD.md``) and train it with ``kornia-ilum train --estimator sh`` (:class:`SHRecipe`).
 """
 
 from kornia_ilum_sh.estimator import (

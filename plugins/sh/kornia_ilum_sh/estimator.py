@@ -37,7 +37,7 @@ import torch
 from torch import Tensor, nn
 
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.estimators.ours import build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.sh import sh_reconstruct
@@ -103,10 +103,9 @@ class SHEstimator(LightingEstimator):
         "(9 x 3 coefficients) of linear HDR lighting, reconstructed on a 32 x 32 mirror ball",
         paper=PAPER,
         input_size=_INPUT_SIZE,
-        weights=(),
-        install_hint="pip install ./plugins/sh (package kornia_ilum_sh); trained weights are not released "
-        "yet, pass pretrained=False for the untrained network",
-        needs_weights=True,
+        weights=(WeightFile("sh.safetensors", "92e3a853df41dc9e34a78850601039c25b067f20d2939ac4592878178c87caba"),),
+        install_hint="pip install ./plugins/sh (package kornia_ilum_sh); its weights ship inside it "
+        "(kornia_ilum_sh/weights/); reinstall it",
     )
 
     #: ``kornia-ilum train --estimator sh`` trains it with this recipe.
