@@ -123,7 +123,7 @@ class TestInstalledEntryPoints:
         with pytest.raises(
             MissingWeightsError,
             match=r"^'untrained' is registered but ships no trained weights yet; pass pretrained=False for an "
-            r"untrained model or pick one of: ours, uniform$",
+            r"untrained model or pick one of: ours, sh, uniform$",
         ):
             create_estimator(untrained_name)
         net = create_estimator("ours", pretrained=False)
@@ -138,9 +138,9 @@ class TestInstalledEntryPoints:
         assert uniform.paper.startswith("none") and uniform.description
 
     def test_unknown_name_lists_valid_names(self):
-        with pytest.raises(ValueError, match=r"unknown estimator 'nope'\. Valid names: ours, sh, uniform$"):
+        with pytest.raises(ValueError, match=r"unknown estimator 'nope'\. Valid names: ours, sh, sipr, uniform$"):
             create_estimator("nope")
-        with pytest.raises(ValueError, match="Valid names: ours, sh, uniform"):
+        with pytest.raises(ValueError, match="Valid names: ours, sh, sipr, uniform"):
             estimator_info("nope")
 
     def test_list_pattern(self):
