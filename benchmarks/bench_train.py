@@ -1,7 +1,7 @@
 """Benchmark of one training step: ``ours`` in float32 vs bfloat16 autocast vs channels_last, and the recipes.
 
 Run: ``python benchmarks/bench_train.py [--batch 32] [--threads 2] [--repeats 5]``, or
-``python benchmarks/bench_train.py --recipes ours sh sipr --batch 4`` for the step of each trainable estimator
+``python benchmarks/bench_train.py --recipes ours sh sipr --batch 8`` for the step of each trainable estimator
 (its recipe's :meth:`~kornia_ilum.train.recipes.Recipe.step`, at the training defaults), as a ratio to the
 first, with the projected wall time of the shipped run (3600 steps of 32 samples) on this machine.
 
