@@ -10,8 +10,9 @@ sample: each sample pays for a whole read of its field and for a procedural envi
 ``--repeats`` runs of ``--chunks`` chunks (after a warm-up chunk); 256 x 256 portraits, ``torch`` limited to
 ``--threads`` threads (1: the issue's "one core").
 
-``--loader-workers N`` also times what a training loop sees: a :class:`~torch.utils.data.DataLoader` with
-``N`` worker processes (one torch thread each) and batches of 32, over 40 batches after the first.
+``--loader-workers N`` also times what a training loop sees: its own loader
+(:func:`kornia_ilum.train.data.batch_loader`, a :class:`~torch.utils.data.DataLoader` of the training portraits
+with ``N`` worker processes of one torch thread each) and batches of 32, over 64 batches after 8.
 
 With ``--cache`` (a folder written by ``kornia-ilum synth subjects``) it uses the cached reflectance fields
 and also prints the cache's render time and disk per subject-view (medians over the manifest). Without it,
@@ -31,7 +32,6 @@ import time
 
 import torch
 from bench_ops import median_ms as _median_ms  # the benchmarks' one timer (run from benchmarks/)
-from torch.utils.data import DataLoader
 
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.camera_effects import CameraEffects
@@ -166,7 +166,7 @@ def main() -> int:
     parser.add_argument("--chunks", type=int, default=6, help="chunks per timed run (6)")
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (3)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
-    parser.add_argument("--loader-workers", type=int, default=0, help="also time a DataLoader with N workers")
+    parser.add_argument("--loader-workers", type=int, default=0, help="also time the training loader with N workers")
     parser.add_argument("--max-fields", type=int, default=None,
                         help="use only the first N fields of the cache, read once before timing: the rate with the "
                         "fields in the page cache (a 60-subject cache is 20 GB, about the machine's RAM)")
@@ -202,7 +202,11 @@ def main() -> int:
     low = PortraitDataset(batched.fields, dataclasses.replace(config, camera=CameraEffects.off(),
                                                               background_sharp_probability=1.0,
                                                               procedural_background_height=128), seed=0)
-    (fast, off, bare, old), per_chunk = interleaved_rates([batched, no_fx, plain, low], args.chunks, args.repeats)
+    from kornia_ilum.train.loop import TRAINING_PORTRAITS
+
+    training = PortraitDataset(batched.fields, dataclasses.replace(config, **TRAINING_PORTRAITS), seed=0)
+    (fast, off, bare, old, trained), per_chunk = interleaved_rates([batched, no_fx, plain, low, training],
+                                                                   args.chunks, args.repeats)
     single = PortraitDataset(batched.fields, dataclasses.replace(config, fields_per_chunk=1, lightings_per_field=1,
                                                                  env_pool=1, env_refresh=1), seed=0)
     slow, _ = rate(single, args.chunks * 8, args.repeats)
@@ -214,17 +218,23 @@ def main() -> int:
     print(f"  ... and backgrounds at the lighting's 128 rows:  {old:7.1f} samples/s ({1000 / old:.2f} ms each)")
     print(f"one sample at a time (baseline: a new environment per sample): {slow:5.1f} samples/s "
           f"({1000 / slow:.2f} ms each)")
-    print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: {'PASS' if fast >= 200 else 'FAIL'}")
+    print(f"as kornia-ilum train draws them (no sphere targets: {TRAINING_PORTRAITS}): {trained:7.1f} samples/s "
+          f"({1000 / trained:.2f} ms each)")
+    print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: defaults {'PASS' if fast >= 200 else 'FAIL'}, "
+          f"training {'PASS' if trained >= 200 else 'FAIL'}")
     effect_costs(args.repeats)
     if args.loader_workers:
-        loader = DataLoader(batched, batch_size=32, num_workers=args.loader_workers)
-        batches = iter(loader)
-        next(batches)  # start-up: workers, first chunks
-        start = time.perf_counter()
-        for _ in range(40):
+        from kornia_ilum.train.data import batch_loader
+
+        batches = batch_loader(training, 32, workers=args.loader_workers)  # the training loop's own loader
+        for _ in range(8):  # start-up: workers, the first group of shuffled chunks, the environments' first reads
             next(batches)
-        loaded = 40 * 32 / (time.perf_counter() - start)
-        print(f"DataLoader, {args.loader_workers} workers, batches of 32:  {loaded:7.1f} samples/s")
+        start = time.perf_counter()
+        for _ in range(64):
+            next(batches)
+        loaded = 64 * 32 / (time.perf_counter() - start)
+        print(f"training loader (kornia_ilum.train.data.batch_loader), {args.loader_workers} workers, batches of 32:  "
+              f"{loaded:7.1f} samples/s")
     return 0
 
 

@@ -100,6 +100,24 @@ class TestData:
                 assert torch.equal(a["image"], b["image"]) and torch.equal(a["mirror_ball"], b["mirror_ball"])
         assert not torch.equal(run[0]["image"], run[1]["image"])
 
+    def test_training_portraits_have_no_sphere_targets_and_the_same_images(self, tiny_cache) -> None:
+        """Training drops the samples' sphere targets (the losses make their own); nothing else changes."""
+        import dataclasses
+
+        from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+        from kornia_ilum.train.loop import TRAINING_PORTRAITS, _dataset
+
+        data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}
+        dataset = _dataset(TrainConfig(out="unused", cache=(str(tiny_cache),), data=data))
+        assert TRAINING_PORTRAITS == {"sphere_sizes": ()} and dataset.config.sphere_sizes == ()
+        full = PortraitDataset(dataset.fields, dataclasses.replace(dataset.config, sphere_sizes=(4, 32)),
+                               seed=dataset.seed)
+        for a, b in zip(dataset.chunk(0, 1), full.chunk(0, 1), strict=True):
+            assert a["spheres"] == {} and set(b["spheres"]) >= {"diffuse_4", "mirror_32"}
+            assert torch.equal(a["image"], b["image"]) and torch.equal(a["mirror_ball"], b["mirror_ball"])
+        again = _dataset(TrainConfig(out="unused", cache=(str(tiny_cache),), data={**data, "sphere_sizes": [32]}))
+        assert again.config.sphere_sizes == (32,)  # TrainConfig.data still overrides it
+
 
 def _weights(out) -> dict[str, torch.Tensor]:
     return safetensors.torch.load_file(out / "ours.safetensors")
