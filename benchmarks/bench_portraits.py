@@ -43,7 +43,9 @@ from kornia_ilum.synth.lightstage import (
     ReflectanceField,
     read_manifest,
 )
-from kornia_ilum.synth.lightstage.portraits import PortraitConfig
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig, load_fields
+from kornia_ilum.train.data import batch_loader
+from kornia_ilum.train.loop import TRAINING_PORTRAITS
 
 
 def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:
@@ -178,8 +180,6 @@ def main() -> int:
 
     fields = args.cache if args.cache else stand_in_fields()
     if args.cache and args.max_fields:
-        from kornia_ilum.synth.lightstage.portraits import load_fields
-
         fields = load_fields(args.cache)[: args.max_fields]
         for f in fields:  # touch every page once, so that timing sees the page cache, not the disk
             float(f.field.float().sum())
@@ -202,8 +202,6 @@ def main() -> int:
     low = PortraitDataset(batched.fields, dataclasses.replace(config, camera=CameraEffects.off(),
                                                               background_sharp_probability=1.0,
                                                               procedural_background_height=128), seed=0)
-    from kornia_ilum.train.loop import TRAINING_PORTRAITS
-
     training = PortraitDataset(batched.fields, dataclasses.replace(config, **TRAINING_PORTRAITS), seed=0)
     (fast, off, bare, old, trained), per_chunk = interleaved_rates([batched, no_fx, plain, low, training],
                                                                    args.chunks, args.repeats)
@@ -224,8 +222,6 @@ def main() -> int:
           f"training {'PASS' if trained >= 200 else 'FAIL'}")
     effect_costs(args.repeats)
     if args.loader_workers:
-        from kornia_ilum.train.data import batch_loader
-
         batches = batch_loader(training, 32, workers=args.loader_workers)  # the training loop's own loader
         for _ in range(8):  # start-up: workers, the first group of shuffled chunks, the environments' first reads
             next(batches)

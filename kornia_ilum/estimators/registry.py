@@ -54,10 +54,9 @@ DEFAULT_ESTIMATOR = "ours"
 
 #: Estimators that live in plugin packages of this project: the install hint for an unknown name.
 _KNOWN_PLUGINS = {
-    "uniform": "it is provided by the plugin package kornia_ilum_uniform: pip install ./plugins/uniform "
-    "(from the kornia_ilum source tree)",
-    "sh": "it is provided by the plugin package kornia_ilum_sh: pip install ./plugins/sh "
-    "(from the kornia_ilum source tree)",
+    name: f"it is provided by the plugin package kornia_ilum_{name}: pip install ./plugins/{name} "
+    "(from the kornia_ilum source tree)"
+    for name in ("uniform", "sh", "sipr")
 }
 
 _lock = threading.RLock()

@@ -128,7 +128,8 @@ def build_eval_set(
     sources = eval_environment_sources(hdri)
     sampler = EnvironmentSampler(sources=sources, seed=seed)
     per_chunk = fields_per_chunk * lightings_per_field
-    config = PortraitConfig(split="eval", environments=sampler, size=size, length=samples, sphere_sizes=(32,),
+    # sphere_sizes=(): the scores render their own spheres from the mirror ball (the samples' would go unread)
+    config = PortraitConfig(split="eval", environments=sampler, size=size, length=samples, sphere_sizes=(),
                             fields_per_chunk=fields_per_chunk, lightings_per_field=lightings_per_field,
                             env_pool=per_chunk, env_refresh=per_chunk, shuffle=1, background=background)
     dataset = PortraitDataset(subjects, config, seed=seed)

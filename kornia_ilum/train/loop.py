@@ -40,7 +40,8 @@ import torch.nn.functional as F
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.core.files import atomic_write
 
-__all__ = ["BRDF_WEIGHTS", "TRAINING_PORTRAITS", "TrainConfig", "export_weights", "read_log", "train", "train_step", "training_losses"]
+__all__ = ["BRDF_WEIGHTS", "TRAINING_PORTRAITS", "TrainConfig", "export_weights", "read_log", "train", "train_step",
+           "training_losses"]
 
 #: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
 BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
@@ -220,13 +221,8 @@ def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torc
         opt_d.step()
         with autocast:
             adv = F.softplus(-plain({s: v.contiguous(memory_format=memory) for s, v in fake.items()}).float()).mean()
-    loss = rec + config.lambda_adv * adv
-    extras = recipe.extra_losses(pred) if recipe is not None else {}
-    extra = rec.new_zeros(())
-    for term in extras.values():
-        extra = extra + term
-    if extras:
-        loss = loss + extra
+    extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
+    loss = rec + config.lambda_adv * adv + extra
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()

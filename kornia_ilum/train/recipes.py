@@ -18,12 +18,18 @@ from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
 
-__all__ = ["PROBE_SIZE", "PROBE_STREAM", "OursRecipe", "Recipe", "get_recipe", "list_recipes"]
+__all__ = ["PROBE_SIZE", "PROBE_STREAM", "OursRecipe", "Recipe", "batch_images", "get_recipe", "list_recipes"]
 
 #: The data stream of the probe batch that checks float16 weights (never a training stream: those are
 #: ``rank * workers + k``).
 PROBE_STREAM = 1023
 PROBE_SIZE = 32
+
+
+def batch_images(batch: dict[str, Any], key: str, device: torch.device,
+                 memory: torch.memory_format = torch.contiguous_format) -> torch.Tensor:
+    """``batch[key]`` (uint8 codes) as float32 in ``[0, 1]`` on ``device``, in the memory format ``memory``."""
+    return batch[key].to(device, non_blocking=True).float().div_(255.0).contiguous(memory_format=memory)
 
 
 class Recipe:
@@ -61,7 +67,7 @@ class Recipe:
         from kornia_ilum.train.loop import train_step
 
         memory = torch.channels_last if config.channels_last else torch.contiguous_format
-        crops = batch["image"].to(device, non_blocking=True).float().div_(255.0).contiguous(memory_format=memory)
+        crops = batch_images(batch, "image", device, memory)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
         return train_step(model, disc, opt_g, opt_d, crops, target, config, self)
 

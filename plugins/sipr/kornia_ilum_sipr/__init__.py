@@ -13,6 +13,8 @@ from kornia_ilum_sipr.network import (
     Encoder,
     LightingHead,
     RelightingDecoder,
+    log_latlong_target,
+    log_latlong_to_mirror_ball,
 )
 from kornia_ilum_sipr.recipe import (
     CROP_EXTENT,
@@ -21,7 +23,6 @@ from kornia_ilum_sipr.recipe import (
     RELIT_WEIGHT,
     SIPRRecipe,
     SIPRTrainer,
-    log_latlong_target,
     masked_l1,
 )
 
@@ -45,5 +46,6 @@ __all__ = [
     "SIPRTrainer",
     "__version__",
     "log_latlong_target",
+    "log_latlong_to_mirror_ball",
     "masked_l1",
 ]

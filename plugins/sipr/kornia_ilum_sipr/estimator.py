@@ -18,8 +18,8 @@ import torch
 from torch import Tensor
 
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
-from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_valid
-from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
 from kornia_ilum_sipr.recipe import SIPRRecipe
 
 __all__ = ["LIGHTING_SIZE", "PAPER", "SIPREstimator"]
@@ -106,7 +106,7 @@ class SIPREstimator(LightingEstimator):
         dtype = self.head.out.weight.dtype
         z = self.log_latlong(crops)
         with torch.autocast(z.device.type, enabled=False):
-            mirror_ball = latlong_to_mirror_ball(torch.expm1(z.float()), LIGHTING_SIZE, mode="area")
+            mirror_ball = log_latlong_to_mirror_ball(z, LIGHTING_SIZE)
             log_mirror_ball = torch.log1p(mirror_ball)
         return LightingEstimate(
             mirror_ball=mirror_ball.to(dtype).contiguous(),

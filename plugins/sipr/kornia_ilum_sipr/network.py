@@ -28,9 +28,13 @@ Where this differs from ``nelf`` (which hard-codes batch 1 and an 8 x 16 lightin
 
 from __future__ import annotations
 
+import math
+
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
+
+from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_latlong
 
 __all__ = [
     "ENCODER_DEPTHS",
@@ -39,6 +43,8 @@ __all__ = [
     "Encoder",
     "LightingHead",
     "RelightingDecoder",
+    "log_latlong_target",
+    "log_latlong_to_mirror_ball",
 ]
 
 #: Output depths of the encoder's blocks (the first is 29 convolution channels + the 3 input channels).
@@ -49,6 +55,30 @@ _STRIDED = (1, 3, 5, 7)
 LIGHTING_SHAPE: tuple[int, int] = (16, 32)
 #: Depth of the tiled target-lighting code.
 _LIGHT_CODE = 256
+
+
+def log_latlong_target(mirror_ball: Tensor) -> Tensor:
+    r"""``log(1 + L)`` of a ground-truth mirror ball on SIPR's 16 x 32 lat-long grid (area averaging).
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> z = log_latlong_target(torch.ones(1, 3, 32, 32) * mirror_ball_valid(32))
+        >>> tuple(z.shape), round(z.mean().item(), 3)  # log(2)
+        ((1, 3, 16, 32), 0.693)
+    """
+    return torch.log1p(mirror_ball_to_latlong(mirror_ball.float(), LIGHTING_SHAPE[0], mode="area"))
+
+
+def log_latlong_to_mirror_ball(log_latlong: Tensor, size: int = 32) -> Tensor:
+    r"""The inverse way: the lighting of a ``log(1 + L)`` lat-long map on the SPEC ``size`` mirror ball, float32,
+    by area averaging (``sum(L * omega)`` per channel kept).
+
+    Examples:
+        >>> ball = log_latlong_to_mirror_ball(torch.full((1, 3, 16, 32), math.log(2.0)))
+        >>> tuple(ball.shape), round(ball.max().item(), 3)
+        ((1, 3, 32, 32), 1.0)
+    """
+    return latlong_to_mirror_ball(torch.expm1(log_latlong.float()), size, mode="area")
 
 
 class ConvNormAct(nn.Sequential):

@@ -39,15 +39,13 @@ from typing import TYPE_CHECKING, Any
 import torch
 from torch import Tensor, nn
 
-from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_latlong
-from kornia_ilum.train.recipes import Recipe
-from kornia_ilum_sipr.network import LIGHTING_SHAPE, RelightingDecoder
+from kornia_ilum.train.recipes import Recipe, batch_images
+from kornia_ilum_sipr.network import LIGHTING_SHAPE, RelightingDecoder, log_latlong_target, log_latlong_to_mirror_ball
 
 if TYPE_CHECKING:
     from kornia_ilum_sipr.estimator import SIPREstimator
 
-__all__ = ["CROP_EXTENT", "CROP_POSITION", "LIGHTING_WEIGHT", "RELIT_WEIGHT", "SIPRRecipe", "SIPRTrainer",
-           "log_latlong_target", "masked_l1"]
+__all__ = ["CROP_EXTENT", "CROP_POSITION", "LIGHTING_WEIGHT", "RELIT_WEIGHT", "SIPRRecipe", "SIPRTrainer", "masked_l1"]
 
 #: Weight of the masked L1 relighting loss.
 RELIT_WEIGHT = 1.0
@@ -56,18 +54,6 @@ LIGHTING_WEIGHT = 1.0
 #: The face crops' centre jitter (fraction of the side) and log-scale jitter for SIPR's "random crops".
 CROP_POSITION = 0.15
 CROP_EXTENT = 0.3
-
-
-def log_latlong_target(mirror_ball: Tensor) -> Tensor:
-    r"""``log(1 + L)`` of a ground-truth mirror ball on SIPR's 16 x 32 lat-long grid (area averaging).
-
-    Examples:
-        >>> from kornia_ilum.geometry import mirror_ball_valid
-        >>> z = log_latlong_target(torch.ones(1, 3, 32, 32) * mirror_ball_valid(32))
-        >>> tuple(z.shape), round(z.mean().item(), 3)  # log(2)
-        ((1, 3, 16, 32), 0.693)
-    """
-    return torch.log1p(mirror_ball_to_latlong(mirror_ball.float(), LIGHTING_SHAPE[0], mode="area"))
 
 
 def masked_l1(pred: Tensor, target: Tensor, alpha: Tensor) -> Tensor:
@@ -142,12 +128,8 @@ class SIPRRecipe(Recipe):
         from kornia_ilum.train import training_losses
 
         memory = torch.channels_last if config.channels_last else torch.contiguous_format
-
-        def image(key: str) -> Tensor:
-            return batch[key].to(device, non_blocking=True).float().div_(255.0)
-
-        crops = image("image").contiguous(memory_format=memory)
-        target_image, alpha = image("pair_image"), image("alpha")
+        crops = batch_images(batch, "image", device, memory)
+        target_image, alpha = batch_images(batch, "pair_image", device), batch_images(batch, "alpha", device)
         source = batch["mirror_ball"].to(device, non_blocking=True).float()
         with torch.no_grad():
             source_z = log_latlong_target(source)
@@ -161,7 +143,7 @@ class SIPRRecipe(Recipe):
         loss.backward()
         opt_g.step()
         with torch.no_grad():  # the rendering loss of the estimate, for the log only
-            estimate = latlong_to_mirror_ball(torch.expm1(z.detach().float()), source.shape[-1], mode="area")
+            estimate = log_latlong_to_mirror_ball(z.detach(), source.shape[-1])
             rec, parts = training_losses({source.shape[-1]: estimate}, source, config.brdf_weights)
         zero = loss.new_zeros(())
         return {"loss": loss.detach(), "rec": rec, "adv": zero, "disc": zero, "extra": zero, **parts,
