@@ -6,11 +6,16 @@ r"""The evaluation's tables: summaries of the per-sample scores, as Markdown and
   mean (the bias; negative: too much light) and mean absolute value.
 - **Table 3**: per skin tone (the subject's Monk tone): ``L_rec`` per sphere and the mean relative radiance per
   channel.
+- **Paired differences** against a reference method (``ours`` by default, where it was scored): per sphere, the
+  mean over samples of ``L_rec(method) - L_rec(reference)`` on the same portraits, its 95 % interval (normal
+  approximation, ``1.96`` standard errors of the mean) and the fraction of samples where the method is better.
+  The means of Table 1 can differ by less than their noise; this says whether an ordering holds.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -33,12 +38,23 @@ def _means(x: torch.Tensor) -> list[float] | None:
     return None if x.numel() == 0 else [float(v) for v in x.double().mean(0)]
 
 
-def summarize(results: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
+def _paired(scores: dict[str, torch.Tensor], reference: dict[str, torch.Tensor]) -> dict[str, dict[str, float]]:
+    out = {}
+    for b in BRDF_NAMES:
+        d = (scores[b] - reference[b]).double()
+        half = 1.96 * float(d.std()) / len(d) ** 0.5 if len(d) > 1 else math.nan
+        mean = float(d.mean())
+        out[b] = {"mean": mean, "low": mean - half, "high": mean + half, "better": float((d < 0).double().mean())}
+    return out
+
+
+def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours") -> dict[str, Any]:
     r"""The tables as a JSON-ready dict.
 
     Args:
         results: from :func:`~kornia_ilum.evaluation.evaluate`.
         eval_set: the set that was scored.
+        reference: the method of the paired differences (none where it was not scored).
 
     Returns:
         a dict with the keys ``eval_set`` (the set's description), ``skipped`` (name to reason),
@@ -46,7 +62,8 @@ def summarize(results: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
         ``table2_relative_radiance`` (method, group to ``mean`` and ``mean_abs``, each ``[r, g, b]``) and
         ``per_skin_tone`` (method, tone to ``count``, the mean per brdf, ``relative_radiance`` and
         ``relative_radiance_abs``); the groups are ``indoor``, ``outdoor`` and ``all`` (a group without
-        samples holds ``None``).
+        samples holds ``None``); ``paired`` (``reference`` and, per other method and brdf, ``mean``, ``low``,
+        ``high`` and ``better``: the module docstring).
     """
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
@@ -71,6 +88,10 @@ def summarize(results: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
         "table1_l_rec": t1,
         "table2_relative_radiance": t2,
         "per_skin_tone": t3,
+        "paired": {"reference": reference if reference in results["methods"] else None,
+                   "methods": {name: _paired(m["scores"], results["methods"][reference]["scores"])
+                               for name, m in results["methods"].items() if name != reference}
+                   if reference in results["methods"] else {}},
     }
 
 
@@ -123,6 +144,21 @@ def format_markdown(summary: dict[str, Any]) -> str:
         for tone, row in tones.items():
             lines.append(f"| {name} | {tone} | {row['count']} | " + " | ".join(_f(row[b]) for b in BRDF_NAMES)
                          + f" | {_rgb(row['relative_radiance'])} | {_rgb(row['relative_radiance_abs'])} |")
+    paired = summary.get("paired", {})
+    if paired.get("methods"):
+        ref = paired["reference"]
+        lines += [
+            "",
+            f"## Paired differences: L_rec(method) - L_rec({ref}) on the same portraits, mean [95 % interval], "
+            f"and the samples where the method is better",
+            "",
+            "| method | " + " | ".join(BRDF_NAMES) + " |",
+            "|---|" + "---:|" * len(BRDF_NAMES),
+        ]
+        for name, rows in paired["methods"].items():
+            cells = [f"{r['mean']:+.4f} [{r['low']:+.4f}, {r['high']:+.4f}], {100 * r['better']:.1f} %"
+                     for r in (rows[b] for b in BRDF_NAMES)]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if summary["skipped"]:
         lines += ["", "Skipped:"] + [f"- {n}: {' '.join(r.split())}" for n, r in summary["skipped"].items()]
     if d.get("eval_maps"):

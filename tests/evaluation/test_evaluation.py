@@ -211,6 +211,21 @@ class TestEvaluate:
         assert "## Table 1" in markdown and "| uniform |" in markdown and "untrained: MissingWeightsError" in markdown
         json.dumps(summary)  # JSON-ready
 
+    def test_paired_differences(self, eval_set) -> None:
+        results = evaluate(eval_set, ["uniform"])
+        scores = results["methods"]
+        paired = summarize(results, eval_set, reference="uniform")["paired"]
+        assert paired["reference"] == "uniform" and set(paired["methods"]) == set(ORACLES)
+        for name, rows in paired["methods"].items():
+            for b in BRDF_NAMES:
+                d = scores[name]["scores"][b] - scores["uniform"]["scores"][b]
+                r = rows[b]
+                assert math.isclose(r["mean"], float(d.double().mean()), rel_tol=1e-9, abs_tol=1e-12)
+                assert r["low"] <= r["mean"] <= r["high"] and 0 <= r["better"] <= 1
+        assert summarize(results, eval_set)["paired"] == {"reference": None, "methods": {}}  # no ours scored
+        assert "## Paired differences: L_rec(method) - L_rec(uniform)" in format_markdown(
+            summarize(results, eval_set, reference="uniform"))
+
     def test_weights_checkpoint(self, eval_set, tmp_path) -> None:
         import safetensors.torch
 
