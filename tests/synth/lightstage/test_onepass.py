@@ -102,14 +102,18 @@ def test_card_lets_light_through(fields) -> None:
     assert 0.2 < ratio < 0.9 and abs(ratio - ref_ratio) < 0.1, (ratio, ref_ratio)
 
 
-def test_makehuman_matches_reference(shared_data) -> None:
-    """A photoreal MakeHuman subject (textured skin, alpha-tested hair cards, cornea) at 24 px, S = 8: the one-pass
-    field (no post-processing) and the per-light reference agree within their noise, light by light and relit."""
+@pytest.mark.parametrize("seed", [1, 4])  # a full beard (alpha-tested fur shells); glasses (thin-slab lenses)
+def test_makehuman_matches_reference(shared_data, seed) -> None:
+    """A photoreal MakeHuman subject (textured skin, alpha-tested hair cards, cornea, accessories) at 24 px, S = 8:
+    the one-pass field (no post-processing) and the per-light reference agree within their noise, light by light
+    and relit."""
     from kornia_ilum.synth.lightstage.scene import sample_views
     from kornia_ilum.synth.lightstage.subjects import subject_source
 
-    subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(1)
-    cam = sample_views(1, 4, 24, landmarks=subj.face_landmarks)[0]
+    subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(seed)
+    want = {1: "beard0", 4: "lenses"}[seed]
+    assert want in {p.name for p in subj.parts}
+    cam = sample_views(seed, 4, 24, landmarks=subj.face_landmarks)[0]
     s = 8
     fast = render_olat(subj, cam, lighting_size=s, spp=16, shade_spp=16, method="onepass", subsurface=False,
                        denoise=False, threads=1)
@@ -119,7 +123,9 @@ def test_makehuman_matches_reference(shared_data) -> None:
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
     lit = per_light_r > 0.05 * per_light_r.max()
     rel = (per_light_f[lit] - per_light_r[lit]).abs() / per_light_r[lit]
-    assert rel.median() < 0.02 and rel.max() < 0.12, rel  # measured 0.005 and 0.05
+    # per light, median and worst: measured 0.005 and 0.05 (seed 1), 0.012 and 0.13 (seed 4, the same without its
+    # glasses: its curly hair at 24 px)
+    assert rel.median() < 0.02 and rel.max() < (0.12 if seed == 1 else 0.16), rel
     for lights in (torch.ones(1, s * s, 3), torch.rand(1, s * s, 3, generator=torch.Generator().manual_seed(0))):
         img_f, img_r = relight(f, lights), relight(r, lights)
         err = (img_f - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()

@@ -25,6 +25,7 @@ Convention:
 
 from __future__ import annotations
 
+import colorsys
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -36,6 +37,7 @@ from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.core.seeding import hashed_seed
 
 __all__ = [
+    "FABRIC_NEUTRALS",
     "LANDMARK_NAMES",
     "MONK_SKIN_TONES_SRGB",
     "SKIN_ALBEDO",
@@ -44,6 +46,7 @@ __all__ = [
     "MeshPart",
     "Subject",
     "SubjectSource",
+    "fabric_colour",
     "subject_split",
 ]
 
@@ -67,6 +70,30 @@ SKIN_ALBEDO: tuple[tuple[float, float, float], ...] = tuple(
     tuple(round(SKIN_ALBEDO_SCALE * c, 4) for c in _srgb_hex_to_linear(code))  # type: ignore[misc]
     for code in MONK_SKIN_TONES_SRGB
 )
+
+#: Linear RGB of neutral fabrics (shirts, hats).
+FABRIC_NEUTRALS = {
+    "white": (0.75, 0.75, 0.73),
+    "light_grey": (0.40, 0.40, 0.40),
+    "charcoal": (0.05, 0.05, 0.055),
+    "black": (0.015, 0.015, 0.017),
+    "navy": (0.010, 0.018, 0.070),
+    "beige": (0.48, 0.40, 0.28),
+    "olive": (0.10, 0.10, 0.035),
+    "denim": (0.07, 0.11, 0.20),
+}
+
+
+def fabric_colour(rng: np.random.Generator, saturated_p: float) -> tuple[str, tuple[float, float, float]]:
+    """A random fabric colour: a saturated hue (name ``"hsv"``) or a named neutral."""
+    if rng.random() < saturated_p:
+        h, s, v = rng.random(), rng.uniform(0.55, 1.0), rng.uniform(0.35, 0.95)
+        srgb = colorsys.hsv_to_rgb(h, s, v)
+        lin = srgb_to_linear(torch.tensor(srgb, dtype=torch.float64).view(3, 1, 1)).flatten().tolist()
+        return "hsv", (round(lin[0], 4), round(lin[1], 4), round(lin[2], 4))
+    name = str(rng.choice(list(FABRIC_NEUTRALS)))
+    return name, FABRIC_NEUTRALS[name]
+
 
 #: The names of :attr:`Subject.face_landmarks`, in order ("left"/"right" are the subject's own).
 LANDMARK_NAMES: tuple[str, ...] = (

@@ -19,7 +19,8 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
 5. Proxies bound to the morphed mesh: high-poly eyes (the eyeball, textured with one of 9 iris colours, and
    its outer shell as a closed ``"cornea"``), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
    six hair styles (or bald), hair re-tinted to a natural colour. Hair, brows and lashes carry binary
-   ``opacity_texture`` maps (:func:`clean_alpha`).
+   ``opacity_texture`` maps (:func:`clean_alpha`); their faces that cover no opaque texel are dropped
+   (:func:`opaque_faces`).
 6. Frame: metres, SPEC axes (+Y up, +Z toward the camera), the eyes' centres at ``y = 0``, ``z = 0.066``.
 
 The assets are parsed once per source, lazily (targets on first use), and cached as sparse offsets.
@@ -27,6 +28,7 @@ The assets are parsed once per source, lazily (targets on first use), and cached
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import threading
@@ -56,7 +58,17 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
     read_modifier_pairs,
     read_obj,
     read_target,
+    vertex_normals,
     years_to_age,
+)
+from kornia_ilum.synth.lightstage.subjects.makehuman_accessories import (
+    accessory_params,
+    beanie_part,
+    beard_parts,
+    beard_weight,
+    glasses_parts,
+    inside_beanie,
+    uv_weight_map,
 )
 
 __all__ = [
@@ -66,6 +78,7 @@ __all__ = [
     "clean_alpha",
     "clip_mesh_below",
     "find_makehuman_root",
+    "opaque_faces",
     "retint_hair",
     "retint_skin",
 ]
@@ -139,18 +152,6 @@ def find_makehuman_root(root: str | Path | None = None) -> Path:
 # --------------------------------------------------------------------------------------------------------
 
 
-def _vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    fn = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
-    n = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(n, tri[:, k], fn)
-    ln = np.linalg.norm(n, axis=1, keepdims=True)
-    bad = ln[:, 0] < 1e-20
-    n = n / np.maximum(ln, 1e-20)
-    n[bad] = (0.0, 0.0, 1.0)
-    return n
-
-
 def clip_mesh_below(
     vertices: np.ndarray, faces: np.ndarray, y_cut: float, attrs: list[np.ndarray]
 ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
@@ -215,6 +216,16 @@ def clip_mesh_below(
     return all_v[used], remap.reshape(-1, 3), [at[used] for at in out_attrs]
 
 
+def _over_the_eyes(points: np.ndarray, brow_y: float) -> np.ndarray:
+    """Which ``points`` (metres) hang in front of the face below the brows' tops (at height ``brow_y``): a fringe
+    there is trimmed.
+
+    The region is the front of the face (``|x| < 7`` cm, in front of the eyes' centres less 1 cm) below 4 mm
+    over the brows' tops, so a trimmed fringe ends just over the brows, as a cut fringe does.
+    """
+    return (points[:, 1] < brow_y + 0.004) & (np.abs(points[:, 0]) < 0.07) & (points[:, 2] > _EYE_Z - 0.01)
+
+
 def _split_uv(tri_v: np.ndarray, tri_t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split vertices at UV seams: ``(base_vertex, uv_index, faces)`` of the split vertices."""
     key = tri_v.astype(np.int64) * 10_000_000 + tri_t.astype(np.int64)
@@ -231,6 +242,48 @@ def _raster_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
     pts = np.round(px * 16).astype(np.int32)
     cv2.fillPoly(img, list(pts), 1, lineType=cv2.LINE_8, shift=4)
     return img.astype(bool)
+
+
+def opaque_faces(uv_tris: np.ndarray, opacity: np.ndarray) -> np.ndarray:
+    """Which UV triangles cover at least one opaque texel (``opacity >= 0.5``) of an alpha-tested map.
+
+    Hair styles such as ``short02`` stack several cards over the forehead whose texels there are all clear. Every
+    such face still stops a ray once (it is tested texel by texel), so a camera or shadow ray that crosses more
+    of them than the renderer's layer budget is counted as blocked, and the skin under them renders black in
+    blotches. A face that covers no opaque texel changes nothing but that, so it is dropped.
+
+    Args:
+        uv_tris: ``(F, 3, 2)`` texture coordinates (``v`` up) of each face's corners.
+        opacity: ``(H, W)`` alpha map (rows: ``v`` down).
+
+    Returns:
+        ``(F,)`` bool: the face covers an opaque texel (its outline and interior, nearest texels).
+
+    Examples:
+        >>> op = np.zeros((8, 8), np.float32); op[0, 0] = 1.0  # only the top-left texel is opaque
+        >>> tris = np.array([[[0.0, 1.0], [0.2, 1.0], [0.0, 0.8]], [[0.5, 0.5], [0.9, 0.5], [0.5, 0.1]]])
+        >>> opaque_faces(tris, op).tolist()
+        [True, False]
+    """
+    import cv2
+
+    h, w = opacity.shape
+    solid = opacity >= 0.5
+    px = np.stack([uv_tris[..., 0] * w - 0.5, (1.0 - uv_tris[..., 1]) * h - 0.5], -1)  # texel centres at integers
+    lo = np.clip(np.floor(px.min(1)).astype(int), 0, [w - 1, h - 1])
+    hi = np.clip(np.ceil(px.max(1)).astype(int), 0, [w - 1, h - 1])
+    out = np.zeros(len(px), bool)
+    for i in range(len(px)):
+        (x0, y0), (x1, y1) = lo[i], hi[i]
+        crop = solid[y0 : y1 + 1, x0 : x1 + 1]
+        if not crop.any():
+            continue
+        m = np.zeros(crop.shape, np.uint8)
+        pts = np.round((px[i] - (x0, y0)) * 16).astype(np.int32)[None]
+        cv2.fillPoly(m, pts, 1, lineType=cv2.LINE_8, shift=4)
+        cv2.polylines(m, pts, True, 1, lineType=cv2.LINE_8, shift=4)
+        out[i] = bool(crop[m.astype(bool)].any())
+    return out
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -370,7 +423,7 @@ class _Assets:
         self.split_base, self.split_uv, self.split_faces = sb, self.base.uvs[st], sf
         # Face region (for the skin re-tint): the front of the head between brows and chin, inside the jaw.
         lm = {k: v0[i] for k, i in LANDMARK_VERTICES.items()}
-        n0 = _vertex_normals(v0, tri_v)
+        n0 = vertex_normals(v0, tri_v)
         fx = (v0[:, 0] > lm["cheek_right"][0]) & (v0[:, 0] < lm["cheek_left"][0])
         fy = (v0[:, 1] > lm["chin"][1]) & (v0[:, 1] < lm["brow_left_top"][1] + 0.1)
         face_v = fx & fy & (n0[:, 2] > 0.35) & (v0[:, 2] > lm["cheek_left"][2])
@@ -387,6 +440,14 @@ class _Assets:
 
         tzm = _raster_mask(self.base.uvs[tri_t[tz[tri_v].all(1)]], self.tex_size).astype(np.float32)
         self.tzone = cv2.GaussianBlur(tzm, (0, 0), 6.0)
+        # The head's UV island (the one that holds the nose tip): where a beard may grow. Inner surfaces of the
+        # mouth and nostrils lie inside a beard's region in space but on other islands.
+        body_mask = _raster_mask(self.base.uvs[tri_t], self.tex_size).astype(np.uint8)
+        _, islands = cv2.connectedComponents(body_mask, connectivity=4)
+        nose_uv = self.base.uvs[tri_t[(tri_v == LANDMARK_VERTICES["nose_tip"]).any(1)]].reshape(-1, 2).mean(0)
+        row = int(np.clip((1.0 - nose_uv[1]) * self.tex_size, 0, self.tex_size - 1))
+        col = int(np.clip(nose_uv[0] * self.tex_size, 0, self.tex_size - 1))
+        self.head_island = (islands == islands[row, col]).astype(np.float32)
         self.proxies: dict[str, Proxy] = {}
         self.textures: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
         self.skins = sorted((root / "skins" / "textures").glob("*_diffuse*.png"))
@@ -544,7 +605,7 @@ class MakeHumanSource:
         names = list(hc)
         pw = np.array([hc[n] for n in names])
         hair_colour = str(names[int(rng.choice(len(names), p=pw / pw.sum()))])
-        return {
+        params = {
             "ethnic": {e: round(float(x), 5) for e, x in zip(ETHNICITIES, ethnic)},
             "gender": round(gender, 4),
             "age_years": round(years, 2),
@@ -566,6 +627,13 @@ class MakeHumanSource:
             "hair_colour": hair_colour,
             "hair_jitter": [round(float(x), 4) for x in np.exp(rng.normal(0, 0.08, 3))],
         }
+        # Accessories, drawn last so that every choice above stays what it was without them.
+        params.update(accessory_params(rng, male=gender, years=years))
+        # short03 and bob02 sweep a fringe over an eye: trimmed at the brows for three subjects in four
+        params["fringe"] = "swept" if rng.random() < 0.25 else "trimmed"
+        if params["hat"] != "none" and hair in ("bob02", "afro01"):
+            params["hair"] = "short01"  # what shows of such hair under a beanie
+        return params
 
     def _skin_texture(self, p: dict) -> Path:
         """The albedo map of the tone family nearer the target, matched in age and sex where possible."""
@@ -633,7 +701,7 @@ class MakeHumanSource:
 
         vm = 0.1 * v + shift
         # Skin: split at UV seams, smooth normals of the unsplit mesh, clip at the cut plane.
-        normals = _vertex_normals(v, a.body_tri)
+        normals = vertex_normals(v, a.body_tri)
         faces = a.split_faces
         deleted = np.zeros(a.nv, bool)
         y_cut = float(vm[LANDMARK_VERTICES["chin"], 1] - _CUT_BELOW_CHIN)
@@ -684,11 +752,11 @@ class MakeHumanSource:
         iris_mean = tuple(float(x) for x in tex_rgb.reshape(-1, 3).mean(0))
         parts.append(MeshPart("eyes", bv.astype(np.float32), bfc.astype(np.int32),
                               Material("glossy", iris_mean, 0.08, 0.5, albedo_texture=tex_rgb),
-                              _vertex_normals(bv, bfc).astype(np.float32), buv.astype(np.float32)))  # fmt: skip
+                              vertex_normals(bv, bfc).astype(np.float32), buv.astype(np.float32)))  # fmt: skip
         cv_all, cf_all = np.concatenate(cornea_v), np.concatenate(cornea_f)
         parts.append(MeshPart("cornea", cv_all.astype(np.float32), cf_all.astype(np.int32),
                               Material("cornea", (1.0, 1.0, 1.0), 0.0, 0.313),
-                              _vertex_normals(cv_all, cf_all).astype(np.float32)))  # fmt: skip
+                              vertex_normals(cv_all, cf_all).astype(np.float32)))  # fmt: skip
 
         hair_rgb = np.asarray(_HAIR_COLOURS[p["hair_colour"]]) * np.asarray(p["hair_jitter"])
         brow_rgb = hair_rgb if p["hair_colour"] in ("grey", "white") else hair_rgb * min(0.85, 0.05 / hair_rgb.max())
@@ -702,11 +770,17 @@ class MakeHumanSource:
             px, pv, f, uv = proxy_mesh(rel, head_c)
             rgb, alpha = a.texture(a.material_texture(px))
             op = self._opacity(rel, alpha)
+            keep = self._opaque_faces(rel, uv, f, op)
+            if name == "hair" and p["fringe"] == "trimmed":
+                brow_y = vm[[LANDMARK_VERTICES["brow_right_top"], LANDMARK_VERTICES["brow_left_top"]], 1].mean()
+                keep &= ~_over_the_eyes(pv[f].mean(1), float(brow_y))
+            used, f = np.unique(f[keep], return_inverse=True)
+            pv, uv, f = pv[used], uv[used], f.reshape(-1, 3)
             albedo = retint_hair(rgb, op > 0.5, tuple(float(c) for c in colour))
             parts.append(MeshPart(name, pv.astype(np.float32), f.astype(np.int32),
                                   Material("hair", tuple(float(c) for c in colour), rough, 0.5, albedo_texture=albedo,
                                            opacity_texture=op),
-                                  _vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
+                                  vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
         mouth_c = vm[[LANDMARK_VERTICES["upper_lip"], LANDMARK_VERTICES["lower_lip"]]].mean(0) - (0, 0, 0.03)
         for name, rel, kind, rough in (("teeth", "teeth/teeth_base/teeth_base.mhclo", "glossy", 0.25),
                                        ("tongue", "tongue/tongue01/tongue01.mhclo", "skin", 0.4)):  # fmt: skip
@@ -715,7 +789,7 @@ class MakeHumanSource:
             parts.append(MeshPart(name, pv.astype(np.float32), f.astype(np.int32),
                                   Material(kind, tuple(float(c) for c in rgb.reshape(-1, 3).mean(0)), rough, 0.5,
                                            albedo_texture=rgb, subsurface=kind == "skin"),
-                                  _vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
+                                  vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
 
         # Skin, after the proxies (their delete_verts hide base vertices).
         if deleted.any():
@@ -731,6 +805,8 @@ class MakeHumanSource:
         parts.insert(0, MeshPart("skin", cv_.astype(np.float32), cf_.astype(np.int32), skin_mat,
                                  cn.astype(np.float32), np.clip(cuv, 0, 1).astype(np.float32)))  # fmt: skip
         landmarks = to_m(v[[LANDMARK_VERTICES[n] for n in LANDMARK_NAMES]])
+        parts = self._accessories(p, parts, dict(zip(LANDMARK_NAMES, landmarks.astype(np.float64))), eye_centres,
+                                  hair_rgb, seed)  # fmt: skip
         params = dict(p)
         params.update(skin_texture=skin_path.name, cut_y=round(y_cut, 5),
                       macro_targets={k: round(w, 5) for k, w in macro_target_weights(
@@ -745,6 +821,44 @@ class MakeHumanSource:
             source="makehuman",
             face_albedo=face_albedo,
         )
+
+    def _accessories(self, p: dict, parts: list[MeshPart], lm: dict[str, np.ndarray], eye_centres: list,
+                     hair_rgb: np.ndarray, seed: int) -> list[MeshPart]:  # fmt: skip
+        """``parts`` with the subject's beard, beanie and glasses (:mod:`.makehuman_accessories`) added."""
+        by_name = {q.name: q for q in parts}
+        skin = by_name["skin"]
+        if p["facial_hair"] != "none":
+            beard_rgb = hair_rgb if p["hair_colour"] in ("grey", "white") else hair_rgb * 0.8
+            if p["age_years"] > 45 and p["hair_colour"] not in ("grey", "white"):  # greying earlier than the hair
+                mix = min(1.0, 0.02 * (p["age_years"] - 45))
+                beard_rgb = (1 - mix) * beard_rgb + mix * np.asarray(_HAIR_COLOURS["grey"])
+            wv = beard_weight(p["facial_hair"], skin.vertices.astype(np.float64), lm)
+            tex = skin.material.albedo_texture
+            wuv = uv_weight_map(skin.uvs, skin.faces, wv, tex.shape[0]) * self.assets.head_island
+            shade = (p["stubble_shadow"] * wuv)[..., None]
+            tex = ((1.0 - shade) * tex + shade * np.minimum(tex, beard_rgb.astype(np.float32))).astype(np.float32)
+            parts[parts.index(skin)] = skin = dataclasses.replace(skin, material=dataclasses.replace(skin.material,
+                                                                                                   albedo_texture=tex))  # fmt: skip
+            rng = np.random.default_rng(_seed_digest(seed, "makehuman-beard"))
+            parts += beard_parts(p, skin, wv, self.assets.head_island, beard_rgb, rng)
+        if p["hat"] != "none":
+            ears = np.concatenate([lm["ear_right"][None], lm["ear_left"][None]])
+            head = skin.vertices[np.linalg.norm(skin.vertices[:, None] - ears[None], axis=-1).min(1) > 0.035]
+            hair = by_name.get("hair")
+            made = beanie_part(p, lm, head, hair.vertices if hair is not None else np.zeros((0, 3)))
+            if made is not None:
+                hat, envelope = made
+                if hair is not None:
+                    hidden = inside_beanie(hair.vertices.astype(np.float64), envelope, p, lm)[hair.faces].all(1)
+                    used, f = np.unique(hair.faces[~hidden], return_inverse=True)
+                    parts[parts.index(hair)] = dataclasses.replace(hair, vertices=hair.vertices[used],
+                                                                   faces=f.reshape(-1, 3).astype(np.int32),
+                                                                   normals=hair.normals[used], uvs=hair.uvs[used])  # fmt: skip
+                parts.append(hat)
+        cards = [q.vertices for q in parts if q.name in ("brows", "lashes")]
+        parts += glasses_parts(p, eye_centres, [lm["ear_right"], lm["ear_left"]],
+                               np.concatenate([skin.vertices, *cards]).astype(np.float64))  # fmt: skip
+        return parts
 
     def _eye_shell(self, px: Proxy, alpha: np.ndarray) -> np.ndarray:
         """Per proxy vertex: whether it is on an eye's outer shell (a connected piece mapped to clear texels)."""
@@ -765,6 +879,15 @@ class MakeHumanSource:
             np.bincount(comp, minlength=lab.max() + 1), 1
         )
         return clear[lab] > 0.5
+
+    def _opaque_faces(self, rel: str, uv: np.ndarray, f: np.ndarray, op: np.ndarray) -> np.ndarray:
+        """:func:`opaque_faces` of a card proxy, once per asset (its UVs do not depend on the subject)."""
+        a = self.assets
+        key = "opaque_faces:" + rel
+        with a.lock:
+            if key not in a.textures:
+                a.textures[key] = (opaque_faces(np.clip(uv, 0, 1)[f], op), None)
+            return a.textures[key][0]
 
     def _opacity(self, rel: str, alpha: np.ndarray | None) -> np.ndarray:
         a = self.assets

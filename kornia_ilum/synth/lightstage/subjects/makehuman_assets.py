@@ -37,6 +37,7 @@ __all__ = [
     "read_obj",
     "read_target",
     "srgb_to_linear_np",
+    "vertex_normals",
     "years_to_age",
 ]
 
@@ -386,3 +387,16 @@ def read_modifier_pairs(path: str | Path, groups: tuple[str, ...]) -> list[tuple
             if "target" in m:
                 out.append((g["group"], m["target"], m.get("min"), m.get("max")))
     return out
+
+
+def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Area-weighted smooth unit vertex normals of a triangle mesh (``(0, 0, 1)`` where they vanish)."""
+    fn = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, tri[:, k], fn)
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    bad = ln[:, 0] < 1e-20
+    n = n / np.maximum(ln, 1e-20)
+    n[bad] = (0.0, 0.0, 1.0)
+    return n

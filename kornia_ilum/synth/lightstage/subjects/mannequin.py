@@ -86,13 +86,10 @@ Convention:
 
 from __future__ import annotations
 
-import colorsys
 import math
 
 import numpy as np
-import torch
 
-from kornia_ilum.color import srgb_to_linear
 from kornia_ilum.synth.lightstage.sdf import (
     bounded,
     capsule,
@@ -109,10 +106,17 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     MeshPart,
     Subject,
     _seed_digest,
+    fabric_colour,
     subject_split,
 )
 
 __all__ = ["MannequinSource", "make_subject", "subject_params"]
+
+
+def _pick(rng: np.random.Generator, options: dict[str, float]) -> str:
+    names = list(options)
+    w = np.array([options[n] for n in names], dtype=np.float64)
+    return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 # --------------------------------------------------------------------------------------------------------
 # Parameters
@@ -144,35 +148,6 @@ _IRIS_COLOURS = {
     "grey": (0.140, 0.160, 0.180),
     "amber": (0.200, 0.100, 0.020),
 }
-_NEUTRALS = {  # linear RGB of neutral fabrics
-    "white": (0.75, 0.75, 0.73),
-    "light_grey": (0.40, 0.40, 0.40),
-    "charcoal": (0.05, 0.05, 0.055),
-    "black": (0.015, 0.015, 0.017),
-    "navy": (0.010, 0.018, 0.070),
-    "beige": (0.48, 0.40, 0.28),
-    "olive": (0.10, 0.10, 0.035),
-    "denim": (0.07, 0.11, 0.20),
-}
-
-
-def _pick(rng: np.random.Generator, options: dict[str, float]) -> str:
-    names = list(options)
-    w = np.array([options[n] for n in names], dtype=np.float64)
-    return names[int(rng.choice(len(names), p=w / w.sum()))]
-
-
-def _fabric_colour(rng: np.random.Generator, saturated_p: float) -> tuple[str, tuple[float, float, float]]:
-    """A random fabric colour: a saturated hue (name ``"hsv"``) or a named neutral."""
-    if rng.random() < saturated_p:
-        h, s, v = rng.random(), rng.uniform(0.55, 1.0), rng.uniform(0.35, 0.95)
-        srgb = colorsys.hsv_to_rgb(h, s, v)
-        lin = srgb_to_linear(torch.tensor(srgb, dtype=torch.float64).view(3, 1, 1)).flatten().tolist()
-        return "hsv", (round(lin[0], 4), round(lin[1], 4), round(lin[2], 4))
-    name = str(rng.choice(list(_NEUTRALS)))
-    return name, _NEUTRALS[name]
-
-
 def subject_params(seed: int) -> dict:
     """All the random choices of subject ``seed`` (shape, expression, appearance), without building meshes.
 
@@ -327,7 +302,7 @@ def subject_params(seed: int) -> dict:
     p["beard_thickness"] = u(0.003, 0.011)
     # Accessories and clothes.
     p["hat"] = _pick(rng, {"none": 8.0, "beanie": 1.0, "cap": 1.0})
-    p["hat_colour"], p["hat_albedo"] = _fabric_colour(rng, 0.6)
+    p["hat_colour"], p["hat_albedo"] = fabric_colour(rng, 0.6)
     if p["hat"] != "none" and p["hair_style"] in ("medium", "afro", "bun"):
         p["hair_style"] = "short"  # what shows of such hair under a hat
     p["glasses"] = bool(rng.random() < 0.2)
@@ -338,12 +313,12 @@ def subject_params(seed: int) -> dict:
         "metal": (0.45, 0.40, 0.30),
     }
     p["glasses_frame"] = frame
-    p["glasses_albedo"] = frame_albedo.get(frame) or _fabric_colour(rng, 1.0)[1]
+    p["glasses_albedo"] = frame_albedo.get(frame) or fabric_colour(rng, 1.0)[1]
     p["earrings"] = bool(rng.random() < 0.2 * (1.0 - masc) + 0.03)
     p["earring_style"] = _pick(rng, {"stud": 1.0, "hoop": 1.0})
     p["earring_albedo"] = [(0.75, 0.55, 0.22), (0.62, 0.62, 0.62), (0.55, 0.05, 0.08)][int(rng.integers(3))]
     p["shirt_style"] = _pick(rng, {"crew": 3, "vneck": 2, "turtleneck": 1, "collar": 1.5})
-    p["shirt_colour"], p["shirt_albedo"] = _fabric_colour(rng, 0.5)
+    p["shirt_colour"], p["shirt_albedo"] = fabric_colour(rng, 0.5)
     return p
 
 
