@@ -1,8 +1,8 @@
 """Benchmark: how often the face detectors find the light stage's eval subjects in composited portraits.
 
-Run: ``python benchmarks/bench_detection.py --cache DIR [--count 120] [--upscale 512] [--render-eval K]``
+Run: ``python benchmarks/bench_detection.py --cache DIR [DIR ...] [--count 120] [--upscale 512] [--render-eval K]``
 
-For ``--count`` renders (cycling over the cache's EVAL-split subject-views, :func:`subject_split`) it relights
+For ``--count`` renders (cycling over the caches' EVAL-split subject-views, :func:`subject_split`) it relights
 the field under an environment of :class:`EnvironmentSampler` (procedural skies and rooms plus the real maps
 of ``--hdri`` folders, default ``$KORNIA_ILUM_SHARED_DATA/{hdri,hdri_more}``; random rotation, flip, exposure
 and white balance), composites it over that environment seen through the view's camera, auto-exposes and
@@ -12,7 +12,7 @@ trained on larger faces, so 192-pixel frames with 96-pixel faces are upscaled by
 OpenCV's Haar cascade on the full frame. A detection counts when one of its boxes overlaps the true face box
 (the projected face landmarks' box, brow tops to chin and ear to ear) with IoU >= 0.3, or has its centre inside
 it. Prints the detection rate per |yaw| bin (< 10, 10-20, 20-30, 30-35 degrees) and overall, and Haar's within
-+-30 degrees. Targets: YuNet >= 95 %, Haar >= 85 % within +-30 degrees.
++-30 degrees, then within +-30 degrees by the subjects' look (glasses, facial hair, a hat, a fringe over an eye). Targets: YuNet >= 95 %, Haar >= 85 % within +-30 degrees.
 
 With fewer than ``--min-subjects`` eval subjects in the cache it says so; ``--render-eval K`` then renders the
 first ``K`` eval seeds missing from it into the cache (``--source``, ``--views``, ``--size``, ``--spp``,
@@ -73,10 +73,38 @@ def format_table(rows: list[dict], names: list[str]) -> str:
     return "\n".join(lines)
 
 
-def eval_entries(cache: Path) -> list[dict]:
+def _appearance(params: dict) -> list[str]:
+    """The groups a subject falls in for the by-appearance table (MakeHuman subjects' accessories and fringe)."""
+    groups = []
+    if params.get("glasses"):
+        groups.append("glasses")
+    if params.get("facial_hair", "none") != "none":
+        groups.append("facial hair")
+    if params.get("hat", "none") != "none":
+        groups.append("hat")
+    if params.get("fringe") == "swept" and params.get("hair") in ("bob02", "short03"):
+        groups.append("fringe over an eye")
+    return groups or ["none of these"]
+
+
+def format_groups(rows: list[dict], names: list[str]) -> str:
+    """Detection rate within +-30 degrees of yaw, by the subject's accessories."""
+    near = [r for r in rows if abs(r["yaw"]) <= 30]
+    head = f"{'within +-30, by look':<22}{'renders':>8}" + "".join(f"{n:>10}" for n in names)
+    lines = [head, "-" * len(head)]
+    for g in ("none of these", "glasses", "facial hair", "hat", "fringe over an eye"):
+        sel = [r for r in near if g in r["groups"]]
+        if sel:
+            lines.append(f"{g:<22}{len(sel):>8}" + "".join(f"{100 * sum(r[n] for r in sel) / len(sel):>9.1f}%" for n in names))
+    return "\n".join(lines)
+
+
+def eval_entries(caches: list[Path]) -> list[dict]:
+    """The EVAL-split entries of every cache, each with its ``"root"``, in subject-view order."""
     from kornia_ilum.synth.lightstage.cache import read_manifest
 
-    return [e for e in read_manifest(cache)["entries"] if e.get("split") == "eval"]
+    out = [dict(e, root=c) for c in caches for e in read_manifest(c)["entries"] if e.get("split") == "eval"]
+    return sorted(out, key=lambda e: (e["subject_seed"], e["view_index"]))
 
 
 def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
@@ -88,9 +116,9 @@ def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
         if subject_split(s) == "eval" and s not in have:
             seeds.append(s)
         s += 1
-    print(f"rendering eval seeds {seeds} into {args.cache} ({args.views} views, {args.size} px, spp {args.spp}, "
+    print(f"rendering eval seeds {seeds} into {args.cache[0]} ({args.views} views, {args.size} px, spp {args.spp}, "
           f"lighting {args.lighting_size})")
-    build_cache(args.source, seeds, args.cache, views_per_subject=args.views, size=args.size, spp=args.spp,
+    build_cache(args.source, seeds, args.cache[0], views_per_subject=args.views, size=args.size, spp=args.spp,
                 lighting_size=args.lighting_size, workers=args.workers, summary=True)
 
 
@@ -113,7 +141,8 @@ def default_hdri() -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cache", required=True, type=Path, help="the reflectance-field cache")
+    p.add_argument("--cache", required=True, type=Path, nargs="+",
+                   help="reflectance-field caches (their eval subjects are pooled; --render-eval adds to the first)")
     p.add_argument("--count", type=int, default=120, help="renders (120)")
     p.add_argument("--upscale", type=int, default=512, help="frame side before detection (512; 0: as rendered)")
     p.add_argument("--hdri", nargs="*", default=None, help="folders of real maps (default: shared hdri, hdri_more)")
@@ -162,9 +191,10 @@ def main(argv: list[str] | None = None) -> int:
     seconds = {n: 0.0 for n in detectors}
     for i in range(args.count):
         e = entries[i % len(entries)]
-        if e["path"] not in fields:
-            fields[e["path"]] = read_field(args.cache / e["path"], dense=False)
-        field = fields[e["path"]]
+        key = (e["root"], e["path"])
+        if key not in fields:
+            fields[key] = read_field(e["root"] / e["path"], dense=False)
+        field = fields[key]
         env = sampler.sample(i)
         out = compose_portrait(field, env)
         image = out["image"].float()[None] / 255.0
@@ -175,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
                                   align_corners=False).clamp(0, 1)
             box = box * (args.upscale / side)
         row = {"seed": e["subject_seed"], "view": e["view_index"], "yaw": e["camera"]["yaw_deg"],
-               "bin": yaw_bin(e["camera"]["yaw_deg"]), "env": env.source}
+               "bin": yaw_bin(e["camera"]["yaw_deg"]), "env": env.source, "groups": _appearance(e.get("params", {}))}
         for name, det in detectors.items():
             t = time.perf_counter()
             row[name] = is_hit(det.detect(image)[0], box)
@@ -190,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
           + ")")
     print("hit: IoU >= 0.3 with the face-landmark box, or the detection's centre inside it")
     print(format_table(rows, list(detectors)))
+    print(format_groups(rows, list(detectors)))
     missed = [f"s{r['seed']}v{r['view']} yaw {r['yaw']:+.0f}" for r in rows if not all(r[n] for n in detectors)]
     if missed:
         print(f"missed by some detector ({len(missed)}): {', '.join(missed[:12])}{' ...' if len(missed) > 12 else ''}")

@@ -8,7 +8,7 @@ Writes into ``docs/_static/``:
 - ``subjects_contact_sheet.png``: MakeHuman subjects under a studio light (:func:`preview.contact_sheet`);
 - ``subsurface_pair.png``: one subject-view relit from its one-pass reflectance field, without and with the
   subsurface step, under the same real map;
-- ``lightstage_contact_sheet.png``: 39 training portraits exactly as :class:`PortraitDataset` yields them
+- ``lightstage_contact_sheet.png``: 64 training portraits exactly as :class:`PortraitDataset` yields them
   (camera effects included), sorted by skin tone, each above its ground-truth diffuse, matte-silver and
   mirror spheres, with the bundled astronaut photograph's face crop first for comparison.
 """
@@ -71,7 +71,7 @@ def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
-def portraits_sheet(cache: str, hdri: list[str], count: int = 40, columns: int = 8) -> None:
+def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int = 13) -> None:
     from skimage import data
 
     from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes

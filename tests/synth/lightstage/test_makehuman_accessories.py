@@ -107,7 +107,7 @@ def test_beard_shells_lie_over_the_skin(mh):
     for k, sh in enumerate(shells):
         assert sh.material.kind == "hair" and set(np.unique(sh.material.opacity_texture)) <= {0.0, 1.0}
         d = tree.query(sh.vertices)[0]
-        assert d.min() > 0.0003 and d.max() < thick * (k + 1) / 3 + 0.002
+        assert d.min() > 0.0001 and d.max() < thick * (k + 1) / 3 + 0.002
         # every face covers an opaque texel, and the outer shells are sparser
         assert opaque_faces(sh.uvs[sh.faces], sh.material.opacity_texture).all()
     cover = [sh.material.opacity_texture.mean() for sh in shells]
@@ -121,7 +121,7 @@ def test_beanie_covers_the_hair_it_holds(mh):
     assert hat.material.kind == "diffuse"
     # the crown is over the highest hair and skin; in front, the edge is over the eyebrows; it dips at the back
     assert hat.vertices[:, 1].max() > max(hair.vertices[:, 1].max(), s.part("skin").vertices[:, 1].max())
-    front = hat.vertices[hat.vertices[:, 2] > lm["glabella"][2] - 0.03]
+    front = hat.vertices[(hat.vertices[:, 2] > lm["glabella"][2] - 0.03) & (np.abs(hat.vertices[:, 0]) < 0.03)]
     assert len(front) and front[:, 1].min() > max(lm["brow_left_top"][1], lm["brow_right_top"][1])
     assert hat.vertices[:, 1].min() < lm["ear_left"][1] + 0.01
     # the hair under it is gone (what stays hangs below its edge), and none pokes out through it
@@ -129,7 +129,9 @@ def test_beanie_covers_the_hair_it_holds(mh):
     radius = np.zeros(_BINS)
     np.maximum.at(radius, _bins(hat.vertices - centre), np.linalg.norm(hat.vertices - centre, axis=1))
     up = hair.vertices[hair.vertices @ normal > off + 0.01]
-    assert len(up) < 0.05 * len(hair.vertices), (len(up), len(hair.vertices))
+    style = s.params["hair"]
+    whole = len(mh.assets.proxy(f"hair/{style}/{style}.mhclo").mesh.vertices)
+    assert len(hair.vertices) < 0.6 * whole and len(up) < 0.05 * whole, (len(up), len(hair.vertices), whole)
     cell = _bins(up - centre)
     covered = radius[cell] > 0
     assert (np.linalg.norm(up - centre, axis=1)[covered] <= radius[cell][covered] + 0.003).all()

@@ -20,8 +20,12 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
    its outer shell as a closed ``"cornea"``), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
    six hair styles (or bald), hair re-tinted to a natural colour. Hair, brows and lashes carry binary
    ``opacity_texture`` maps (:func:`clean_alpha`); their faces that cover no opaque texel are dropped
-   (:func:`opaque_faces`).
-6. Frame: metres, SPEC axes (+Y up, +Z toward the camera), the eyes' centres at ``y = 0``, ``z = 0.066``.
+   (:func:`opaque_faces`). For three subjects in four, hair that hangs in front of the face below the brows
+   (the side-swept fringes of ``short03`` and ``bob02``) is trimmed there, as a cut fringe.
+6. Accessories (:mod:`~kornia_ilum.synth.lightstage.subjects.makehuman_accessories`), drawn after every other
+   choice so that those stay as they were: glasses, for men a stubble, moustache, goatee or beard, and a beanie
+   (short hair under it).
+7. Frame: metres, SPEC axes (+Y up, +Z toward the camera), the eyes' centres at ``y = 0``, ``z = 0.066``.
 
 The assets are parsed once per source, lazily (targets on first use), and cached as sparse offsets.
 """

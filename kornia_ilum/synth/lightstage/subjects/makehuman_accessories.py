@@ -5,7 +5,8 @@ signed-distance mannequins' (:mod:`~kornia_ilum.synth.lightstage.subjects.manneq
 subject's own geometry (metres, SPEC frame, the eyes' centres at ``y = 0``):
 
 - **Glasses** (:func:`glasses_parts`): two rims (tubes along superellipses, from oval to rectangular, wrapped on
-  an arch of radius 16 cm), a bridge and two temples that run back over the ears. The frame's plane sits
+  an arch of radius 16 cm; full rims, browline half-rims or rimless), a bridge and two temples that run back
+  over the ears. The frame's plane sits
   ``vertex_mm`` in front of the corneas, moved forward until it clears the skin, brows and lashes under the
   rims and the bridge by 3 mm; each temple point is pushed out until it clears the side of the head. The lenses
   are thin clear sheets of the ``"cornea"`` kind (a thin dielectric slab of index 1.5: transmission plus
@@ -72,7 +73,8 @@ def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> 
         "glasses": bool(rng.random() < 0.2 + (0.15 if years > 50 else 0.0)),
         "glasses_frame": frame,
         "glasses_albedo": list(_FRAME_ALBEDO.get(frame) or fabric_colour(rng, 1.0)[1]),
-        "glasses_rim_mm": u(0.8, 1.1) if frame == "metal" else u(1.5, 2.4),
+        "glasses_rim_mm": u(0.8, 1.1) if frame == "metal" else u(1.2, 2.0),
+        "glasses_style": _pick(rng, {"full": 3.0, "half": 1.0, "rimless": 1.0}),
         "lens_half_width_mm": u(21.0, 27.0),
         "lens_half_height_mm": u(13.0, 20.0),
         "lens_squareness": u(2.3, 5.0),
@@ -207,7 +209,13 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
     for sgn, ear in ((-1.0, ears[0]), (1.0, ears[1])):
         x = sgn * cx + ring[:, 0]
         rim = np.stack([x, cy + ring[:, 1], _arch(x, z0)], 1)
-        add(*tube(rim, r, closed=True, up=(0.0, 0.0, 1.0)))
+        if p["glasses_style"] == "full":
+            add(*tube(rim, r, closed=True, up=(0.0, 0.0, 1.0)))
+        elif p["glasses_style"] == "half":  # a browline frame: the rim's upper part only, the lens hangs below
+            upper = ring[:, 1] > -0.1 * b
+            first = (int(np.nonzero(~upper)[0].max()) + 1) % len(ring)  # the ring is counter-clockwise from +x
+            arc = np.roll(rim, -first, 0)[np.roll(upper, -first)]
+            add(*tube(arc, r, closed=False, up=(0.0, 0.0, 1.0)))
         # The lens: concentric copies of the rim (inset by the rim's radius) fanned to its centre.
         s = np.linspace(0.25, 1.0, 4)[:, None, None]
         inner = np.stack([sgn * cx + s * ring[None, :, 0] * (1 - r / a), cy + s * ring[None, :, 1] * (1 - r / b)], -1)
@@ -375,8 +383,8 @@ def beard_parts(
     out = []
     for k in range(shells):
         frac = (k + 1) / shells
-        # At least half a millimetre off the skin even at the region's edge: a shell on the skin would stop the
-        # skin's own shadow rays.
+        # Off the skin even at the region's edge (at least 0.15 mm): a shell on the skin would stop the skin's
+        # own shadow rays.
         vk = v0 + n0 * (max(thick * frac, 0.0005) * (0.3 + 0.7 * np.sqrt(w0)))[:, None]
         density = p["beard_density"] * (0.35 if style == "stubble" else 1.0 - 0.55 * k / _SHELLS)
         opacity = (strands < density * wuv).astype(np.float32)
