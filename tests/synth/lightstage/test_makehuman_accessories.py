@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES, MakeHumanSource
-from kornia_ilum.synth.lightstage.subjects.makehuman import _over_the_eyes, opaque_faces
+from kornia_ilum.synth.lightstage.subjects.makehuman import _over_the_eyes
+from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces
 from kornia_ilum.synth.lightstage.subjects.makehuman_accessories import (
     _BINS,
     _beanie_frame,

@@ -20,8 +20,9 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
    its outer shell as a closed ``"cornea"``), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
    six hair styles (or bald), hair re-tinted to a natural colour. Hair, brows and lashes carry binary
    ``opacity_texture`` maps (:func:`clean_alpha`); their faces that cover no opaque texel are dropped
-   (:func:`opaque_faces`). For three subjects in four, hair that hangs in front of the face below the brows
-   (the side-swept fringes of ``short03`` and ``bob02``) is trimmed there, as a cut fringe.
+   (:func:`~kornia_ilum.synth.lightstage.subjects.makehuman_assets.opaque_faces`). For three subjects in four,
+   hair that hangs in front of the face below the brows (the side-swept fringes of ``short03`` and ``bob02``)
+   is trimmed there, as a cut fringe.
 6. Accessories (:mod:`~kornia_ilum.synth.lightstage.subjects.makehuman_accessories`), drawn after every other
    choice so that those stay as they were: glasses, for men a stubble, moustache, goatee or beard, and a beanie
    (short hair under it).
@@ -61,6 +62,7 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
     read_mhmat,
     read_modifier_pairs,
     read_obj,
+    opaque_faces,
     read_target,
     vertex_normals,
     years_to_age,
@@ -82,7 +84,6 @@ __all__ = [
     "clean_alpha",
     "clip_mesh_below",
     "find_makehuman_root",
-    "opaque_faces",
     "retint_hair",
     "retint_skin",
 ]
@@ -246,48 +247,6 @@ def _raster_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
     pts = np.round(px * 16).astype(np.int32)
     cv2.fillPoly(img, list(pts), 1, lineType=cv2.LINE_8, shift=4)
     return img.astype(bool)
-
-
-def opaque_faces(uv_tris: np.ndarray, opacity: np.ndarray) -> np.ndarray:
-    """Which UV triangles cover at least one opaque texel (``opacity >= 0.5``) of an alpha-tested map.
-
-    Hair styles such as ``short02`` stack several cards over the forehead whose texels there are all clear. Every
-    such face still stops a ray once (it is tested texel by texel), so a camera or shadow ray that crosses more
-    of them than the renderer's layer budget is counted as blocked, and the skin under them renders black in
-    blotches. A face that covers no opaque texel changes nothing but that, so it is dropped.
-
-    Args:
-        uv_tris: ``(F, 3, 2)`` texture coordinates (``v`` up) of each face's corners.
-        opacity: ``(H, W)`` alpha map (rows: ``v`` down).
-
-    Returns:
-        ``(F,)`` bool: the face covers an opaque texel (its outline and interior, nearest texels).
-
-    Examples:
-        >>> op = np.zeros((8, 8), np.float32); op[0, 0] = 1.0  # only the top-left texel is opaque
-        >>> tris = np.array([[[0.0, 1.0], [0.2, 1.0], [0.0, 0.8]], [[0.5, 0.5], [0.9, 0.5], [0.5, 0.1]]])
-        >>> opaque_faces(tris, op).tolist()
-        [True, False]
-    """
-    import cv2
-
-    h, w = opacity.shape
-    solid = opacity >= 0.5
-    px = np.stack([uv_tris[..., 0] * w - 0.5, (1.0 - uv_tris[..., 1]) * h - 0.5], -1)  # texel centres at integers
-    lo = np.clip(np.floor(px.min(1)).astype(int), 0, [w - 1, h - 1])
-    hi = np.clip(np.ceil(px.max(1)).astype(int), 0, [w - 1, h - 1])
-    out = np.zeros(len(px), bool)
-    for i in range(len(px)):
-        (x0, y0), (x1, y1) = lo[i], hi[i]
-        crop = solid[y0 : y1 + 1, x0 : x1 + 1]
-        if not crop.any():
-            continue
-        m = np.zeros(crop.shape, np.uint8)
-        pts = np.round((px[i] - (x0, y0)) * 16).astype(np.int32)[None]
-        cv2.fillPoly(m, pts, 1, lineType=cv2.LINE_8, shift=4)
-        cv2.polylines(m, pts, True, 1, lineType=cv2.LINE_8, shift=4)
-        out[i] = bool(crop[m.astype(bool)].any())
-    return out
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -841,8 +800,8 @@ class MakeHumanSource:
             wuv = uv_weight_map(skin.uvs, skin.faces, wv, tex.shape[0]) * self.assets.head_island
             shade = (p["stubble_shadow"] * wuv)[..., None]
             tex = ((1.0 - shade) * tex + shade * np.minimum(tex, beard_rgb.astype(np.float32))).astype(np.float32)
-            parts[parts.index(skin)] = skin = dataclasses.replace(skin, material=dataclasses.replace(skin.material,
-                                                                                                   albedo_texture=tex))  # fmt: skip
+            skin = dataclasses.replace(skin, material=dataclasses.replace(skin.material, albedo_texture=tex))
+            parts = [skin if q.name == "skin" else q for q in parts]
             rng = np.random.default_rng(_seed_digest(seed, "makehuman-beard"))
             parts += beard_parts(p, skin, wv, self.assets.head_island, beard_rgb, rng)
         if p["hat"] != "none":
@@ -855,9 +814,9 @@ class MakeHumanSource:
                 if hair is not None:
                     hidden = inside_beanie(hair.vertices.astype(np.float64), envelope, p, lm)[hair.faces].all(1)
                     used, f = np.unique(hair.faces[~hidden], return_inverse=True)
-                    parts[parts.index(hair)] = dataclasses.replace(hair, vertices=hair.vertices[used],
-                                                                   faces=f.reshape(-1, 3).astype(np.int32),
-                                                                   normals=hair.normals[used], uvs=hair.uvs[used])  # fmt: skip
+                    hair = dataclasses.replace(hair, vertices=hair.vertices[used], faces=f.reshape(-1, 3).astype(np.int32),
+                                               normals=hair.normals[used], uvs=hair.uvs[used])  # fmt: skip
+                    parts = [hair if q.name == "hair" else q for q in parts]
                 parts.append(hat)
         cards = [q.vertices for q in parts if q.name in ("brows", "lashes")]
         parts += glasses_parts(p, eye_centres, [lm["ear_right"], lm["ear_left"]],

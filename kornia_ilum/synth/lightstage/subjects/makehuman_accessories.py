@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour
-from kornia_ilum.synth.lightstage.subjects.makehuman_assets import vertex_normals
+from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces, vertex_normals
 
 __all__ = [
     "ARCH_RADIUS",
@@ -378,8 +378,6 @@ def beard_parts(
     strands = _strand_mask(size, np.array([-fit[1, 0], fit[1, 1]]), 3 if style == "stubble" else 9, rng)
     thick = 1e-3 * p["beard_thickness_mm"] * {"stubble": 0.1, "moustache": 0.45}.get(style, 1.0)
     shells = 1 if style == "stubble" else _SHELLS  # stubble: one sparse layer of short hairs
-    from kornia_ilum.synth.lightstage.subjects.makehuman import opaque_faces
-
     out = []
     for k in range(shells):
         frac = (k + 1) / shells

@@ -9,6 +9,9 @@ The formats are those of the shared data root's ``README.md`` (``$KORNIA_ILUM_SH
   single index ``i`` is an exact copy of ``V[i]``.
 - ``.mhmat``: ``key value`` lines; texture paths are relative to the ``.mhmat``'s folder.
 
+Two mesh helpers sit beside them: :func:`vertex_normals` and :func:`opaque_faces` (which faces of an
+alpha-tested card cover an opaque texel).
+
 Everything here is plain numpy, in the assets' own units (decimetres, +Y up, the face along +Z).
 """
 
@@ -31,6 +34,7 @@ __all__ = [
     "bind_proxy",
     "load_texture",
     "macro_target_weights",
+    "opaque_faces",
     "read_mhclo",
     "read_mhmat",
     "read_modifier_pairs",
@@ -400,3 +404,45 @@ def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
     n = n / np.maximum(ln, 1e-20)
     n[bad] = (0.0, 0.0, 1.0)
     return n
+
+
+def opaque_faces(uv_tris: np.ndarray, opacity: np.ndarray) -> np.ndarray:
+    """Which UV triangles cover at least one opaque texel (``opacity >= 0.5``) of an alpha-tested map.
+
+    Hair styles such as ``short02`` stack several cards over the forehead whose texels there are all clear. Every
+    such face still stops a ray once (it is tested texel by texel), so a camera or shadow ray that crosses more
+    of them than the renderer's layer budget is counted as blocked, and the skin under them renders black in
+    blotches. A face that covers no opaque texel changes nothing but that, so it is dropped.
+
+    Args:
+        uv_tris: ``(F, 3, 2)`` texture coordinates (``v`` up) of each face's corners.
+        opacity: ``(H, W)`` alpha map (rows: ``v`` down).
+
+    Returns:
+        ``(F,)`` bool: the face covers an opaque texel (its outline and interior, nearest texels).
+
+    Examples:
+        >>> op = np.zeros((8, 8), np.float32); op[0, 0] = 1.0  # only the top-left texel is opaque
+        >>> tris = np.array([[[0.0, 1.0], [0.2, 1.0], [0.0, 0.8]], [[0.5, 0.5], [0.9, 0.5], [0.5, 0.1]]])
+        >>> opaque_faces(tris, op).tolist()
+        [True, False]
+    """
+    import cv2
+
+    h, w = opacity.shape
+    solid = opacity >= 0.5
+    px = np.stack([uv_tris[..., 0] * w - 0.5, (1.0 - uv_tris[..., 1]) * h - 0.5], -1)  # texel centres at integers
+    lo = np.clip(np.floor(px.min(1)).astype(int), 0, [w - 1, h - 1])
+    hi = np.clip(np.ceil(px.max(1)).astype(int), 0, [w - 1, h - 1])
+    out = np.zeros(len(px), bool)
+    for i in range(len(px)):
+        (x0, y0), (x1, y1) = lo[i], hi[i]
+        crop = solid[y0 : y1 + 1, x0 : x1 + 1]
+        if not crop.any():
+            continue
+        m = np.zeros(crop.shape, np.uint8)
+        pts = np.round((px[i] - (x0, y0)) * 16).astype(np.int32)[None]
+        cv2.fillPoly(m, pts, 1, lineType=cv2.LINE_8, shift=4)
+        cv2.polylines(m, pts, True, 1, lineType=cv2.LINE_8, shift=4)
+        out[i] = bool(crop[m.astype(bool)].any())
+    return out
