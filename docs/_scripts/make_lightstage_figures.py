@@ -8,7 +8,7 @@ Writes into ``docs/_static/``:
 - ``subjects_contact_sheet.png``: MakeHuman subjects under a studio light (:func:`preview.contact_sheet`);
 - ``subsurface_pair.png``: one subject-view relit from its one-pass reflectance field, without and with the
   subsurface step, under the same real map;
-- ``lightstage_contact_sheet.png``: 64 training portraits exactly as :class:`PortraitDataset` yields them
+- ``lightstage_contact_sheet.jpg``: 64 training portraits exactly as :class:`PortraitDataset` yields them
   (camera effects included), sorted by skin tone, each above its ground-truth diffuse, matte-silver and
   mirror spheres, with the bundled astronaut photograph's face crop first for comparison.
 """
@@ -35,6 +35,10 @@ def subjects_sheet(assets: str, count: int = 12) -> None:
     source = subject_source("makehuman", assets)
     out = STATIC / "subjects_contact_sheet.png"
     contact_sheet([source.sample(s) for s in range(count)], out, size=192, columns=6, spp=128, distance=0.75)
+    from PIL import Image
+
+    image = Image.open(out).convert("RGB")  # 256 colours, undithered: under 300 KB
+    image.quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(out, optimize=True)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
@@ -103,9 +107,15 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
         tiles.append(torch.cat([img, torch.ones(3, 6, 256), sph.clamp(0, 1)], dim=1))
         captions.append(f"s{s['subject_seed']} MST {s['skin_tone']} {s['label']}")
     tiles[0] = torch.cat([tiles[0], torch.ones(3, 6 + tiles[1].shape[1] - 262, 256)], dim=1)
-    out = STATIC / "lightstage_contact_sheet.png"
+    png = STATIC / "lightstage_contact_sheet.png"
     _write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
-                "matte silver, mirror", out, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 72, True)
+                "matte silver, mirror", png, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 72, False)
+    # 64 portraits do not fit a 300 KB PNG; the portraits are JPEG-compressed photographs anyway
+    from PIL import Image
+
+    out = png.with_suffix(".jpg")
+    Image.open(png).convert("RGB").save(out, quality=80, optimize=True)
+    png.unlink()
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 

@@ -102,7 +102,7 @@ def test_card_lets_light_through(fields) -> None:
     assert 0.2 < ratio < 0.9 and abs(ratio - ref_ratio) < 0.1, (ratio, ref_ratio)
 
 
-@pytest.mark.parametrize("seed", [1, 4])  # a full beard (alpha-tested fur shells); glasses (thin-slab lenses)
+@pytest.mark.parametrize("seed", [1, 22, 4])  # hair cards; a full beard (alpha-tested fur shells); glasses (lenses)
 def test_makehuman_matches_reference(shared_data, seed) -> None:
     """A photoreal MakeHuman subject (textured skin, alpha-tested hair cards, cornea, accessories) at 24 px, S = 8:
     the one-pass field (no post-processing) and the per-light reference agree within their noise, light by light
@@ -111,7 +111,7 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
     from kornia_ilum.synth.lightstage.subjects import subject_source
 
     subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(seed)
-    want = {1: "beard0", 4: "lenses"}[seed]
+    want = {1: "hair", 22: "beard0", 4: "lenses"}[seed]
     assert want in {p.name for p in subj.parts}
     cam = sample_views(seed, 4, 24, landmarks=subj.face_landmarks)[0]
     s = 8
@@ -123,24 +123,28 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
     lit = per_light_r > 0.05 * per_light_r.max()
     rel = (per_light_f[lit] - per_light_r[lit]).abs() / per_light_r[lit]
-    # per light, median and worst: measured 0.005 and 0.05 (seed 1), 0.012 and 0.13 (seed 4, the same without its
-    # glasses: its curly hair at 24 px)
-    assert rel.median() < 0.02 and rel.max() < (0.12 if seed == 1 else 0.16), rel
+    # Bounds per seed: (per-light median, worst, worst demodulated, relit). Measured: seed 1 0.005, 0.05, 0.16,
+    # 0.034-0.037 (24 px: the edges dominate); seed 4 0.014, 0.14, 0.12, 0.06 (its curly hair; the same without its
+    # glasses); seed 22 0.021, 0.20, 0.40, 0.087: a beard's single-texel strands are far below a 24-px pixel and
+    # the two renderers may filter the strand mask differently (nearest texel against a bilinear mask; unverified).
+    median, worst, worst_demod, relit_err = {1: (0.02, 0.12, 0.25, 0.07), 22: (0.025, 0.25, 0.45, 0.1),
+                                             4: (0.02, 0.18, 0.25, 0.07)}[seed]  # fmt: skip
+    assert rel.median() < median and rel.max() < worst, rel
     for lights in (torch.ones(1, s * s, 3), torch.rand(1, s * s, 3, generator=torch.Generator().manual_seed(0))):
         img_f, img_r = relight(f, lights), relight(r, lights)
         err = (img_f - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()
-        assert err < 0.07, err  # measured 0.034 and 0.037 (24 px: the edges dominate)
+        assert err < relit_err, err
     assert abs(fast.alpha.mean() - ref.alpha.mean()) < 0.02
     # the default sampling (32 camera samples, 4 or 16 tracing the lights, demodulated) agrees as well
     demod = render_olat(subj, cam, lighting_size=s, method="onepass", subsurface=False, threads=1)
     assert demod.meta["demodulate"] and demod.meta["spp"] == 32
     d = demod.field.float()
     rel = (d.sum((0, 1))[lit] - per_light_r[lit]).abs() / per_light_r[lit]
-    assert rel.median() < 0.02 and rel.max() < 0.25, rel  # measured 0.007 and 0.16 (a grazing light, 4 samples)
+    assert rel.median() < median and rel.max() < worst_demod, rel  # the worst: a grazing light, 4 samples
     for lights in (torch.ones(1, s * s, 3), torch.rand(1, s * s, 3, generator=torch.Generator().manual_seed(0))):
         img_d, img_r = relight(d, lights), relight(r, lights)
         err = (img_d - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()
-        assert err < 0.07, err
+        assert err < relit_err, err
     assert abs(demod.alpha.mean() - ref.alpha.mean()) < 0.02
 
 
