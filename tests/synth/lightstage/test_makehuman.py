@@ -24,17 +24,6 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
     read_target,
 )
 
-_SOURCE: dict = {}
-
-
-@pytest.fixture
-def mh(shared_data):
-    """One source per test session (the parse is cached inside it)."""
-    if "src" not in _SOURCE:
-        _SOURCE["src"] = MakeHumanSource.from_assets(shared_data / "makehuman")
-    return _SOURCE["src"]
-
-
 def _base_vertices_from_text(path) -> np.ndarray:
     rows = [line.split()[1:4] for line in open(path) if line.startswith("v ")]
     return np.array(rows, dtype=np.float64)

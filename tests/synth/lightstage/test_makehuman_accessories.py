@@ -5,10 +5,9 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 from scipy.spatial import cKDTree
 
-from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES, MakeHumanSource
+from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
 from kornia_ilum.synth.lightstage.subjects.makehuman import _over_the_eyes
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces
 from kornia_ilum.synth.lightstage.subjects.makehuman_accessories import (
@@ -19,15 +18,6 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_accessories import (
     inside_beanie,
     tube,
 )
-
-_SOURCE: dict = {}
-
-
-@pytest.fixture
-def mh(shared_data):
-    if "src" not in _SOURCE:
-        _SOURCE["src"] = MakeHumanSource.from_assets(shared_data / "makehuman")
-    return _SOURCE["src"]
 
 
 def _first(mh, want, limit: int = 400) -> int:

@@ -47,6 +47,7 @@ __all__ = [
     "Subject",
     "SubjectSource",
     "fabric_colour",
+    "pick",
     "subject_split",
 ]
 
@@ -82,6 +83,13 @@ FABRIC_NEUTRALS = {
     "olive": (0.10, 0.10, 0.035),
     "denim": (0.07, 0.11, 0.20),
 }
+
+
+def pick(rng: np.random.Generator, options: dict[str, float]) -> str:
+    """One of ``options``' names, drawn with probabilities proportional to their weights."""
+    names = list(options)
+    w = np.array([options[n] for n in names], dtype=np.float64)
+    return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 
 def fabric_colour(rng: np.random.Generator, saturated_p: float) -> tuple[str, tuple[float, float, float]]:

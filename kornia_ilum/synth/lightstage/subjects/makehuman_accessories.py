@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour
+from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour, pick
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces, vertex_normals
 
 __all__ = [
@@ -48,10 +48,6 @@ _BEARD_STYLES = {"stubble": 1.0, "moustache": 0.5, "goatee": 0.6, "beard": 1.0}
 _SHELLS = 3
 
 
-def _pick(rng: np.random.Generator, options: dict[str, float]) -> str:
-    names = list(options)
-    w = np.array([options[n] for n in names], dtype=np.float64)
-    return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 
 def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> dict:
@@ -68,19 +64,19 @@ def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> 
         ``"beanie"``) and its colour and edge.
     """
     u = lambda lo, hi: round(float(rng.uniform(lo, hi)), 5)  # noqa: E731
-    frame = _pick(rng, {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5})
+    frame = pick(rng, {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5})
     p = {
         "glasses": bool(rng.random() < 0.2 + (0.15 if years > 50 else 0.0)),
         "glasses_frame": frame,
         "glasses_albedo": list(_FRAME_ALBEDO.get(frame) or fabric_colour(rng, 1.0)[1]),
         "glasses_rim_mm": u(0.8, 1.1) if frame == "metal" else u(1.2, 2.0),
-        "glasses_style": _pick(rng, {"full": 3.0, "half": 1.0, "rimless": 1.0}),
+        "glasses_style": pick(rng, {"full": 3.0, "half": 1.0, "rimless": 1.0}),
         "lens_half_width_mm": u(21.0, 27.0),
         "lens_half_height_mm": u(13.0, 20.0),
         "lens_squareness": u(2.3, 5.0),
         "vertex_mm": u(24.0, 29.0),
     }
-    p["facial_hair"] = _pick(rng, _BEARD_STYLES) if rng.random() < 0.6 * male**2 else "none"
+    p["facial_hair"] = pick(rng, _BEARD_STYLES) if rng.random() < 0.6 * male**2 else "none"
     p["beard_thickness_mm"] = u(3.0, 10.0)
     p["beard_density"] = u(0.35, 0.8)
     p["stubble_shadow"] = u(0.3, 0.6)

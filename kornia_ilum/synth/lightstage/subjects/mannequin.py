@@ -107,16 +107,11 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     Subject,
     _seed_digest,
     fabric_colour,
+    pick,
     subject_split,
 )
 
 __all__ = ["MannequinSource", "make_subject", "subject_params"]
-
-
-def _pick(rng: np.random.Generator, options: dict[str, float]) -> str:
-    names = list(options)
-    w = np.array([options[n] for n in names], dtype=np.float64)
-    return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 # --------------------------------------------------------------------------------------------------------
 # Parameters
@@ -238,7 +233,7 @@ def subject_params(seed: int) -> dict:
     p["lip_albedo"] = [round(float(c), 4) for c in np.clip(lips, 0.003, 0.95)]
     # Eyes.
     dark = tone >= 6
-    iris = _pick(
+    iris = pick(
         rng,
         {"dark_brown": 6, "brown": 3, "hazel": 1, "amber": 0.3}
         if dark
@@ -248,13 +243,13 @@ def subject_params(seed: int) -> dict:
     # Hair.
     grey_p = max(0.0, age - 0.55) * 1.6
     if rng.random() < grey_p:
-        colour = _pick(rng, {"grey": 3, "white": 1})
+        colour = pick(rng, {"grey": 3, "white": 1})
     elif rng.random() < 0.08:
-        colour = _pick(rng, {k: 1.0 for k in _HAIR_COLOURS if k.startswith("dyed")} | {"platinum": 1.0})
+        colour = pick(rng, {k: 1.0 for k in _HAIR_COLOURS if k.startswith("dyed")} | {"platinum": 1.0})
     elif dark:
-        colour = _pick(rng, {"black": 6, "dark_brown": 3, "brown": 0.5, "blonde": 0.15})
+        colour = pick(rng, {"black": 6, "dark_brown": 3, "brown": 0.5, "blonde": 0.15})
     else:
-        colour = _pick(
+        colour = pick(
             rng,
             {
                 "black": 1.5,
@@ -270,14 +265,14 @@ def subject_params(seed: int) -> dict:
     natural = (
         colour
         if not (colour.startswith("dyed") or colour == "platinum")
-        else ("black" if dark else _pick(rng, {"dark_brown": 1.0, "brown": 1.0}))
+        else ("black" if dark else pick(rng, {"dark_brown": 1.0, "brown": 1.0}))
     )
     p["beard_colour"] = natural
     bald_p = 0.05 + 0.35 * masc * age
     p["hair_style"] = (
         "bald"
         if rng.random() < bald_p
-        else _pick(
+        else pick(
             rng,
             {
                 "buzz": 1.0 + masc,
@@ -295,18 +290,18 @@ def subject_params(seed: int) -> dict:
     p["brow_thickness"] = n(1.0 - 0.2 * (1 - masc), 0.2, 0.5, 1.5)
     fh_p = 0.6 * masc**2
     p["facial_hair"] = (
-        _pick(rng, {"stubble": 1.0, "moustache": 0.5, "goatee": 0.6, "beard": 1.0, "long_beard": 0.3})
+        pick(rng, {"stubble": 1.0, "moustache": 0.5, "goatee": 0.6, "beard": 1.0, "long_beard": 0.3})
         if (rng.random() < fh_p)
         else "none"
     )
     p["beard_thickness"] = u(0.003, 0.011)
     # Accessories and clothes.
-    p["hat"] = _pick(rng, {"none": 8.0, "beanie": 1.0, "cap": 1.0})
+    p["hat"] = pick(rng, {"none": 8.0, "beanie": 1.0, "cap": 1.0})
     p["hat_colour"], p["hat_albedo"] = fabric_colour(rng, 0.6)
     if p["hat"] != "none" and p["hair_style"] in ("medium", "afro", "bun"):
         p["hair_style"] = "short"  # what shows of such hair under a hat
     p["glasses"] = bool(rng.random() < 0.2)
-    frame = _pick(rng, {"black": 3, "tortoise": 2, "metal": 1.5, "colour": 1.5})
+    frame = pick(rng, {"black": 3, "tortoise": 2, "metal": 1.5, "colour": 1.5})
     frame_albedo = {
         "black": (0.015, 0.015, 0.015),
         "tortoise": (0.12, 0.05, 0.015),
@@ -315,9 +310,9 @@ def subject_params(seed: int) -> dict:
     p["glasses_frame"] = frame
     p["glasses_albedo"] = frame_albedo.get(frame) or fabric_colour(rng, 1.0)[1]
     p["earrings"] = bool(rng.random() < 0.2 * (1.0 - masc) + 0.03)
-    p["earring_style"] = _pick(rng, {"stud": 1.0, "hoop": 1.0})
+    p["earring_style"] = pick(rng, {"stud": 1.0, "hoop": 1.0})
     p["earring_albedo"] = [(0.75, 0.55, 0.22), (0.62, 0.62, 0.62), (0.55, 0.05, 0.08)][int(rng.integers(3))]
-    p["shirt_style"] = _pick(rng, {"crew": 3, "vneck": 2, "turtleneck": 1, "collar": 1.5})
+    p["shirt_style"] = pick(rng, {"crew": 3, "vneck": 2, "turtleneck": 1, "collar": 1.5})
     p["shirt_colour"], p["shirt_albedo"] = fabric_colour(rng, 0.5)
     return p
 
