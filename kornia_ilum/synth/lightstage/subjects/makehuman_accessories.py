@@ -59,9 +59,10 @@ def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> 
         years: the age.
 
     Returns:
-        ``glasses`` (bool) and its frame, lens and fit; ``facial_hair`` (``"none"`` or a style of
-        :data:`_BEARD_STYLES`) with ``beard_thickness`` and ``beard_density``; ``hat`` (``"none"`` or
-        ``"beanie"``) and its colour and edge.
+        ``glasses`` (bool) with its frame colour, style (full rim, browline half rim or rimless), rim, lens
+        and fit; ``facial_hair`` (``"none"``, ``"stubble"``, ``"moustache"``, ``"goatee"`` or ``"beard"``) with
+        ``beard_thickness_mm``, ``beard_density`` and ``stubble_shadow``; ``hat`` (``"none"`` or ``"beanie"``)
+        with its colour and the height of its front edge over the brows.
     """
     u = lambda lo, hi: round(float(rng.uniform(lo, hi)), 5)  # noqa: E731
     frame = pick(rng, {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5})
