@@ -12,7 +12,8 @@ trained on larger faces, so 192-pixel frames with 96-pixel faces are upscaled by
 OpenCV's Haar cascade on the full frame. A detection counts when one of its boxes overlaps the true face box
 (the projected face landmarks' box, brow tops to chin and ear to ear) with IoU >= 0.3, or has its centre inside
 it. Prints the detection rate per |yaw| bin (< 10, 10-20, 20-30, 30-35 degrees) and overall, and Haar's within
-+-30 degrees, then within +-30 degrees by the subjects' look (glasses, facial hair, a hat, a fringe over an eye). Targets: YuNet >= 95 %, Haar >= 85 % within +-30 degrees.
++-30 degrees, then within +-30 degrees by the subjects' look (glasses, facial hair, a hat, a fringe over an
+eye). Targets: YuNet >= 95 %, Haar >= 85 % within +-30 degrees.
 
 With fewer than ``--min-subjects`` eval subjects in the cache it says so; ``--render-eval K`` then renders the
 first ``K`` eval seeds missing from it into the cache (``--source``, ``--views``, ``--size``, ``--spp``,
