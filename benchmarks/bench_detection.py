@@ -76,6 +76,8 @@ def format_table(rows: list[dict], names: list[str]) -> str:
 
 def _appearance(params: dict) -> list[str]:
     """The groups a subject falls in for the by-appearance table (MakeHuman subjects' accessories and fringe)."""
+    from kornia_ilum.synth.lightstage.subjects.makehuman import SWEPT_FRINGE_STYLES
+
     groups = []
     if params.get("glasses"):
         groups.append("glasses")
@@ -83,7 +85,7 @@ def _appearance(params: dict) -> list[str]:
         groups.append("facial hair")
     if params.get("hat", "none") != "none":
         groups.append("hat")
-    if params.get("fringe") == "swept" and params.get("hair") in ("bob02", "short03"):
+    if params.get("fringe") == "swept" and params.get("hair") in SWEPT_FRINGE_STYLES:
         groups.append("fringe over an eye")
     return groups or ["none of these"]
 

@@ -47,6 +47,7 @@ __all__ = [
     "Subject",
     "SubjectSource",
     "fabric_colour",
+    "merge_meshes",
     "pick",
     "subject_split",
 ]
@@ -83,6 +84,18 @@ FABRIC_NEUTRALS = {
     "olive": (0.10, 0.10, 0.035),
     "denim": (0.07, 0.11, 0.20),
 }
+
+
+def merge_meshes(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Concatenate meshes ``(verts, faces[, normals])`` into one (float32 vertices and normals, int32 faces)."""
+    vs, fs, ns, off = [], [], [], 0
+    for m in meshes:
+        vs.append(m[0])
+        fs.append(m[1] + off)
+        off += len(m[0])
+        ns.append(m[2] if len(m) > 2 else None)
+    normals = None if any(n is None for n in ns) else np.concatenate(ns).astype(np.float32)
+    return np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int32), normals
 
 
 def pick(rng: np.random.Generator, options: dict[str, float]) -> str:

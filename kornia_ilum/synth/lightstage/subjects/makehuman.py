@@ -63,6 +63,7 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
     read_modifier_pairs,
     read_obj,
     opaque_faces,
+    raster_uv_mask,
     read_target,
     vertex_normals,
     years_to_age,
@@ -79,6 +80,7 @@ from kornia_ilum.synth.lightstage.subjects.makehuman_accessories import (
 
 __all__ = [
     "LANDMARK_VERTICES",
+    "SWEPT_FRINGE_STYLES",
     "MakeHumanAssetsNotFoundError",
     "MakeHumanSource",
     "clean_alpha",
@@ -109,6 +111,8 @@ _DETAIL_GROUPS = ("head", "forehead", "eyebrows", "eyes", "nose", "mouth", "ears
 _EYE_Z = 0.066  # the eyes' centres, like the mannequins'
 _CUT_BELOW_CHIN = 0.21  # metres
 _HAIR_STYLES = ("short01", "short02", "short03", "short04", "bob02", "afro01")
+#: The styles whose fringe sweeps over an eye unless trimmed (``params["fringe"] == "trimmed"``).
+SWEPT_FRINGE_STYLES = ("short03", "bob02")
 _IRIS = ("blue", "bluegreen", "brown", "brownlight", "deepblue", "green", "grey", "ice", "lightblue")
 _IRIS_P = (0.08, 0.06, 0.38, 0.16, 0.05, 0.08, 0.06, 0.05, 0.08)
 #: Natural hair colours, linear RGB (a dyed look is left out).
@@ -236,17 +240,6 @@ def _split_uv(tri_v: np.ndarray, tri_t: np.ndarray) -> tuple[np.ndarray, np.ndar
     key = tri_v.astype(np.int64) * 10_000_000 + tri_t.astype(np.int64)
     uk, inv = np.unique(key.reshape(-1), return_inverse=True)
     return uk // 10_000_000, uk % 10_000_000, inv.reshape(-1, 3)
-
-
-def _raster_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
-    """``(size, size)`` bool mask of the UV triangles (``(F, 3, 2)``, v up) drawn into image rows (v down)."""
-    import cv2
-
-    img = np.zeros((size, size), np.uint8)
-    px = np.stack([uv_tris[..., 0] * size, (1.0 - uv_tris[..., 1]) * size], -1)
-    pts = np.round(px * 16).astype(np.int32)
-    cv2.fillPoly(img, list(pts), 1, lineType=cv2.LINE_8, shift=4)
-    return img.astype(bool)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -392,7 +385,7 @@ class _Assets:
         face_v = fx & fy & (n0[:, 2] > 0.35) & (v0[:, 2] > lm["cheek_left"][2])
         face_t = face_v[tri_v].all(1)
         self.tex_size = 512
-        self.face_mask = _raster_mask(self.base.uvs[tri_t[face_t]], self.tex_size)
+        self.face_mask = raster_uv_mask(self.base.uvs[tri_t[face_t]], self.tex_size)
         # T-zone: forehead (brows to 4 cm above) and the nose ridge, for an oilier (smoother) skin there.
         fh = (np.abs(v0[:, 0]) < 0.35) & (v0[:, 1] > lm["brow_left_top"][1] - 0.05) & (
             v0[:, 1] < lm["brow_left_top"][1] + 0.45
@@ -401,11 +394,11 @@ class _Assets:
         tz = (fh | nose) & (n0[:, 2] > 0.3) & (v0[:, 2] > lm["cheek_left"][2])
         import cv2
 
-        tzm = _raster_mask(self.base.uvs[tri_t[tz[tri_v].all(1)]], self.tex_size).astype(np.float32)
+        tzm = raster_uv_mask(self.base.uvs[tri_t[tz[tri_v].all(1)]], self.tex_size).astype(np.float32)
         self.tzone = cv2.GaussianBlur(tzm, (0, 0), 6.0)
         # The head's UV island (the one that holds the nose tip): where a beard may grow. Inner surfaces of the
         # mouth and nostrils lie inside a beard's region in space but on other islands.
-        body_mask = _raster_mask(self.base.uvs[tri_t], self.tex_size).astype(np.uint8)
+        body_mask = raster_uv_mask(self.base.uvs[tri_t], self.tex_size).astype(np.uint8)
         _, islands = cv2.connectedComponents(body_mask, connectivity=4)
         nose_uv = self.base.uvs[tri_t[(tri_v == LANDMARK_VERTICES["nose_tip"]).any(1)]].reshape(-1, 2).mean(0)
         row = int(np.clip((1.0 - nose_uv[1]) * self.tex_size, 0, self.tex_size - 1))

@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour, pick
-from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces, vertex_normals
+from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour, merge_meshes, pick
+from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces, raster_uv_mask, vertex_normals
 
 __all__ = [
     "ARCH_RADIUS",
@@ -154,6 +154,18 @@ def _orient(v: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
     return f
 
 
+def _disc_faces(m: int, rings: int) -> np.ndarray:
+    """Faces of a disc whose vertices are a centre then ``rings`` rings of ``m`` (a lens, a hat's crown down to
+    its edge): a fan to the centre and strips between consecutive rings, wound as given (orient them after)."""
+    k = np.arange(m)
+    nxt = (k + 1) % m
+    faces = [np.stack([np.zeros(m, int), 1 + k, 1 + nxt], 1)]
+    for q in range(rings - 1):
+        o0, o1 = 1 + q * m, 1 + (q + 1) * m
+        faces += [np.stack([o0 + k, o1 + k, o1 + nxt], 1), np.stack([o0 + k, o1 + nxt, o0 + nxt], 1)]
+    return np.concatenate(faces)
+
+
 def _superellipse(a: float, b: float, n: float, count: int) -> np.ndarray:
     """``(count, 2)`` points of ``|x/a|^n + |y/b|^n = 1``, counter-clockwise."""
     t = 2 * np.pi * np.arange(count) / count
@@ -195,41 +207,24 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
     if under.any():
         z0 = max(z0, float(warped[under].max()) + r + 0.003)
     ring = _superellipse(a, b, sq, 72)
-    parts_v, parts_f, parts_n = [], [], []
-
-    def add(v, f, n):
-        parts_f.append(f + sum(len(x) for x in parts_v))
-        parts_v.append(v)
-        parts_n.append(n)
-
-    lens_v, lens_f = [], []
+    frame, lenses = [], []  # (vertices, faces[, normals]) pieces
     for sgn, ear in ((-1.0, ears[0]), (1.0, ears[1])):
         x = sgn * cx + ring[:, 0]
         rim = np.stack([x, cy + ring[:, 1], _arch(x, z0)], 1)
         if p["glasses_style"] == "full":
-            add(*tube(rim, r, closed=True, up=(0.0, 0.0, 1.0)))
+            frame.append(tube(rim, r, closed=True, up=(0.0, 0.0, 1.0)))
         elif p["glasses_style"] == "half":  # a browline frame: the rim's upper part only, the lens hangs below
             upper = ring[:, 1] > -0.1 * b
             first = (int(np.nonzero(~upper)[0].max()) + 1) % len(ring)  # the ring is counter-clockwise from +x
             arc = np.roll(rim, -first, 0)[np.roll(upper, -first)]
-            add(*tube(arc, r, closed=False, up=(0.0, 0.0, 1.0)))
+            frame.append(tube(arc, r, closed=False, up=(0.0, 0.0, 1.0)))
         # The lens: concentric copies of the rim (inset by the rim's radius) fanned to its centre.
         s = np.linspace(0.25, 1.0, 4)[:, None, None]
         inner = np.stack([sgn * cx + s * ring[None, :, 0] * (1 - r / a), cy + s * ring[None, :, 1] * (1 - r / b)], -1)
         pts = np.concatenate([[[sgn * cx, cy]], inner.reshape(-1, 2)])
-        lv = np.stack([pts[:, 0], pts[:, 1], _arch(pts[:, 0], z0)], 1)
-        m = len(ring)
-        k = np.arange(m)
-        fan = [np.stack([np.zeros(m, int), 1 + k, 1 + (k + 1) % m], 1)]
-        for q in range(3):
-            o0, o1 = 1 + q * m, 1 + (q + 1) * m
-            fan += [np.stack([o0 + k, o1 + k, o1 + (k + 1) % m], 1), np.stack([o0 + k, o1 + (k + 1) % m, o0 + (k + 1) % m], 1)]
-        lf = np.concatenate(fan) + sum(len(x) for x in lens_v)
-        lens_v.append(lv)
-        lens_f.append(lf)
+        lenses.append((np.stack([pts[:, 0], pts[:, 1], _arch(pts[:, 0], z0)], 1), _disc_faces(len(ring), len(s))))
         # The temple: from the rim's outer edge back over the ear, then down behind it, clear of the head.
-        hinge = np.array([sgn * (cx + a * (1.0 - 0.35**sq) ** (1.0 / sq)), yb, 0.0])
-        hinge[2] = _arch(hinge[0], z0)
+        hinge = np.array([sgn * (cx + xb), yb, _arch(sgn * (cx + xb), z0)])
         # (over the ear's root, medial to the ear, then down behind it; the ear itself does not push it out)
         root = (0.9 * ear[0], ear[1] + 0.022, ear[2] + 0.004)
         knots = np.array([hinge, hinge + (sgn * 0.004, 0.0, -0.008), root, (0.88 * ear[0], ear[1], ear[2] - 0.02)])
@@ -239,19 +234,17 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
             near = (np.abs(side[:, 1] - path[i, 1]) < 0.008) & (np.abs(side[:, 2] - path[i, 2]) < 0.008)
             if near.any():
                 path[i, 0] = sgn * max(abs(path[i, 0]), float(np.abs(side[near, 0]).max()) + r + 0.0015)
-        add(*tube(path, r, closed=False, up=(0.0, 1.0, 0.0)))
+        frame.append(tube(path, r, closed=False, up=(0.0, 1.0, 0.0)))
     bx = np.linspace(-(cx - xb) - 0.5 * r, cx - xb + 0.5 * r, 12)
     bridge = np.stack([bx, yb + 0.003 * (1.0 - (bx / bx[-1]) ** 2), _arch(bx, z0) + 0.0005], 1)
-    add(*tube(bridge, r, closed=False, up=(0.0, 0.0, 1.0)))
-    fv, ff, fnrm = np.concatenate(parts_v), np.concatenate(parts_f), np.concatenate(parts_n)
-    lv, lf = np.concatenate(lens_v), np.concatenate(lens_f)
-    ln = np.tile([0.0, 0.0, 1.0], (len(lv), 1))
+    frame.append(tube(bridge, r, closed=False, up=(0.0, 0.0, 1.0)))
+    fv, ff, fnrm = merge_meshes(frame)
+    lv, lf, _ = merge_meshes(lenses)
+    ln = np.tile(np.float32([0.0, 0.0, 1.0]), (len(lv), 1))
     return [
-        MeshPart("glasses", fv.astype(np.float32), ff.astype(np.int32),
-                 Material("glossy", tuple(float(c) for c in p["glasses_albedo"]), 0.12, 0.5), fnrm.astype(np.float32)),
-        MeshPart("lenses", lv.astype(np.float32), _orient(lv, lf, ln).astype(np.int32),
-                 Material("cornea", (1.0, 1.0, 1.0), 0.0, 0.5), ln.astype(np.float32)),
-    ]  # fmt: skip
+        MeshPart("glasses", fv, ff, Material("glossy", tuple(float(c) for c in p["glasses_albedo"]), 0.12, 0.5), fnrm),
+        MeshPart("lenses", lv, _orient(lv, lf, ln).astype(np.int32), Material("cornea", (1.0, 1.0, 1.0), 0.0, 0.5), ln),
+    ]
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -311,14 +304,11 @@ def uv_weight_map(uv: np.ndarray, faces: np.ndarray, weight: np.ndarray, size: i
     import cv2
 
     img = np.zeros((size, size), np.float32)
-    fw = weight[faces].mean(1)
-    px = np.stack([uv[faces][..., 0] * size, (1.0 - uv[faces][..., 1]) * size], -1)
-    pts = np.round(px * 16).astype(np.int32)
-    level = np.round(fw * 16).astype(int)
-    for q in range(1, 17):
+    level = np.round(weight[faces].mean(1) * 16).astype(int)
+    for q in range(1, 17):  # later levels drawn over earlier ones, as overlapping fills
         sel = level == q
         if sel.any():
-            cv2.fillPoly(img, list(pts[sel]), q / 16.0, lineType=cv2.LINE_8, shift=4)
+            img[raster_uv_mask(uv[faces[sel]], size)] = q / 16.0
     return np.clip(cv2.GaussianBlur(img, (0, 0), 1.5), 0.0, 1.0)
 
 
@@ -336,7 +326,9 @@ def _strand_mask(size: int, direction: np.ndarray, length: int, rng: np.random.G
         if 0 <= c < k and 0 <= r < k:
             kernel[r, c] = 1.0
     noise = cv2.filter2D(noise, -1, kernel / kernel.sum(), borderType=cv2.BORDER_REFLECT)
-    ranks = np.argsort(np.argsort(noise.ravel()))
+    order = np.argsort(noise.ravel())
+    ranks = np.empty_like(order)
+    ranks[order] = np.arange(order.size)  # the inverse permutation: one sort, not two
     return (ranks / (ranks.size - 1)).reshape(size, size).astype(np.float32)
 
 
@@ -475,23 +467,14 @@ def beanie_part(
     cuff = np.clip((0.035 - arc) / 0.004, 0.0, 1.0) * 0.003  # the folded band
     verts = centre + d_grid * (r_grid + cuff)[..., None]
     v = np.concatenate([(centre + np.array([0.0, table[0].mean(), 0.0]))[None], verts.reshape(-1, 3)])
-    ring = lambda q: 1 + q * n_az + np.arange(n_az)  # noqa: E731
-    k = np.arange(n_az)
-    faces = [np.stack([np.zeros(n_az, int), ring(0), ring(0)[(k + 1) % n_az]], 1)]
-    for q in range(n_t - 2):
-        a0, a1 = ring(q), ring(q + 1)
-        faces += [np.stack([a0, a1, a1[(k + 1) % n_az]], 1), np.stack([a0, a1[(k + 1) % n_az], a0[(k + 1) % n_az]], 1)]
-    f = np.concatenate(faces)
-    outward = v - centre
-    f = _orient(v, f, outward)
+    f = _orient(v, _disc_faces(n_az, n_t - 1), v - centre)
     nrm = vertex_normals(v, f)
+    k = np.arange(n_az)
     uvs = np.concatenate([[[0.5, 1.0]], np.stack([np.broadcast_to((k + 0.5) / n_az, (n_t - 1, n_az)),
                                                   np.broadcast_to(1.0 - t[:, None], (n_t - 1, n_az))], -1).reshape(-1, 2)])  # fmt: skip
-    # Knit ribs along the meridians, a little darker in the cuff's fold line.
-    tex_u = np.arange(256) / 256
-    ribs = 0.85 + 0.15 * np.cos(2 * np.pi * 48 * tex_u)[None, :]
-    rows = np.ones((256, 1))
-    tex = (ribs * rows)[..., None] * np.asarray(p["hat_albedo"], np.float32)
+    # Knit ribs along the meridians (48 around the head).
+    ribs = 0.85 + 0.15 * np.cos(2 * np.pi * 48 * np.arange(256) / 256)
+    tex = np.broadcast_to(ribs[None, :, None] * np.asarray(p["hat_albedo"], np.float32), (256, 256, 3))
     part = MeshPart("hat", v.astype(np.float32), f.astype(np.int32),
                     Material("diffuse", tuple(float(c) for c in p["hat_albedo"]), albedo_texture=tex.astype(np.float32)),
                     nrm.astype(np.float32), uvs.astype(np.float32))  # fmt: skip

@@ -9,8 +9,8 @@ The formats are those of the shared data root's ``README.md`` (``$KORNIA_ILUM_SH
   single index ``i`` is an exact copy of ``V[i]``.
 - ``.mhmat``: ``key value`` lines; texture paths are relative to the ``.mhmat``'s folder.
 
-Two mesh helpers sit beside them: :func:`vertex_normals` and :func:`opaque_faces` (which faces of an
-alpha-tested card cover an opaque texel).
+Three mesh helpers sit beside them: :func:`vertex_normals`, :func:`raster_uv_mask` (UV triangles drawn into
+a texture's rows) and :func:`opaque_faces` (which faces of an alpha-tested card cover an opaque texel).
 
 Everything here is plain numpy, in the assets' own units (decimetres, +Y up, the face along +Z).
 """
@@ -35,6 +35,7 @@ __all__ = [
     "load_texture",
     "macro_target_weights",
     "opaque_faces",
+    "raster_uv_mask",
     "read_mhclo",
     "read_mhmat",
     "read_modifier_pairs",
@@ -404,6 +405,17 @@ def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
     n = n / np.maximum(ln, 1e-20)
     n[bad] = (0.0, 0.0, 1.0)
     return n
+
+
+def raster_uv_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
+    """``(size, size)`` bool mask of the UV triangles (``(F, 3, 2)``, v up) drawn into image rows (v down)."""
+    import cv2
+
+    img = np.zeros((size, size), np.uint8)
+    px = np.stack([uv_tris[..., 0] * size, (1.0 - uv_tris[..., 1]) * size], -1)
+    pts = np.round(px * 16).astype(np.int32)
+    cv2.fillPoly(img, list(pts), 1, lineType=cv2.LINE_8, shift=4)
+    return img.astype(bool)
 
 
 def opaque_faces(uv_tris: np.ndarray, opacity: np.ndarray) -> np.ndarray:

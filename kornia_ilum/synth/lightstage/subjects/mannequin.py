@@ -107,6 +107,7 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     Subject,
     _seed_digest,
     fabric_colour,
+    merge_meshes,
     pick,
     subject_split,
 )
@@ -742,18 +743,6 @@ _SKIN_LO, _SKIN_HI = (-0.095, -0.27, -0.128), (0.095, 0.132, 0.132)
 _SKIN_STEP = 0.0025
 
 
-def _merge(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Concatenate meshes ``(verts, faces[, normals])`` into one."""
-    vs, fs, ns, off = [], [], [], 0
-    for m in meshes:
-        vs.append(m[0])
-        fs.append(m[1] + off)
-        off += len(m[0])
-        ns.append(m[2] if len(m) > 2 else None)
-    normals = None if any(n is None for n in ns) else np.concatenate(ns).astype(np.float32)
-    return np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int32), normals
-
-
 def _ear_meshes(head: _Head, step: float = 0.0015) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Both ears, meshed finer than the head on their own grids (they cross into the head at the root)."""
     out = []
@@ -774,7 +763,7 @@ def _skin_mesh(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[tuple[str, Material]]]:
     """The skin (head, neck, ears) and a label per face: skin, lips, mouth, and stubble or buzz-cut hair."""
     lo = (_SKIN_LO[0], -0.27 if p["shirt_style"] == "vneck" else -0.215, _SKIN_LO[2])
-    v, f, n = _merge([mesh_sdf(head.skin, lo, _SKIN_HI, _SKIN_STEP), *_ear_meshes(head)])
+    v, f, n = merge_meshes([mesh_sdf(head.skin, lo, _SKIN_HI, _SKIN_STEP), *_ear_meshes(head)])
     cen = v[f].mean(axis=1)
     cx, cy, cz = cen[:, 0], cen[:, 1], cen[:, 2]
     skin = np.array(p["skin_albedo"])
@@ -1174,7 +1163,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
         sg = -1.0 if side == 0 else 1.0
         lo, hi = (min(sg * 0.006, sg * 0.064), 0.002, 0.05), (max(sg * 0.006, sg * 0.064), 0.036, 0.1)
         brows.append(mesh_sdf(fn_of(_brow_sdf, side), lo, hi, 0.001))
-    add("brows", _merge(brows), Material("hair", _rgb(brow_rgb), 0.35, 0.4))
+    add("brows", merge_meshes(brows), Material("hair", _rgb(brow_rgb), 0.35, 0.4))
     if p["facial_hair"] not in ("none", "stubble"):
         box = ((-0.085, -0.2, -0.03), (0.085, 0.0, 0.135))
         add("beard", mesh_sdf(fn_of(_beard_sdf), *box, 0.0026), beard_mat, fn_of(_beard_sdf), (*box, 0.0026))
@@ -1211,7 +1200,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
     step = 0.0035 if turtle else 0.0027
     collar = mesh_sdf(fn_of(_collar_sdf), *box, step)
     shirt = mesh_sdf(fn_of(_shirt_sdf), _SHIRT_LO, _SHIRT_HI, 0.008)
-    add("shirt", _merge([shirt, collar]), shirt_mat, fn_of(_collar_sdf) if turtle else None, (*box, step))
+    add("shirt", merge_meshes([shirt, collar]), shirt_mat, fn_of(_collar_sdf) if turtle else None, (*box, step))
     # The shirt's body is smooth and thick: its mesh follows its SDF closely, so it hides skin 4 mm inside it.
     occluders_extra = [(_clip_to_box(fn_of(_shirt_sdf), _SHIRT_LO, _SHIRT_HI), 0.004 / 1.5)]
 
@@ -1235,7 +1224,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
         "cornea": Material("cornea", (1.0, 1.0, 1.0), 0.0, 0.313),
     }
     for name in ("sclera", "iris", "pupil", "cornea"):
-        v, f, _ = _merge(eyes[name])
+        v, f, _ = merge_meshes(eyes[name])
         parts.append(MeshPart(name, v, f, mats[name]))
     for name, v, f, n, mat, sdf in pieces:
         if cull_hidden and name not in ("glasses", "earrings", "teeth"):
