@@ -258,7 +258,9 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
     Relight (:func:`~kornia_ilum.synth.lightstage.portraits.relight_portraits`), composite over what the
     view's camera sees of the environment (:func:`~kornia_ilum.synth.lightstage.portraits.frame_background`,
     ``I + (1 - alpha) B``), auto-expose (:func:`~kornia_ilum.synth.lightstage.portraits.auto_exposure`, key
-    ``key``) and encode (:func:`~kornia_ilum.color.encode_srgb8`).
+    ``key``) metered over the face crop (the face box expanded 1.25 x), as
+    :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset` meters its crops and as a phone's
+    face-priority exposure does, and encode (:func:`~kornia_ilum.color.encode_srgb8`).
 
     Args:
         field: a :class:`~kornia_ilum.synth.lightstage.ReflectanceField` (dense or compact).
@@ -275,7 +277,7 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
     lighting = _lighting_for(env, field.lighting_size)
     image, alpha = relight_portraits(field, lighting)
     linear = image + (1.0 - alpha) * frame_background(env.latlong[None].float(), field.camera)
-    gain = float(auto_exposure(linear, key)[0])
+    gain = float(auto_exposure(_crop(linear[0], field.face_box, 64)[None].clamp(min=0.0), key)[0])
     return {
         "image": encode_srgb8((linear[0] * gain).clamp(min=0.0)),
         "lighting": env.mirror_ball.float() * gain,

@@ -15,7 +15,13 @@ from kornia_ilum.synth.lightstage.subjects import (
     subject_source,
     subject_split,
 )
-from kornia_ilum.synth.lightstage.subjects.makehuman import clean_alpha, clip_mesh_below, retint_skin
+from kornia_ilum.synth.lightstage.subjects.makehuman import (
+    clean_alpha,
+    clip_mesh_below,
+    iris_probabilities,
+    retint_iris,
+    retint_skin,
+)
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
     bind_proxy,
     load_texture,
@@ -111,6 +117,30 @@ def test_retint_keeps_detail_and_hits_target(mh):
         lo, lt = np.log(out[m] + 1e-4), np.log(tex[m] + 1e-4)
         for c in range(3):
             assert np.corrcoef(lo[:, c], lt[:, c])[0, 1] > 0.98
+
+
+def test_iris_colours_follow_skin_tone_and_brown_irises_are_brown(mh):
+    from kornia_ilum.synth.lightstage.subjects.makehuman import _IRIS
+
+    light = [i for i, n in enumerate(_IRIS) if n not in ("brown", "brownlight")]
+    for tone in range(1, 11):
+        p = iris_probabilities(tone)
+        assert abs(p.sum() - 1.0) < 1e-9 and (p >= 0).all()
+    assert iris_probabilities(1)[light].sum() > 0.5 > 0.05 > iris_probabilities(7)[light].sum()
+    # The brown map's iris (saturated red-brown) takes the wanted colour; sclera and pupil stay as they were.
+    tex, _ = load_texture(mh.root / "eyes" / "materials" / "brown_eye.png")
+    want = (0.03, 0.015, 0.007)
+    out = retint_iris(tex, want)
+    changed = np.any(out != tex, -1)
+    assert 0.03 < changed.mean() < 0.15  # the two irises, not the sclera
+    np.testing.assert_allclose(out[changed].mean(0), want, rtol=0.15)
+    enc = tex ** (1 / 2.2)
+    sclera = (enc.min(-1) > 0.6)
+    pupil = enc.max(-1) < 0.1
+    assert sclera.any() and pupil.any() and not changed[sclera].any() and not changed[pupil].any()
+    # Sampled subjects: mostly brown eyes on dark skin.
+    dark = [mh.params(s) for s in range(400) if mh.params(s)["skin_tone"] >= 6]
+    assert sum(q["iris"] in ("brown", "brownlight") for q in dark) >= 0.9 * len(dark)
 
 
 def test_opacity_textures_binary_without_film(mh):

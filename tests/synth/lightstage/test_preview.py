@@ -67,6 +67,16 @@ def test_compose_portrait(tiny_cache: Path) -> None:
     assert out["image"].dtype == torch.uint8 and out["image"].shape == (3, 24, 24)
     assert out["lighting"].shape == (3, 32, 32) and out["gain"] > 0
     torch.testing.assert_close(out["lighting"], env.mirror_ball * out["gain"])
+    # Metered over the face crop (the face box expanded 1.25 x), as the training crops are: exposing the
+    # crop of the output again asks for no further gain (up to 8-bit rounding and clipped highlights).
+    from kornia_ilum.color import srgb_to_linear
+    from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
+    from kornia_ilum.synth.lightstage.portraits import auto_exposure
+
+    linear = srgb_to_linear(out["image"].float()[None] / 255)
+    crop = crop_faces(linear, square_crop_boxes(out["face_box"][None], CROP_SCALE), 24)
+    assert float(auto_exposure(crop)[0]) == pytest.approx(1.0, rel=0.1)
+    assert float(auto_exposure(linear)[0]) != pytest.approx(1.0, rel=0.1)  # the whole frame would differ
 
 
 def test_training_sheet(tiny_cache: Path) -> None:

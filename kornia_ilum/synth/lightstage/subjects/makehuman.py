@@ -16,8 +16,10 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
    tone (:data:`SKIN_ALBEDO` of an MST tone drawn uniformly over 1..10, times ``exp(N(0, 0.08))`` brightness and
    ``exp(N(0, 0.03))`` per channel), clipped to 0.95. Kind ``"skin"`` with ``subsurface=True``, GGX roughness
    0.3 to 0.5, F0 0.025 to 0.035 and a ``roughness_texture`` that makes the T-zone (forehead and nose) oilier.
-5. Proxies bound to the morphed mesh: high-poly eyes (the eyeball, textured with one of 9 iris colours, and
-   its outer shell as a closed ``"cornea"``), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
+5. Proxies bound to the morphed mesh: high-poly eyes (the eyeball, diffuse, textured with one of 9 iris
+   colours drawn by skin tone (:func:`iris_probabilities`; the ``brown`` map's irises re-tinted medium to
+   dark brown, :func:`retint_iris`), and its outer shell as a closed ``"cornea"``, the tear film's and the
+   cornea's gloss), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
    six hair styles (or bald), hair re-tinted to a natural colour. Hair, brows and lashes carry binary
    ``opacity_texture`` maps (:func:`clean_alpha`); their faces that cover no opaque texel are dropped
    (:func:`~kornia_ilum.synth.lightstage.subjects.makehuman_assets.opaque_faces`). For three subjects in four,
@@ -86,7 +88,9 @@ __all__ = [
     "clean_alpha",
     "clip_mesh_below",
     "find_makehuman_root",
+    "iris_probabilities",
     "retint_hair",
+    "retint_iris",
     "retint_skin",
 ]
 
@@ -114,7 +118,14 @@ _HAIR_STYLES = ("short01", "short02", "short03", "short04", "bob02", "afro01")
 #: The styles whose fringe sweeps over an eye unless trimmed (``params["fringe"] == "trimmed"``).
 SWEPT_FRINGE_STYLES = ("short03", "bob02")
 _IRIS = ("blue", "bluegreen", "brown", "brownlight", "deepblue", "green", "grey", "ice", "lightblue")
-_IRIS_P = (0.08, 0.06, 0.38, 0.16, 0.05, 0.08, 0.06, 0.05, 0.08)
+#: The iris maps' shares among light (blue, green, grey) eyes, and among brown ones (``brownlight`` is hazel).
+_IRIS_P = (0.08, 0.06, 0.0, 0.0, 0.05, 0.08, 0.06, 0.05, 0.08)
+_BROWN_IRIS_P = (0.0, 0.0, 0.7, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0)
+#: The share of light eyes by Monk skin tone 1-10: common with the lightest skin, rare from tone 5 on.
+_LIGHT_EYES = (0.6, 0.5, 0.35, 0.2, 0.08, 0.03, 0.01, 0.01, 0.01, 0.01)
+#: The linear colour of a brown iris, medium brown (tone 1) to dark brown (tone 10): the ``brown`` map's own
+#: iris is a saturated red-brown (linear mean 0.058, 0.006, 0.002) that renders red.
+_BROWN_IRIS = ((0.060, 0.027, 0.011), (0.022, 0.011, 0.005))
 #: Natural hair colours, linear RGB (a dyed look is left out).
 _HAIR_COLOURS: dict[str, tuple[float, float, float]] = {
     "black": (0.012, 0.010, 0.009), "dark_brown": (0.035, 0.022, 0.014), "brown": (0.080, 0.048, 0.026),
@@ -281,6 +292,50 @@ def retint_skin(
     out = np.clip(tex * scale.astype(np.float32), 0.0, max_albedo).astype(np.float32)
     mean = out[mask].astype(np.float64).mean(0)
     return out, (float(mean[0]), float(mean[1]), float(mean[2]))
+
+
+def iris_probabilities(tone: int) -> np.ndarray:
+    """The probability of each iris map (:data:`_IRIS`) for a subject of Monk skin tone ``tone`` (1-10).
+
+    Examples:
+        >>> p = iris_probabilities(8)
+        >>> round(float(p.sum()), 6), bool(p[_IRIS.index("brown")] > 0.6)
+        (1.0, True)
+    """
+    light = _LIGHT_EYES[int(tone) - 1]
+    p = light * np.array(_IRIS_P) / sum(_IRIS_P) + (1.0 - light) * np.array(_BROWN_IRIS_P) / sum(_BROWN_IRIS_P)
+    return p / p.sum()
+
+
+def retint_iris(texture: np.ndarray, colour: tuple[float, float, float]) -> np.ndarray:
+    """Re-colour the irises of an eye map: ``colour`` times the iris texels' relative luminance (clipped 0.2-3).
+
+    The iris texels are the saturated ones (chroma over 0.35 of the value, in display-encoded values above
+    0.15): neither the pale sclera nor the black pupil.
+
+    Args:
+        texture: ``(H, W, 3)`` linear RGB.
+        colour: the irises' wanted mean colour, linear RGB.
+
+    Returns:
+        ``(H, W, 3)`` float32, the rest of the map unchanged.
+
+    Examples:
+        >>> tex = np.array([[[0.6, 0.55, 0.5], [0.06, 0.006, 0.002], [0.0, 0.0, 0.0]]], np.float32)
+        >>> [round(float(x), 3) for x in retint_iris(tex, (0.03, 0.015, 0.006))[0, :, 0]]
+        [0.6, 0.03, 0.0]
+    """
+    tex = np.asarray(texture, np.float32)
+    enc = np.clip(tex, 0.0, 1.0) ** (1 / 2.2)
+    value = enc.max(-1)
+    iris = (value > 0.15) & ((value - enc.min(-1)) > 0.35 * value)
+    if not iris.any():
+        return tex.copy()
+    lum = tex @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    detail = np.clip(lum[iris] / max(float(lum[iris].mean()), 1e-5), 0.2, 3.0)
+    out = tex.copy()
+    out[iris] = detail[:, None] * np.asarray(colour, np.float32)
+    return out
 
 
 def retint_hair(texture: np.ndarray, opaque: np.ndarray, colour: tuple[float, float, float]) -> np.ndarray:
@@ -576,7 +631,7 @@ class MakeHumanSource:
             "skin_f0": round(float(rng.uniform(0.025, 0.035)), 5),
             "tzone_oil": round(float(rng.uniform(0.7, 0.9)), 4),
             "skin_texture_pick": round(float(rng.random()), 5),
-            "iris": str(rng.choice(_IRIS, p=np.array(_IRIS_P) / sum(_IRIS_P))),
+            "iris": str(rng.choice(_IRIS, p=iris_probabilities(tone))),
             "eyebrows": f"eyebrow{int(rng.integers(1, 13)):03d}",
             "eyelashes": f"eyelashes{int(rng.integers(1, 5)):02d}",
             "hair": hair,
@@ -686,6 +741,9 @@ class MakeHumanSource:
         # The eye file holds, per eye, the eyeball and its outer (cornea) shell; the shell's faces map to the
         # texture's transparent corner.
         tex_rgb, tex_a = a.texture(eyes_px.folder / "../materials" / f"{p['iris']}_eye.png")
+        if p["iris"] == "brown":
+            t = (p["skin_tone"] - 1) / 9
+            tex_rgb = retint_iris(tex_rgb, tuple((1 - t) * m + t * d for m, d in zip(*_BROWN_IRIS)))
         shell_v = self._eye_shell(eyes_px, tex_a)
         shell = shell_v[eb][ef].all(1)
         ev, euv = eye_all[eb], mesh.uvs[et]
@@ -706,8 +764,9 @@ class MakeHumanSource:
         used, rm = np.unique(bf, return_inverse=True)
         bv, bfc, buv = ev[used], rm.reshape(-1, 3), euv[used]
         iris_mean = tuple(float(x) for x in tex_rgb.reshape(-1, 3).mean(0))
+        # Diffuse: the eye's only gloss is the tear film's and cornea's, the closed shell over the whole eyeball
         parts.append(MeshPart("eyes", bv.astype(np.float32), bfc.astype(np.int32),
-                              Material("glossy", iris_mean, 0.08, 0.5, albedo_texture=tex_rgb),
+                              Material("diffuse", iris_mean, albedo_texture=tex_rgb),
                               vertex_normals(bv, bfc).astype(np.float32), buv.astype(np.float32)))  # fmt: skip
         cv_all, cf_all = np.concatenate(cornea_v), np.concatenate(cornea_f)
         parts.append(MeshPart("cornea", cv_all.astype(np.float32), cf_all.astype(np.int32),
