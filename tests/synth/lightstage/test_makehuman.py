@@ -135,11 +135,11 @@ def test_iris_colours_follow_skin_tone_and_brown_irises_are_brown(mh):
     assert 0.03 < changed.mean() < 0.15  # the two irises, not the sclera
     np.testing.assert_allclose(out[changed].mean(0), want, rtol=0.15)
     enc = tex ** (1 / 2.2)
-    sclera = (enc.min(-1) > 0.6)
+    sclera = enc.min(-1) > 0.6
     pupil = enc.max(-1) < 0.1
     assert sclera.any() and pupil.any() and not changed[sclera].any() and not changed[pupil].any()
     # Sampled subjects: mostly brown eyes on dark skin.
-    dark = [mh.params(s) for s in range(400) if mh.params(s)["skin_tone"] >= 6]
+    dark = [q for q in map(mh.params, range(400)) if q["skin_tone"] >= 6]
     assert sum(q["iris"] in ("brown", "brownlight") for q in dark) >= 0.9 * len(dark)
 
 
