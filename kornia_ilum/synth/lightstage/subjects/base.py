@@ -38,6 +38,8 @@ from kornia_ilum.core.seeding import hashed_seed
 
 __all__ = [
     "FABRIC_NEUTRALS",
+    "FRAME_ALBEDO",
+    "GLASSES_FRAMES",
     "LANDMARK_NAMES",
     "MONK_SKIN_TONES_SRGB",
     "SKIN_ALBEDO",
@@ -84,6 +86,14 @@ FABRIC_NEUTRALS = {
     "olive": (0.10, 0.10, 0.035),
     "denim": (0.07, 0.11, 0.20),
 }
+
+
+#: Glasses frames, by kind: the share of each (mannequins and MakeHuman heads alike).
+GLASSES_FRAMES: dict[str, float] = {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5}
+#: The linear albedo of each frame kind but ``"colour"`` (a random :func:`fabric_colour`).
+FRAME_ALBEDO: dict[str, tuple[float, float, float]] = {
+    "black": (0.015, 0.015, 0.015), "tortoise": (0.12, 0.05, 0.015), "metal": (0.45, 0.40, 0.30),
+}  # fmt: skip
 
 
 def merge_meshes(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

@@ -329,13 +329,18 @@ def retint_iris(texture: np.ndarray, colour: tuple[float, float, float]) -> np.n
     enc = np.clip(tex, 0.0, 1.0) ** (1 / 2.2)
     value = enc.max(-1)
     iris = (value > 0.15) & ((value - enc.min(-1)) > 0.35 * value)
-    if not iris.any():
-        return tex.copy()
-    lum = tex @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    detail = np.clip(lum[iris] / max(float(lum[iris].mean()), 1e-5), 0.2, 3.0)
     out = tex.copy()
-    out[iris] = detail[:, None] * np.asarray(colour, np.float32)
+    if iris.any():
+        out[iris] = _luminance_detail(tex, iris)[iris, None] * np.asarray(colour, np.float32)
     return out
+
+
+def _luminance_detail(texture: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """A map's detail: each texel's Rec. 709 luminance over the mean luminance of the ``where`` texels (of all
+    texels when none), clipped to 0.2-3; a new colour times it re-colours the map."""
+    lum = np.asarray(texture, np.float32) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    ref = float(lum[where].mean()) if where.any() else float(lum.mean())
+    return np.clip(lum / max(ref, 1e-5), 0.2, 3.0)
 
 
 def retint_hair(texture: np.ndarray, opaque: np.ndarray, colour: tuple[float, float, float]) -> np.ndarray:
@@ -359,9 +364,7 @@ def retint_hair(texture: np.ndarray, opaque: np.ndarray, colour: tuple[float, fl
     """
     import cv2
 
-    lum = np.asarray(texture, np.float32) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    ref = float(lum[opaque].mean()) if opaque.any() else float(lum.mean())
-    detail = np.clip(lum / max(ref, 1e-5), 0.2, 3.0)
+    detail = _luminance_detail(texture, opaque)
     if opaque.any() and not opaque.all():
         # nearest opaque texel of every texel: labels number the zero (opaque) pixels in raster order
         _, label = cv2.distanceTransformWithLabels((~opaque).astype(np.uint8), cv2.DIST_L2, 5,

@@ -26,7 +26,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from kornia_ilum.synth.lightstage.subjects.base import Material, MeshPart, fabric_colour, merge_meshes, pick
+from kornia_ilum.synth.lightstage.subjects.base import (
+    FRAME_ALBEDO,
+    GLASSES_FRAMES,
+    Material,
+    MeshPart,
+    fabric_colour,
+    merge_meshes,
+    pick,
+)
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import opaque_faces, raster_uv_mask, vertex_normals
 
 __all__ = [
@@ -43,11 +51,8 @@ __all__ = [
 
 #: The radius (metres) of the arch that frames wrap on, as the mannequins' glasses.
 ARCH_RADIUS = 0.16
-_FRAME_ALBEDO = {"black": (0.015, 0.015, 0.015), "tortoise": (0.12, 0.05, 0.015), "metal": (0.45, 0.40, 0.30)}
 _BEARD_STYLES = {"stubble": 1.0, "moustache": 0.5, "goatee": 0.6, "beard": 1.0}
 _SHELLS = 3
-
-
 
 
 def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> dict:
@@ -65,11 +70,11 @@ def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> 
         with its colour and the height of its front edge over the brows.
     """
     u = lambda lo, hi: round(float(rng.uniform(lo, hi)), 5)  # noqa: E731
-    frame = pick(rng, {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5})
+    frame = pick(rng, GLASSES_FRAMES)
     p = {
         "glasses": bool(rng.random() < 0.2 + (0.15 if years > 50 else 0.0)),
         "glasses_frame": frame,
-        "glasses_albedo": list(_FRAME_ALBEDO.get(frame) or fabric_colour(rng, 1.0)[1]),
+        "glasses_albedo": list(FRAME_ALBEDO.get(frame) or fabric_colour(rng, 1.0)[1]),
         "glasses_rim_mm": u(0.8, 1.1) if frame == "metal" else u(1.2, 2.0),
         "glasses_style": pick(rng, {"full": 3.0, "half": 1.0, "rimless": 1.0}),
         "lens_half_width_mm": u(21.0, 27.0),

@@ -101,6 +101,8 @@ from kornia_ilum.synth.lightstage.sdf import (
     sphere,
 )
 from kornia_ilum.synth.lightstage.subjects.base import (
+    FRAME_ALBEDO,
+    GLASSES_FRAMES,
     SKIN_ALBEDO,
     Material,
     MeshPart,
@@ -302,14 +304,9 @@ def subject_params(seed: int) -> dict:
     if p["hat"] != "none" and p["hair_style"] in ("medium", "afro", "bun"):
         p["hair_style"] = "short"  # what shows of such hair under a hat
     p["glasses"] = bool(rng.random() < 0.2)
-    frame = pick(rng, {"black": 3, "tortoise": 2, "metal": 1.5, "colour": 1.5})
-    frame_albedo = {
-        "black": (0.015, 0.015, 0.015),
-        "tortoise": (0.12, 0.05, 0.015),
-        "metal": (0.45, 0.40, 0.30),
-    }
+    frame = pick(rng, GLASSES_FRAMES)
     p["glasses_frame"] = frame
-    p["glasses_albedo"] = frame_albedo.get(frame) or fabric_colour(rng, 1.0)[1]
+    p["glasses_albedo"] = FRAME_ALBEDO.get(frame) or fabric_colour(rng, 1.0)[1]
     p["earrings"] = bool(rng.random() < 0.2 * (1.0 - masc) + 0.03)
     p["earring_style"] = pick(rng, {"stud": 1.0, "hoop": 1.0})
     p["earring_albedo"] = [(0.75, 0.55, 0.22), (0.62, 0.62, 0.62), (0.55, 0.05, 0.08)][int(rng.integers(3))]
