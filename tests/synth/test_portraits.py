@@ -15,7 +15,7 @@ from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import render_spheres, sphere_pyramid
-from kornia_ilum.synth.background import camera_rays, sample_latlong
+from kornia_ilum.synth.background import LUMINANCE, camera_rays, sample_latlong
 from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.environments import Environment, EnvironmentSampler
 from kornia_ilum.synth.lightstage import (
@@ -347,6 +347,34 @@ class TestImageOps:
         gain = auto_exposure(torch.full((2, 3, 8, 8), 0.5), torch.tensor([0.18, 0.36]))
         torch.testing.assert_close(gain, torch.tensor([0.36, 0.72], dtype=torch.float64))
         assert auto_exposure(torch.zeros(1, 3, 4, 4)).item() == 1.0
+
+    def test_auto_exposure_meters_what_the_sensor_records(self) -> None:
+        # The gain solves mean_w(min(g Y, white)) = key exactly: check it against a bisection on random HDR images
+        torch.manual_seed(0)
+        images = torch.rand(4, 3, 16, 16) ** 4 * torch.tensor([0.01, 1.0, 100.0, 1e4]).view(4, 1, 1, 1)
+        images[2, :, :8] = 0.0  # half black
+        keys = torch.tensor([0.18, 0.1, 0.3, 0.18])
+        gain = auto_exposure(images, keys)
+        yy = (torch.arange(16, dtype=torch.float64) + 0.5) / 16 - 0.5
+        weight = torch.exp(-(yy[:, None] ** 2 + yy[None] ** 2) / (2 * 0.25**2))
+        weight = weight / weight.sum()
+        lum = torch.einsum("bchw,c->bhw", images.double(), torch.tensor(LUMINANCE, dtype=torch.float64))
+        metered = (weight * (lum * gain[:, None, None]).clamp(max=1.0)).sum((1, 2))
+        torch.testing.assert_close(metered, keys.double(), rtol=1e-9, atol=0)
+        # Nothing clips: the plain weighted mean; white=None never clips
+        dim = torch.full((1, 3, 8, 8), 0.5)
+        assert auto_exposure(dim).item() == pytest.approx(auto_exposure(dim, white=None).item(), rel=1e-12)
+        # A sun of one pixel in the metered area: a plain mean makes the face a silhouette, the sensor does not
+        sun = dim.clone()
+        sun[..., 4, 4] = 1e5
+        assert auto_exposure(sun, white=None).item() < 1e-3 * auto_exposure(dim).item()
+        assert auto_exposure(sun).item() > 0.8 * auto_exposure(dim).item()
+        # Unreachable key (almost all black): the plain mean's gain; bad white
+        speck = torch.zeros(1, 3, 8, 8)
+        speck[..., 0, 0] = 1.0
+        assert auto_exposure(speck).item() == pytest.approx(auto_exposure(speck, white=None).item())
+        with pytest.raises(ValueCheckError, match="white"):
+            auto_exposure(dim, white=0.0)
 
     def test_frame_background(self) -> None:
         latlong = torch.zeros(1, 3, 32, 64)

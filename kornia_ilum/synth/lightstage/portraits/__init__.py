@@ -20,8 +20,9 @@ A training portrait is made the way LeGendre et al. 2020 made theirs from light-
    128-row map and its 32-pixel mirror ball), blurred by a Gaussian of 0 to 8 frame pixels (none for 30 % of
    the samples; :func:`frame_backgrounds`, on a coarser level of the map's pyramid for strong blurs) and cropped
    with the same sampling grid as the subject, ``I + (1 - alpha) B``.
-4. **Expose and photograph**: a centre-weighted auto-exposure (a camera's metering, :func:`auto_exposure`) with
-   a random key, then the phone-camera effects of :mod:`kornia_ilum.synth.camera_effects` on the crop (lens
+4. **Expose and photograph**: a centre-weighted auto-exposure (a camera's metering of what its sensor records,
+   which saturates at white, so a sun in the crop counts as white and does not make the face a silhouette;
+   :func:`auto_exposure`) with a random key, then the phone-camera effects of :mod:`kornia_ilum.synth.camera_effects` on the crop (lens
    blur, vignette, Poisson-Gaussian sensor noise in linear, a random tone curve on top of sRGB, 8-bit codes, a
    JPEG round trip; each with its own probability and strength), then the HDR is discarded. The effects act on
    the 256-pixel crop, not on the frame: the crop is the image the estimator sees, so their strengths are in

@@ -19,7 +19,7 @@ import torch
 import torch.nn.functional as F
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
-from kornia_ilum.core.errors import ShapeError, TypeCheckError
+from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
 from kornia_ilum.geometry import mirror_ball_to_lights
 from kornia_ilum.render import SPHERE_SIZES, relight, sphere_pyramid
@@ -346,15 +346,24 @@ def _frame_grid(fov_deg: float, size: int, rows: int, mirrored: bool) -> torch.T
     return latlong_grid(rays, rows)[None].float()
 
 
-def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18) -> torch.Tensor:
-    r"""A camera's centre-weighted metering: the gain that maps the weighted mean luminance to ``key``.
+def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18, *, white: float | None = 1.0) -> torch.Tensor:
+    r"""A camera's centre-weighted metering of what its sensor records: the gain ``g`` that maps the weighted
+    mean of ``min(g Y, white)`` to ``key``.
 
     The weights are a Gaussian of standard deviation 0.25 of the image side around its centre (where the
-    face is); the luminance is Rec. 709 ``Y``. A black image gets a gain of 1.
+    face is); the luminance is Rec. 709 ``Y``. A sensor saturates, so a pixel at or above ``white`` after the
+    gain counts as ``white``, however bright the scene is there: a sun or a window in the metered area
+    darkens the exposure no more than a white wall would (a plain mean of the HDR values lets a sun of a few
+    pixels expose a backlit face as a black silhouette). The gain is solved exactly: ``sum w min(g Y, white)``
+    is continuous and increasing in ``g``, linear between the pixels' clipping points. Where ``key`` cannot be
+    reached (more than ``1 - key / white`` of the weight on black pixels) and with ``white=None``, the gain is
+    ``key`` over the plain weighted mean. A black image gets a gain of 1.
 
     Args:
         linear: ``(B, 3, H, W)`` linear images.
         key: the target mean, a float or ``(B,)`` (0.18: middle grey).
+        white: the sensor's saturation after the gain (1: the 8-bit encoding's white), or ``None`` for no
+            clipping.
 
     Returns:
         ``(B,)`` gains (float64).
@@ -362,16 +371,35 @@ def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18) -> tor
     Examples:
         >>> auto_exposure(torch.full((1, 3, 8, 8), 0.5)).tolist()
         [0.36]
+        >>> sun = torch.full((1, 3, 8, 8), 0.5)
+        >>> sun[..., 3, 3] = 1e4  # one pixel of sun near the centre
+        >>> f"{auto_exposure(sun).item():.2f} clipped, {auto_exposure(sun, white=None).item():.1e} not"
+        '0.29 clipped, 4.4e-04 not'
     """
     check_tensor(linear, "linear", ["B", "3", "H", "W"], finite=True, nonnegative=True)
+    if white is not None and not (math.isfinite(white) and white > 0):
+        raise ValueCheckError(f"white must be a positive finite float or None, got {white!r}")
     h, w = linear.shape[-2:]
     yy = (torch.arange(h, dtype=torch.float64) + 0.5) / h - 0.5
     xx = (torch.arange(w, dtype=torch.float64) + 0.5) / w - 0.5
-    weight = torch.exp(-(yy[:, None] ** 2 + xx[None] ** 2) / (2 * 0.25**2))
-    lum = torch.einsum("bchw,c->bhw", linear.double(), torch.tensor(LUMINANCE, dtype=torch.float64))
-    mean = (lum * weight).sum((1, 2)) / weight.sum()
+    weight = torch.exp(-(yy[:, None] ** 2 + xx[None] ** 2) / (2 * 0.25**2)).flatten()
+    weight = weight / weight.sum()
+    lum = torch.einsum("bchw,c->bhw", linear.double(), torch.tensor(LUMINANCE, dtype=torch.float64)).flatten(1)
+    mean = lum @ weight
     key = torch.as_tensor(key, dtype=torch.float64).expand_as(mean)
-    return torch.where(mean > 0, key / mean.clamp(min=1e-30), torch.ones_like(mean))
+    gain = key / mean.clamp(min=1e-30)
+    if white is not None:
+        # k brightest pixels clipped: white * W_k + g * S_k = key, valid if the k-th clips and the (k+1)-th not
+        y, order = lum.sort(1, descending=True)
+        wk = F.pad(weight[order].cumsum(1), (1, 0))  # weight of the k brightest, k = 0..N
+        sk = (mean[:, None] - F.pad((weight[order] * y).cumsum(1), (1, 0))).clamp(min=0.0)
+        g = (key[:, None] - white * wk) / sk.clamp(min=1e-300)
+        above = F.pad(y, (1, 0), value=math.inf)  # the k-th brightest (k = 0: none)
+        below = F.pad(y, (0, 1), value=0.0)  # the (k+1)-th brightest
+        ok = (key[:, None] > white * wk) & (sk > 0) & (g * above >= white) & (g * below <= white)
+        first = ok.to(torch.int8).argmax(1)
+        gain = torch.where(ok.any(1), g.gather(1, first[:, None])[:, 0], gain)
+    return torch.where(mean > 0, gain, torch.ones_like(mean))
 
 
 def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 32)) -> dict[str, torch.Tensor]:
