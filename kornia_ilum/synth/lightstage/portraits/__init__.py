@@ -22,15 +22,15 @@ A training portrait is made the way LeGendre et al. 2020 made theirs from light-
    with the same sampling grid as the subject, ``I + (1 - alpha) B``.
 4. **Expose and photograph**: a centre-weighted auto-exposure (a camera's metering of what its sensor records,
    which saturates at white, so a sun in the crop counts as white and does not make the face a silhouette;
-   :func:`auto_exposure`) with a random key, then the phone-camera effects of :mod:`kornia_ilum.synth.camera_effects` on the crop (lens
-   blur, vignette, Poisson-Gaussian sensor noise in linear, a random tone curve on top of sRGB, 8-bit codes, a
-   JPEG round trip; each with its own probability and strength), then the HDR is discarded. The effects act on
-   the 256-pixel crop, not on the frame: the crop is the image the estimator sees, so their strengths are in
-   its pixels whatever the crop's scale (a phone's noise and JPEG blocks are those of the final image, which at
-   inference is resized to 256 from a face that fills a varying part of the photo), and a crop costs no more
-   than a frame. The ground-truth lighting is multiplied by the same exposure, so it is in the units of the
-   image (SPEC.md, "Units of lighting"): a white Lambertian surface rendered with it gives the recorded linear
-   pixel values.
+   :func:`auto_exposure`) with a random key, then the phone-camera effects of
+   :mod:`kornia_ilum.synth.camera_effects` on the crop (lens blur, vignette, Poisson-Gaussian sensor noise in
+   linear, a random tone curve on top of sRGB, 8-bit codes, a JPEG round trip; each with its own probability
+   and strength), then the HDR is discarded. The effects act on the 256-pixel crop, not on the frame: the crop
+   is the image the estimator sees, so their strengths are in its pixels whatever the crop's scale (a phone's
+   noise and JPEG blocks are those of the final image, which at inference is resized to 256 from a face that
+   fills a varying part of the photo), and a crop costs no more than a frame. The ground-truth lighting is
+   multiplied by the same exposure, so it is in the units of the image (SPEC.md, "Units of lighting"): a white
+   Lambertian surface rendered with it gives the recorded linear pixel values.
 
 Ground truth per sample: the 32 x 32 mirror ball in the camera frame, the reference spheres at 4, 8, 16 and
 32 pixels as the loss uses them (``softclip(I)^(1/2.2)``, :func:`sphere_targets`), the subject's seed and
