@@ -346,7 +346,9 @@ def _frame_grid(fov_deg: float, size: int, rows: int, mirrored: bool) -> torch.T
     return latlong_grid(rays, rows)[None].float()
 
 
-def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18, *, white: float | None = 1.0) -> torch.Tensor:
+def auto_exposure(
+    linear: torch.Tensor, key: torch.Tensor | float = 0.18, *, white: float | None = 1.0
+) -> torch.Tensor:
     r"""A camera's centre-weighted metering of what its sensor records: the gain ``g`` that maps the weighted
     mean of ``min(g Y, white)`` to ``key``.
 
@@ -354,8 +356,9 @@ def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18, *, whi
     face is); the luminance is Rec. 709 ``Y``. A sensor saturates, so a pixel at or above ``white`` after the
     gain counts as ``white``, however bright the scene is there: a sun or a window in the metered area
     darkens the exposure no more than a white wall would (a plain mean of the HDR values lets a sun of a few
-    pixels expose a backlit face as a black silhouette). The gain is solved exactly: ``sum w min(g Y, white)``
-    is continuous and increasing in ``g``, linear between the pixels' clipping points. Where ``key`` cannot be
+    pixels expose a backlit face as a black silhouette). ``sum w min(g Y, white)`` is concave, increasing
+    and linear between the pixels' clipping points, so Newton's steps from the plain mean's gain reach its root
+    from below, exactly once the set of clipped pixels stops growing (a few steps). Where ``key`` cannot be
     reached (more than ``1 - key / white`` of the weight on black pixels) and with ``white=None``, the gain is
     ``key`` over the plain weighted mean. A black image gets a gain of 1.
 
@@ -389,16 +392,15 @@ def auto_exposure(linear: torch.Tensor, key: torch.Tensor | float = 0.18, *, whi
     key = torch.as_tensor(key, dtype=torch.float64).expand_as(mean)
     gain = key / mean.clamp(min=1e-30)
     if white is not None:
-        # k brightest pixels clipped: white * W_k + g * S_k = key, valid if the k-th clips and the (k+1)-th not
-        y, order = lum.sort(1, descending=True)
-        wk = F.pad(weight[order].cumsum(1), (1, 0))  # weight of the k brightest, k = 0..N
-        sk = (mean[:, None] - F.pad((weight[order] * y).cumsum(1), (1, 0))).clamp(min=0.0)
-        g = (key[:, None] - white * wk) / sk.clamp(min=1e-300)
-        above = F.pad(y, (1, 0), value=math.inf)  # the k-th brightest (k = 0: none)
-        below = F.pad(y, (0, 1), value=0.0)  # the (k+1)-th brightest
-        ok = (key[:, None] > white * wk) & (sk > 0) & (g * above >= white) & (g * below <= white)
-        first = ok.to(torch.int8).argmax(1)
-        gain = torch.where(ok.any(1), g.gather(1, first[:, None])[:, 0], gain)
+        reachable = white * ((lum > 0).double() @ weight) > key
+        for _ in range(64):  # Newton (docstring); rarely more than 5 steps
+            unclipped = lum * gain[:, None] < white
+            slope = (lum * unclipped) @ weight
+            value = gain * slope + white * ((~unclipped).double() @ weight)
+            step = torch.where(reachable & (slope > 0), (key - value) / slope.clamp(min=1e-300), 0.0)
+            if not bool((step > 1e-12 * gain).any()):
+                break
+            gain = gain + step.clamp(min=0.0)
     return torch.where(mean > 0, gain, torch.ones_like(mean))
 
 
