@@ -349,7 +349,7 @@ class TestImageOps:
         assert auto_exposure(torch.zeros(1, 3, 4, 4)).item() == 1.0
 
     def test_auto_exposure_meters_what_the_sensor_records(self) -> None:
-        # The gain solves mean_w(min(g Y, white)) = key exactly: check it against a bisection on random HDR images
+        # The gain solves mean_w(min(g Y, white)) = key exactly: check it against the definition on random HDR images
         torch.manual_seed(0)
         images = torch.rand(4, 3, 16, 16) ** 4 * torch.tensor([0.01, 1.0, 100.0, 1e4]).view(4, 1, 1, 1)
         images[2, :, :8] = 0.0  # half black

@@ -393,7 +393,7 @@ def auto_exposure(
     gain = key / mean.clamp(min=1e-30)
     if white is not None:
         reachable = white * ((lum > 0).double() @ weight) > key
-        for _ in range(64):  # Newton (docstring); rarely more than 5 steps
+        for _ in range(64):  # Newton (docstring): stops once the set of clipped pixels stops growing
             unclipped = lum * gain[:, None] < white
             slope = (lum * unclipped) @ weight
             value = gain * slope + white * ((~unclipped).double() @ weight)
