@@ -1,0 +1,53 @@
+"""Fingerprint of training: the SHA-256 of the weights after 3 steps on the test suite's tiny cache.
+
+Run: ``python benchmarks/train_fingerprint.py [--estimators ours sh sipr] [--steps 3]``
+
+Builds the cache of the training tests (two train mannequins, one 48 px view each; the ``tiny_cache``
+fixture of ``tests/conftest.py``) in a temporary folder, trains each estimator for ``--steps`` steps with
+the training tests' small data settings on one thread, and prints each weight file's SHA-256. A refactor
+that must not change training is checked by running this before and after it on the same machine: the
+hashes must be identical. (They differ between CPUs: float summation order depends on the SIMD width.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+#: The training tests' small data settings (``tests/train/test_train.py``'s ``SMALL``).
+SMALL = ("fields_per_chunk=1", "lightings_per_field=4", "shuffle=1", "env_pool=2", "env_refresh=1")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--estimators", nargs="+", default=["ours", "sh", "sipr"])
+    parser.add_argument("--steps", type=int, default=3)
+    args = parser.parse_args(argv)
+
+    from kornia_ilum.synth.lightstage import build_cache
+
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    print(f"cpu: {platform.processor() or platform.machine()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = Path(tmp) / "cache"
+        build_cache("mannequin", [0, 2], cache, views_per_subject=1, size=48, spp=4, workers=1, progress=False)
+        for name in args.estimators:
+            out = Path(tmp) / name
+            subprocess.run(
+                [sys.executable, "-m", "kornia_ilum", "train", "--estimator", name, "--cache", str(cache),
+                 "--out", str(out), "--steps", str(args.steps), "--batch", "2", "--threads", "1",
+                 "--workers", "1", "--checkpoint-every", "3", "--log-every", "1", "--data", *SMALL],
+                check=True, env=env, capture_output=True, text=True,
+            )
+            weights = out / f"{name}.safetensors"
+            print(f"{name:5s} {args.steps} steps  sha256 {hashlib.sha256(weights.read_bytes()).hexdigest()}")
+
+
+if __name__ == "__main__":
+    main()

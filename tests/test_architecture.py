@@ -1,0 +1,184 @@
+"""The architecture's rules, checked mechanically: the layer contract catches what it is meant to catch, no
+module imports another module's private names, every import inside a function says why it is there, and
+the conventions page is the one reference, word for word the shared conventions.
+
+The contract itself (``[tool.importlinter]`` in ``pyproject.toml``) is run by ``lint-imports`` in the README's
+test command; the tests here show that it fails on an upward import and on a cycle.
+"""
+
+from __future__ import annotations
+
+import ast
+import difflib
+import re
+import tomllib
+from pathlib import Path
+
+import grimp
+import pytest
+from importlinter.contracts.acyclic_siblings import AcyclicSiblingsContract
+from importlinter.contracts.forbidden import ForbiddenContract
+from importlinter.contracts.layers import LayersContract
+from importlinter.configuration import configure as configure_import_linter
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = {
+    "kornia_ilum": ROOT / "kornia_ilum",
+    "kornia_ilum_sh": ROOT / "plugins" / "sh" / "kornia_ilum_sh",
+    "kornia_ilum_sipr": ROOT / "plugins" / "sipr" / "kornia_ilum_sipr",
+    "kornia_ilum_uniform": ROOT / "plugins" / "uniform" / "kornia_ilum_uniform",
+}
+_CONTRACT_TYPES = {"layers": LayersContract, "acyclic_siblings": AcyclicSiblingsContract,
+                   "forbidden": ForbiddenContract}
+
+
+def _modules() -> dict[str, Path]:
+    """Every module of the library and its plugins by dotted name."""
+    found = {}
+    for package, folder in PACKAGES.items():
+        for path in folder.rglob("*.py"):
+            parts = [package, *path.relative_to(folder).with_suffix("").parts]
+            found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return found
+
+
+def _absolute(module: str, path: Path, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".")[: len(module.split(".")) - node.level + (path.name == "__init__.py")]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+# --------------------------------------------------------------------------------------------------- contract
+@pytest.fixture(scope="module")
+def contracts() -> list:
+    configure_import_linter()  # import-linter's own settings (its graph builder and timer), as lint-imports does
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    session = {"root_packages": config["root_packages"]}
+    return [
+        _CONTRACT_TYPES[c["type"]](name=c["name"], session_options=session,
+                                   contract_options={k: v for k, v in c.items() if k not in ("name", "type")})
+        for c in config["contracts"]
+    ]
+
+
+def _graph() -> grimp.ImportGraph:
+    return grimp.build_graph(*PACKAGES, cache_dir=None)
+
+
+def _broken(contracts: list, graph: grimp.ImportGraph) -> list[str]:
+    return [c.name for c in contracts if not c.check(graph, verbose=False).kept]
+
+
+def test_the_contract_holds(contracts) -> None:
+    assert _broken(contracts, _graph()) == []
+
+
+@pytest.mark.parametrize("importer, imported", [
+    ("kornia_ilum.core.check", "kornia_ilum.cli"),           # the bottom layer reaching the top
+    ("kornia_ilum.render.spheres", "kornia_ilum.metrics"),   # one layer up
+    ("kornia_ilum.geometry.resample", "kornia_ilum.detection.crop"),  # between independent siblings
+    ("kornia_ilum.estimators.base", "kornia_ilum.synth"),    # models and data stay apart
+])
+def test_an_upward_import_breaks_the_layers(contracts, importer, imported) -> None:
+    graph = _graph()
+    graph.add_import(importer=importer, imported=imported, line_number=1, line_contents=f"import {imported}")
+    assert "kornia_ilum layers" in _broken(contracts, graph)
+
+
+def test_a_cycle_breaks_the_contract(contracts) -> None:
+    graph = _graph()  # two modules of one package that import each other, in either layer order
+    graph.add_import(importer="kornia_ilum.train.recipes", imported="kornia_ilum.train.loop", line_number=1,
+                     line_contents="from kornia_ilum.train.loop import train")
+    broken = _broken(contracts, graph)
+    assert any(name.startswith("no import cycles") for name in broken), broken
+
+
+def test_inference_never_imports_training(contracts) -> None:
+    graph = _graph()
+    graph.add_import(importer="kornia_ilum_sh.estimator", imported="kornia_ilum_sh.recipe", line_number=1,
+                     line_contents="from kornia_ilum_sh.recipe import SHRecipe")
+    assert any(name.startswith("inference never imports training") for name in _broken(contracts, graph))
+
+
+# ------------------------------------------------------------------------------------------------ source rules
+def test_no_module_imports_another_modules_private_names() -> None:
+    """A name that another module needs is public in its home (``__dunder__`` names are not private)."""
+    modules, reach_ins = _modules(), []
+    for module, path in modules.items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            source = _absolute(module, path, node)
+            if source.split(".")[0] not in PACKAGES or source == module:
+                continue
+            for alias in node.names:
+                private = alias.name.startswith("_") and not alias.name.endswith("__")
+                if private and f"{source}.{alias.name}" not in modules:
+                    reach_ins.append(f"{path.relative_to(ROOT)}:{node.lineno}: {source}.{alias.name}")
+    assert reach_ins == []
+
+
+def test_every_import_inside_a_function_says_why() -> None:
+    """Imports belong at the top of a module, where they show the dependency graph. One inside a function
+    (to keep ``import kornia_ilum`` cheap: Mitsuba, OpenImageIO, matplotlib...) carries a comment saying why,
+    on its line or the line above."""
+    silent = []
+    for path in _modules().values():
+        lines = path.read_text().splitlines()
+        for function in ast.walk(ast.parse("\n".join(lines))):
+            if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(function):
+                if isinstance(node, (ast.Import, ast.ImportFrom)):
+                    here, above = lines[node.lineno - 1], lines[node.lineno - 2].strip()
+                    if "#" not in here and not above.startswith("#"):
+                        silent.append(f"{path.relative_to(ROOT)}:{node.lineno}: {here.strip()}")
+    assert silent == []
+
+
+def test_the_conventions_page_is_the_one_reference() -> None:
+    old_name = "SPEC" + ".md"  # the shared file's name, which the project's files cite as docs/conventions.rst
+    files = [p for folder in ("kornia_ilum", "plugins", "docs", "tests", "benchmarks")
+             for p in (ROOT / folder).rglob("*") if p.suffix in (".py", ".rst", ".md", ".toml")]
+    files += [ROOT / "README.md"]
+    citing = [str(p.relative_to(ROOT)) for p in files if "_build" not in p.parts and old_name in p.read_text()]
+    assert citing == []
+
+
+# ------------------------------------------------------------------------------------------ conventions page
+def _shared_spec() -> Path | None:
+    from tests.conftest import SHARED_DATA
+
+    candidates = [SHARED_DATA.parent / ("SPEC" + ".md"), ROOT.parent / "shared" / ("SPEC" + ".md")]
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def _words(text: str) -> list[str]:
+    return re.findall(r"[a-z]+|\d+(?:\.\d+)?", text.lower())
+
+
+def _markdown_prose(text: str) -> list[str]:
+    """The words of a Markdown text from its first section on, code spans (the formulas) left out."""
+    return _words(re.sub(r"`[^`]*`", " ", text[text.index("\n## "):]))
+
+
+def _rst_prose(text: str) -> list[str]:
+    """The words of the reStructuredText page from its first section on, formulas, labels, figures and
+    section underlines left out."""
+    text = text[text.index("\nFrames\n"):]
+    text = re.sub(r"^( *)\.\. (math|figure)::.*\n(?:\1 +.*\n|[ \t]*\n)*", "\n", text, flags=re.M)
+    text = re.sub(r"^\.\. _[\w-]+:\n", "", text, flags=re.M)
+    text = re.sub(r"^[-=~^]{3,}$", "", text, flags=re.M)
+    text = re.sub(r":\w+:`[^`]*`|``[^`]*``", " ", text)
+    return _words(text)
+
+
+def test_conventions_page_says_what_the_shared_conventions_say() -> None:
+    spec = _shared_spec()
+    if spec is None:
+        pytest.skip("the shared conventions file is not beside this checkout")
+    page = (ROOT / "docs" / "conventions.rst").read_text()
+    expected, actual = _markdown_prose(spec.read_text()), _rst_prose(page)
+    diff = list(difflib.unified_diff(expected, actual, "shared", "docs/conventions.rst", lineterm="", n=4))
+    assert expected == actual, "\n".join(diff[:60])
