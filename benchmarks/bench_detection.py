@@ -33,6 +33,15 @@ from pathlib import Path
 import torch
 import torch.nn.functional as F
 
+from kornia_ilum.detection import create_detector
+from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache, read_field, read_manifest
+from kornia_ilum.synth.lightstage.preview import compose_portrait
+from kornia_ilum.synth.lightstage.settings import Auto
+from kornia_ilum.synth.lightstage.subjects import subject_split
+from kornia_ilum.synth.lightstage.subjects.makehuman import SWEPT_FRINGE_STYLES
+
 BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 35.01))
 
 
@@ -76,8 +85,6 @@ def format_table(rows: list[dict], names: list[str]) -> str:
 
 def _appearance(params: dict) -> list[str]:
     """The groups a subject falls in for the by-appearance table (MakeHuman subjects' accessories and fringe)."""
-    from kornia_ilum.synth.lightstage.subjects.makehuman import SWEPT_FRINGE_STYLES
-
     groups = []
     if params.get("glasses"):
         groups.append("glasses")
@@ -104,16 +111,11 @@ def format_groups(rows: list[dict], names: list[str]) -> str:
 
 def eval_entries(caches: list[Path]) -> list[dict]:
     """The EVAL-split entries of every cache, each with its ``"root"``, in subject-view order."""
-    from kornia_ilum.synth.lightstage.cache import read_manifest
-
     out = [dict(e, root=c) for c in caches for e in read_manifest(c)["entries"] if e.get("split") == "eval"]
     return sorted(out, key=lambda e: (e["subject_seed"], e["view_index"]))
 
 
 def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
-    from kornia_ilum.synth.lightstage.cache import build_cache
-    from kornia_ilum.synth.lightstage.subjects import subject_split
-
     seeds, s = [], 0
     while len(seeds) < args.render_eval:
         if subject_split(s) == "eval" and s not in have:
@@ -121,8 +123,10 @@ def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
         s += 1
     print(f"rendering eval seeds {seeds} into {args.cache[0]} ({args.views} views, {args.size} px, spp {args.spp}, "
           f"lighting {args.lighting_size})")
-    build_cache(args.source, seeds, args.cache[0], views_per_subject=args.views, size=args.size, spp=args.spp,
-                lighting_size=args.lighting_size, workers=args.workers, summary=True)
+    build_cache(args.source, seeds, args.cache[0],
+                renderer=Auto(spp=args.spp, lighting_size=args.lighting_size),
+                views=SampledViews(args.views, size=args.size), workers=Workers(processes=args.workers),
+                summary=True)
 
 
 def _shared() -> Path:
@@ -162,13 +166,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=2)
     args = p.parse_args(argv)
     torch.set_num_threads(1)
-
-    from kornia_ilum.detection import create_detector
-    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.lightstage.cache import read_field
-    from kornia_ilum.synth.lightstage.preview import compose_portrait
-
     entries = eval_entries(args.cache)
     subjects = {e["subject_seed"] for e in entries}
     if args.render_eval:

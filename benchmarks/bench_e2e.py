@@ -24,6 +24,7 @@ import os
 import sys
 from pathlib import Path
 
+import cv2
 import skimage.data
 import torch
 import torch.nn.functional as F
@@ -53,12 +54,7 @@ def main() -> int:
     parser.add_argument("--yunet", type=Path, default=DEFAULT_YUNET, help="local yunet_final.pth")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    try:
-        import cv2
-
-        cv2.setNumThreads(args.threads)
-    except ImportError:  # pragma: no cover - OpenCV is a dependency
-        pass
+    cv2.setNumThreads(args.threads)
 
     image = test_image()
     detectors = {"opencv": create_detector("opencv")}

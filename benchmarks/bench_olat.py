@@ -5,10 +5,10 @@ Run: ``python benchmarks/bench_olat.py [--source makehuman] [--seed 1] [--view 0
 For one subject-view (``subject_source(--source).sample(--seed)``, view ``--view`` of
 :func:`~kornia_ilum.synth.lightstage.scene.sample_views` at ``--size``):
 
-1. **Timing** of :func:`render_olat` (one-pass, the default settings: :data:`ONEPASS_SPP` camera samples, 4
-   or 16 of them tracing the lights, subsurface on, denoise off) with one Dr.Jit thread and one torch thread:
-   the median of ``--repeats`` (3) renders in this process, with the renderer's breakdown (scene, camera,
-   lights, post) and the subject-building time.
+1. **Timing** of :func:`render_olat` (``OnePass()``, the default settings: :data:`ONEPASS_SPP` camera
+   samples, 4 or 16 of them tracing the lights, subsurface on, denoise off) with one Dr.Jit thread and one
+   torch thread: the median of ``--repeats`` (3) renders in this process, with the renderer's breakdown
+   (scene, camera, lights, post) and the subject-building time.
 2. **Noise table**: relit 8-bit sRGB portraits under a sun-dominated real map (``--sun``, default
    ``pedestrian_overpass_1k.hdr``) and an overcast one (``--overcast``, default ``hdri_more/phalzer_forest_01_1k.hdr``:
    soft light, no sun disc), each lat-long map taken to a 32 px mirror ball with
@@ -55,10 +55,13 @@ from kornia_ilum.color import linear_to_srgb
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import relight
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
-from kornia_ilum.synth.lightstage.olat import ONEPASS_SPP, ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.olat import render_olat
 from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import sample_views
+from kornia_ilum.synth.lightstage.settings import ONEPASS_SPP, OnePass, Reference
+from kornia_ilum.synth.lightstage.subjects import subject_source
 
 HDRI = Path("/work/shared/data/hdri")
 SUN = HDRI / "pedestrian_overpass_1k.hdr"
@@ -68,8 +71,6 @@ MIDDLE_GREY = 0.18
 
 def subject_view(source: str, seed: int, view: int, size: int):
     """The subject and camera of the benchmark, and the seconds the subject took to build."""
-    from kornia_ilum.synth.lightstage.subjects import subject_source
-
     t0 = time.perf_counter()
     src = subject_source(source, "/work/shared/data/makehuman") if source == "makehuman" else subject_source(source)
     subj = src.sample(seed)
@@ -88,7 +89,7 @@ def cached_reference(out: Path, source: str, seed: int, view: int, subj, cam, sp
                                 d["light_index"])
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    rf = render_olat_reference(subj, cam, spp=spp, max_depth=max_depth, threads=1).to_compact()
+    rf = render_olat_reference(subj, cam, Reference(spp=spp, max_depth=max_depth), threads=1).to_compact()
     print(f"  reference rendered in {time.perf_counter() - t0:.0f} s -> {path}", flush=True)
     torch.save({"field": rf.field, "alpha": rf.alpha, "face_box": rf.face_box, "meta": rf.meta,
                 "pixel_index": rf.pixel_index, "light_index": rf.light_index}, path.with_suffix(".tmp"))
@@ -105,8 +106,8 @@ def cached_onepass(out: Path, source: str, seed: int, view: int, subj, cam, spp:
         return ReflectanceField(d["field"], d["alpha"], d["face_box"], cam, seed, d["meta"])
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    rf = render_olat(subj, cam, spp=spp, shade_spp=spp, demodulate=False, subsurface=False, seed=render_seed,
-                     threads=1)
+    rf = render_olat(subj, cam, OnePass(spp=spp, shade_spp=spp, demodulate=False, subsurface=False,
+                                        seed=render_seed), threads=1)
     print(f"  one-pass reference ({spp} spp, seed {render_seed}) rendered in {time.perf_counter() - t0:.0f} s "
           f"-> {path}", flush=True)
     torch.save({"field": rf.field, "alpha": rf.alpha, "face_box": rf.face_box, "meta": rf.meta},
@@ -212,7 +213,7 @@ def main() -> int:
     if not args.skip_timing:
         runs = []
         for _ in range(args.repeats):
-            rf = render_olat(subj, cam, threads=1)
+            rf = render_olat(subj, cam, OnePass(), threads=1)
             runs.append(rf.meta["timings"] | {"render": rf.meta["render_seconds"]})
         med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
         print(f"\none-pass at the defaults (spp {ONEPASS_SPP}, shade_spp {rf.meta['shade_spp']}, edge_spp "
@@ -264,7 +265,8 @@ def main() -> int:
             c, t, e = ([int(x) for x in cfg.split(":")] + [None])[:3]
             times, rf = [], None
             for _ in range(args.repeats):
-                rf = render_olat(subj, cam, spp=c, shade_spp=t, edge_spp=e, subsurface=False, threads=1)
+                settings = OnePass(spp=c, shade_spp=t, edge_spp=e, subsurface=False)
+                rf = render_olat(subj, cam, settings, threads=1)
                 times.append((rf.meta["render_seconds"], rf.meta["timings"]["lights"]))
             sc = scores(rf)
             reg = region_scores({k: relit(rf, v) for k, v in maps.items()}, rf.alpha.flatten())
@@ -279,13 +281,13 @@ def main() -> int:
     for spp in args.spps:
         on = None
         for dn in (False, True):
-            rf = render_olat(subj, cam, spp=spp, subsurface=False, denoise=dn, threads=1)
+            rf = render_olat(subj, cam, OnePass(spp=spp, subsurface=False, denoise=dn), threads=1)
             sc = scores(rf)
             print(f"{spp:>4} {str(dn):>8} {'off':>4} {sc['sun']:>8.2f} {sc['overcast']:>12.2f} "
                   f"{rf.meta['render_seconds']:>9.1f}", flush=True)
             if dn:
                 on = rf
-        rs = render_olat(subj, cam, spp=spp, subsurface=True, denoise=True, threads=1)
+        rs = render_olat(subj, cam, OnePass(spp=spp, subsurface=True, denoise=True), threads=1)
         sc = scores(rs)
         # the subsurface's own change: PSNR of (sss on) against (sss off), both denoised, same spp and seed
         mask = (alpha_ref > 0) | (rs.alpha.flatten() > 0)

@@ -30,12 +30,15 @@ import dataclasses
 import statistics
 import time
 
+import cv2
 import torch
 from bench_ops import median_ms as _median_ms  # the benchmarks' one timer (run from benchmarks/)
 
+from kornia_ilum.color import encode_srgb8
 from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.synth import camera_effects as fx
 from kornia_ilum.synth.camera_effects import CameraEffects
-from kornia_ilum.synth.environments import EnvironmentSampler
+from kornia_ilum.synth.environments import EnvironmentSampler, lighting_rotation
 from kornia_ilum.synth.lightstage import (
     LANDMARK_NAMES,
     Camera,
@@ -43,9 +46,14 @@ from kornia_ilum.synth.lightstage import (
     ReflectanceField,
     read_manifest,
 )
-from kornia_ilum.synth.lightstage.portraits import PortraitConfig, load_fields
-from kornia_ilum.train.data import batch_loader
-from kornia_ilum.train.loop import TRAINING_PORTRAITS
+from kornia_ilum.synth.lightstage.portraits import (
+    PortraitConfig,
+    background_pyramid,
+    frame_background,
+    frame_backgrounds,
+    load_fields,
+)
+from kornia_ilum.train.data import TRAINING_PORTRAITS, batch_loader
 
 
 def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:
@@ -93,10 +101,6 @@ def median_ms(fn, repeats: int) -> float:
 
 def effect_costs(repeats: int) -> None:
     """Each camera effect and the background steps, per 256 x 256 sample (batches of 16, always on)."""
-    from kornia_ilum.color import encode_srgb8
-    from kornia_ilum.synth import camera_effects as fx
-    from kornia_ilum.synth.lightstage.portraits import background_pyramid, frame_background, frame_backgrounds
-
     g = torch.Generator().manual_seed(0)
     x = torch.rand(16, 3, 256, 256, generator=g) * 0.8
     codes = encode_srgb8(x)
@@ -133,8 +137,6 @@ def effect_costs(repeats: int) -> None:
         blur = torch.full((16,), sigma)
         ms = median_ms(lambda blur=blur: frame_backgrounds(pyramids, camera, None, turn, blur), repeats)
         print(f"  {f'frame_backgrounds, 256-row map, sigma {sigma:g}':44s} {ms / 16:6.3f}")
-    from kornia_ilum.synth.environments import lighting_rotation
-
     flip = torch.diag(torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64))
     rotation = (flip @ lighting_rotation(37.0, 21.0)).expand(16, 3, 3)  # an augment's pitch, yaw and flip
     ms = median_ms(lambda: frame_backgrounds(pyramids, camera, None, turn, None, rotation), repeats)
@@ -174,8 +176,6 @@ def main() -> int:
                         "fields in the page cache (a 60-subject cache is 20 GB, about the machine's RAM)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    import cv2
-
     cv2.setNumThreads(args.threads)  # the lens blur, sqrt and JPEG run in OpenCV: one core means its threads too
 
     fields = args.cache if args.cache else stand_in_fields()

@@ -19,18 +19,17 @@ import torch
 from bench_ops import median_ms  # the benchmarks' one timer (run from benchmarks/)
 
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.train import TrainConfig
-from kornia_ilum.train.loop import resolve_defaults
-from kornia_ilum.train.recipes import get_recipe
+from kornia_ilum.train import TrainConfig, get_recipe, resolve_runtime
 
 
 def _step_seconds(name: str, batch: int, repeats: int, **precision: bool | None) -> float:
     """Seconds per step of ``name``'s recipe (:meth:`Recipe.step`) on random data (uint8 crops, pairs, mattes
     and lightings), at the training defaults unless ``bf16`` / ``channels_last`` are given."""
     torch.manual_seed(0)
-    config = resolve_defaults(TrainConfig(out="-", cache=("-",), estimator=name, **precision), torch.device("cpu"))
+    config = TrainConfig(out="-", cache=("-",), estimator=name, **precision)
+    runtime = resolve_runtime(config, torch.device("cpu"))
     recipe = get_recipe(name)
-    memory = torch.channels_last if config.channels_last else torch.contiguous_format
+    memory = runtime.memory_format
     model, disc = (None if m is None else m.to(memory_format=memory) for m in recipe.build())
     opt_g = torch.optim.Adam(model.parameters(), lr=config.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=config.lr * config.disc_lr_ratio) if disc is not None else None
@@ -43,7 +42,8 @@ def _step_seconds(name: str, batch: int, repeats: int, **precision: bool | None)
 
     data = {"image": images(3), "mirror_ball": lighting(), "pair_image": images(3), "pair_mirror_ball": lighting(),
             "alpha": images(1)}
-    step = lambda: recipe.step(model, disc, opt_g, opt_d, data, torch.device("cpu"), config)  # noqa: E731
+    step = lambda: recipe.step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, batch=data,  # noqa: E731
+                               device=torch.device("cpu"), config=config, runtime=runtime)
     return median_ms(step, repeats, warmup=2) / 1e3
 
 

@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: The training tests' small data settings (``tests/train/test_train.py``'s ``SMALL``).
+#: The training tests' small data settings (``tests/train/helpers.py``'s ``SMALL``).
 SMALL = ("fields_per_chunk=1", "lightings_per_field=4", "shuffle=1", "env_pool=2", "env_refresh=1")
 
 
@@ -30,13 +30,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=3)
     args = parser.parse_args(argv)
 
-    from kornia_ilum.synth.lightstage import build_cache
+    from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     print(f"cpu: {platform.processor() or platform.machine()}")
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
-        build_cache("mannequin", [0, 2], cache, views_per_subject=1, size=48, spp=4, workers=1, progress=False)
+        build_cache("mannequin", [0, 2], cache, renderer=Auto(spp=4), views=SampledViews(1, size=48),
+                    workers=Workers(processes=1), progress=False)
         for name in args.estimators:
             out = Path(tmp) / name
             subprocess.run(

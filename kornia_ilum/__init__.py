@@ -2,7 +2,7 @@
 
 Implements "Learning Illumination from Diverse Portraits" (LeGendre et al., SIGGRAPH Asia 2020).
 The conventions (frame, mirror-ball and lat-long mappings, units, reference spheres) are in
-``docs/conventions.rst`` (SPEC.md).
+``docs/conventions.rst``.
 """
 
 __version__ = "0.1.0.dev0"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import os
 from typing import Any, Literal
 
@@ -25,12 +26,18 @@ import numpy as np
 import torch
 
 from kornia_ilum.core.check import check_choice, check_tensor, checks_active
-from kornia_ilum.core.errors import NoFaceError, ShapeError, TypeCheckError, ValueCheckError
-from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, create_detector, crop_faces, square_crop_boxes
+from kornia_ilum.core.errors import NoFaceError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.detection import (
+    DEFAULT_DETECTOR,
+    FaceDetector,
+    create_detector,
+    crop_faces,
+    square_crop_boxes,
+)
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, create_estimator
 from kornia_ilum.io import read_ldr
 
-__all__ = ["estimate_lighting", "full_image_box"]
+__all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box"]
 
 _FACES = ("largest", "all")
 _FALLBACKS = (None, "full_image")
@@ -41,31 +48,46 @@ _ACCEPTED = (
 
 
 @functools.lru_cache(maxsize=8)
-def _named_estimator(name: str, device: torch.device) -> LightingEstimator:
-    """Build a registered estimator once per (name, device) in this process, in eval mode."""
+def cached_estimator(name: str, device: torch.device) -> LightingEstimator:
+    """The registered estimator ``name`` that :func:`estimate_lighting` uses: built with ``pretrained=True``
+    once per ``(name, device)`` in this process (the 8 most recent are kept), in eval mode.
+
+    Raises:
+        ValueError: ``name`` is not registered.
+        MissingWeightsError: the estimator ships no trained weights yet.
+    """
     return create_estimator(name, pretrained=True).to(device).eval()
 
 
 @functools.lru_cache(maxsize=8)
-def _named_detector(name: str, device: torch.device) -> FaceDetector:
-    """Build a registered detector once per (name, device) in this process, in eval mode."""
+def cached_detector(name: str, device: torch.device) -> FaceDetector:
+    """The registered detector ``name`` that :func:`estimate_lighting` uses: built once per
+    ``(name, device)`` in this process (the 8 most recent are kept), in eval mode.
+
+    Raises:
+        ValueError: ``name`` is not registered.
+    """
     return create_detector(name).to(device).eval()
 
 
 def _numpy_to_tensor(array: np.ndarray, bgr: bool) -> torch.Tensor:
-    """``(H, W[, C])`` uint8 / uint16 / float array -> ``(3, H, W)`` float32 in [0, 1] (range checked later)."""
+    """``(H, W[, C])`` uint8 / uint16 / float array -> ``(3, H, W)`` float32 in [0, 1] (range checked
+    later)."""
     if array.ndim == 2:
         array = array[..., None]
     if array.ndim != 3 or array.shape[2] not in (1, 3, 4):
         raise ShapeError(
-            f"image (NumPy array) must have shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got {array.shape}"
+            "image (NumPy array) must have shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), "
+            f"got {array.shape}"
         )
     if array.dtype == np.uint8 or array.dtype == np.uint16:
         pixels = array.astype(np.float32) / np.float32(np.iinfo(array.dtype).max)
     elif array.dtype in (np.float16, np.float32, np.float64):
         pixels = array.astype(np.float32)
     else:
-        raise TypeCheckError(f"image (NumPy array) must be uint8, uint16 or float in [0, 1], got dtype {array.dtype}")
+        raise TypeCheckError(
+            f"image (NumPy array) must be uint8, uint16 or float in [0, 1], got dtype {array.dtype}"
+        )
     if pixels.shape[2] == 1:
         pixels = np.repeat(pixels, 3, axis=2)
     pixels = pixels[..., :3]  # RGBA / BGRA: alpha dropped, not composited (as kornia_ilum.io.read_ldr does)
@@ -74,26 +96,47 @@ def _numpy_to_tensor(array: np.ndarray, bgr: bool) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(pixels.transpose(2, 0, 1)))
 
 
+def _value_range(image: torch.Tensor) -> tuple[float, float] | None:
+    """``(min, max)`` of the image in one pass, or ``None`` when checks are off; NaN or Inf raise."""
+    if not checks_active() or torch.compiler.is_compiling():
+        return None
+    lo, hi = (float(v) for v in torch.aminmax(image.detach()))  # NaN propagates into both
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise NonFiniteError("image must be finite, but it holds NaN or Inf")
+    return lo, hi
+
+
 def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
-    """Any accepted input -> ``(B, 3, H, W)`` float tensor in [0, 1], and a name for messages."""
+    """Any accepted input -> ``(B, 3, H, W)`` float tensor in [0, 1], and a name for messages.
+
+    This is the one scan of the image's values in :func:`estimate_lighting` (NaN/Inf and the ``[0, 1]``
+    range, one :func:`torch.aminmax`); the detector, the crop and the estimator are then called with
+    ``check_values=False``, as their input is made from this checked image.
+    """
+    values = None
     if isinstance(image, (str, os.PathLike)):
         if bgr:
             raise ValueCheckError("bgr=True applies to NumPy arrays only; files are read as RGB")
-        return read_ldr(image)[None], f"image {os.fspath(image)!r}"
-    if isinstance(image, np.ndarray):
+        batch, what = read_ldr(image)[None], f"image {os.fspath(image)!r}"
+    elif isinstance(image, np.ndarray):
         batch, what = _numpy_to_tensor(image, bgr)[None], "image"
     elif isinstance(image, torch.Tensor):
         if bgr:
-            raise ValueCheckError("bgr=True applies to NumPy arrays only; tensors are RGB (flip them yourself)")
-        check_tensor(image, "image", ["*", "3", "H", "W"])
+            raise ValueCheckError(
+                "bgr=True applies to NumPy arrays only; tensors are RGB (flip them yourself)"
+            )
+        check_tensor(image, "image", ["*", "3", "H", "W"], finite=False)
+        values = _value_range(image)  # NaN / Inf -> NonFiniteError before the shape's upper bound
         if image.dim() > 4:
             raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
         batch, what = (image[None] if image.dim() == 3 else image), "image"
     else:
         raise TypeCheckError(f"image must be {_ACCEPTED}; got {type(image).__name__}")
-    check_tensor(batch, "image", ["B", "3", "H", "W"])  # empty / NaN / Inf -> typed errors
-    if checks_active():
-        lo, hi = (float(v) for v in torch.aminmax(batch.detach()))
+    check_tensor(batch, "image", ["B", "3", "H", "W"], finite=False)  # empty -> typed error
+    if values is None:
+        values = _value_range(batch)  # NaN / Inf -> NonFiniteError
+    if values is not None:
+        lo, hi = values
         if lo < 0.0 or hi > 1.0:
             raise ValueCheckError(
                 f"image must be sRGB-encoded in [0, 1], got values in [{lo:g}, {hi:g}] "
@@ -141,10 +184,12 @@ def _resolve_estimator(estimator: str | LightingEstimator | None, device: torch.
     if estimator is None:
         estimator = DEFAULT_ESTIMATOR
     if isinstance(estimator, str):
-        return _named_estimator(estimator, device)
+        return cached_estimator(estimator, device)
     if isinstance(estimator, LightingEstimator):
         on = _module_device(estimator)
-        if on is not None and (on.type != device.type or None not in (on.index, device.index) and on.index != device.index):
+        if on is not None and (
+            on.type != device.type or None not in (on.index, device.index) and on.index != device.index
+        ):
             raise ValueCheckError(
                 f"estimator is on {on} but the image is processed on {device}; move the estimator "
                 f"(estimator.to({str(device)!r})) or pass device={str(on)!r}"
@@ -158,7 +203,7 @@ def _resolve_estimator(estimator: str | LightingEstimator | None, device: torch.
 
 def _resolve_detector(detector: str | FaceDetector, device: torch.device) -> FaceDetector:
     if isinstance(detector, str):
-        return _named_detector(detector, device)
+        return cached_detector(detector, device)
     if isinstance(detector, FaceDetector):
         return detector
     raise TypeCheckError(
@@ -241,15 +286,19 @@ def estimate_lighting(
           ``image_index`` :math:`(B',)`, with :math:`B'` the number of faces kept.
 
     Convention:
-        Input sRGB-encoded in ``[0, 1]`` (SPEC.md, Images). The lighting is linear HDR in the units of
-        the input photograph, as a 32 x 32 equal-area mirror ball in the camera frame (+X right, +Y up,
-        +Z toward the camera; SPEC.md, Mirror ball and Units of lighting).
+        Input sRGB-encoded in ``[0, 1]`` (docs/conventions.rst, "Images"). The lighting is linear HDR in
+        the units of the input photograph, as a 32 x 32 equal-area mirror ball in the camera frame (+X
+        right, +Y up, +Z toward the camera; docs/conventions.rst, "Mirror ball" and "Units of lighting").
 
     Note:
         The crops are cast to the estimator's floating dtype (float32 for estimators without
         parameters) and the estimator runs under :func:`torch.inference_mode`, so the result carries no
         autograd graph: call the estimator module on :func:`~kornia_ilum.detection.crop_faces` output
         directly to differentiate through it.
+
+        The image's values (NaN/Inf and the ``[0, 1]`` range) are checked once per call, in one pass; the
+        detector, the crop and the estimator, which then see only data made from that image, are called
+        with ``check_values=False``.
 
     Examples:
         >>> import skimage.data
@@ -273,7 +322,7 @@ def estimate_lighting(
     height, width = batch.shape[-2:]
 
     crop_boxes, boxes, index = [], [], []
-    for i, found in enumerate(det.detect(batch)):
+    for i, found in enumerate(det.detect(batch, check_values=False)):  # checked once, in _as_batch
         if found.shape[0] > 0:
             kept = _pick(found, faces).to(dev)
             crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
@@ -284,18 +333,22 @@ def estimate_lighting(
             where = what if batch.shape[0] == 1 else f"{what} {i} of the batch of {batch.shape[0]}"
             name = detector if isinstance(detector, str) else type(detector).__name__
             hints = ["detector='yunet' (a stronger detector)"] if name != "yunet" else []
-            hints += ["detector='none' if the image already is a face crop", "fallback='full_image' to estimate from the whole image"]
+            hints += [
+                "detector='none' if the image already is a face crop",
+                "fallback='full_image' to estimate from the whole image",
+            ]
             raise NoFaceError(f"no face found in {where} by detector {name!r}; try " + ", or ".join(hints))
         boxes.append(kept)
         index.append(torch.full((kept.shape[0],), i, dtype=torch.int64, device=dev))
     index_all = torch.cat(index)
-    crops = crop_faces(batch, torch.cat(crop_boxes), size=size, index=index_all)
+    crops = crop_faces(batch, torch.cat(crop_boxes), size=size, index=index_all, check_values=False)
 
     was_training = est.training
     est.eval()
     try:
         with torch.inference_mode():
-            result = est(crops.to(_module_dtype(est)))
+            # crops of a checked image are in [0, 1] (up to resampling round-off) and finite
+            result = est(crops.to(_module_dtype(est)), check_values=False)
     finally:
         est.train(was_training)
     return dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)

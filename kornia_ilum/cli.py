@@ -8,7 +8,8 @@ Subcommands:
 - ``kornia-ilum list``: the registered estimators and face detectors, with their metadata.
 - ``kornia-ilum synth ...``: the light stage (environments, subject caches).
 - ``kornia-ilum train``: train an estimator on the light stage (:mod:`kornia_ilum.train`).
-- ``kornia-ilum evaluate``: the paper's tables on the project's held-out split (:mod:`kornia_ilum.evaluation`).
+- ``kornia-ilum evaluate``: the paper's tables on the project's held-out split
+  (:mod:`kornia_ilum.evaluation`).
 
 Errors print one line, ``kornia-ilum: error: ...``, on stderr, never a traceback (set
 ``KORNIA_ILUM_DEBUG=1`` to get one), and exit with status 2 for usage errors (bad options) or 1 for
@@ -26,6 +27,20 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
+
+import skimage.data
+import torch
+
+from kornia_ilum import __version__
+from kornia_ilum.api import cached_detector, cached_estimator, estimate_lighting
+from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.errors import BaseError, HDRIOError
+from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
+from kornia_ilum.evaluation.cli import add_evaluate_parser
+from kornia_ilum.io import read_ldr
+from kornia_ilum.synth.cli import add_synth_environments_parser, add_synth_subjects_parser
+from kornia_ilum.train.cli import add_train_parser
 
 PROG = "kornia-ilum"
 _SAMPLE = "astronaut"
@@ -67,20 +82,8 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(f"{message} (see '{self.prog} --help')")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``kornia-ilum`` (used by :func:`main` and the docs)."""
-    from kornia_ilum import __version__
-
     parser = _Parser(
         prog=PROG,
         description="HDR lighting from one LDR portrait (LeGendre et al. 2020, 'Learning Illumination from "
@@ -108,26 +111,22 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the largest face of each image, or all of them (default: largest)")
     est.add_argument("--fallback", choices=("full_image",), default=None,
                      help="when an image has no face, use its largest centred square instead of failing")
-    est.add_argument("--preview", metavar="PNG", help="also write a preview PNG of the three reference spheres")
-    est.add_argument("--preview-size", type=_positive_int, metavar="N", default=128,
+    est.add_argument("--preview", metavar="PNG",
+                     help="also write a preview PNG of the three reference spheres")
+    est.add_argument("--preview-size", type=positive_int, metavar="N", default=128,
                      help="side of each sphere in the preview, which is 3N x N pixels (default: 128)")
     est.add_argument("--format", choices=("exr", "hdr"), default=None,
                      help="file format of the lighting (default: OUT's extension, else exr)")
-    est.add_argument("--latlong", type=_positive_int, metavar="H", default=None,
+    est.add_argument("--latlong", type=positive_int, metavar="H", default=None,
                      help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
     est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
     est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
 
     sub.add_parser("list", help="list the estimators and face detectors",
-                   description="List the registered lighting estimators and face detectors, with their metadata.")
-
-    from kornia_ilum.synth.cli import add_synth_environments_parser, add_synth_subjects_parser
-
+                   description="List the registered lighting estimators and face detectors, "
+                   "with their metadata.")
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)
-    from kornia_ilum.evaluation.cli import add_evaluate_parser
-    from kornia_ilum.train.cli import add_train_parser
-
     add_train_parser(sub)
     add_evaluate_parser(sub)
     return parser
@@ -143,7 +142,8 @@ def _check_pattern(pattern: str, option: str) -> set[str]:
     unknown = fields - {"stem", "face"}
     if unknown:
         raise _UsageError(
-            f"{option} {pattern!r} has unknown placeholder(s) {', '.join(sorted(unknown))}; use {{stem}} and {{face}}"
+            f"{option} {pattern!r} has unknown placeholder(s) {', '.join(sorted(unknown))}; "
+            "use {stem} and {face}"
         )
     return fields
 
@@ -163,11 +163,15 @@ class _Namer:
             pattern = str(Path(pattern) / "{stem}")
             fields = {"stem"}
         elif several and "stem" not in fields:
-            raise _UsageError(f"with several images, {option} must be a directory or contain {{stem}}, got {pattern!r}")
+            raise _UsageError(
+                f"with several images, {option} must be a directory or contain {{stem}}, got {pattern!r}"
+            )
         suffix = Path(pattern).suffix.lower()
         if suffix:
             if suffix not in exts:
-                raise _UsageError(f"{option} must end in {' or '.join(exts)} (or be a directory), got {pattern!r}")
+                raise _UsageError(
+                    f"{option} must end in {' or '.join(exts)} (or be a directory), got {pattern!r}"
+                )
             if forced_ext is not None and suffix != forced_ext:
                 raise _UsageError(f"{option} {pattern!r} does not match --format {forced_ext[1:]}")
             stem_part, ext = pattern[: -len(suffix)], pattern[-len(suffix):]
@@ -184,9 +188,6 @@ class _Namer:
 
 # ------------------------------------------------------------------------------------------- commands
 def _cmd_list() -> int:
-    from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
-    from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
-
     print(f"Estimators (default: {DEFAULT_ESTIMATOR}):")
     for name in list_estimators():
         try:
@@ -200,7 +201,8 @@ def _cmd_list() -> int:
         for w in info.weights:
             print(f"      weights: {w.name} sha256 {w.sha256}")
         if not info.weights:
-            print("      weights: no weights" + (" (no trained weights yet)" if info.needs_weights else " (needs none)"))
+            why = " (no trained weights yet)" if info.needs_weights else " (needs none)"
+            print("      weights: no weights" + why)
         if info.install_hint:
             print(f"      install: {info.install_hint}")
     print(f"Detectors (default: {DEFAULT_DETECTOR}):")
@@ -210,15 +212,6 @@ def _cmd_list() -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
-    import skimage.data
-    import torch
-
-    from kornia_ilum import api
-    from kornia_ilum.core.errors import HDRIOError
-    from kornia_ilum.detection import list_detectors
-    from kornia_ilum.estimators import DEFAULT_ESTIMATOR, list_estimators
-    from kornia_ilum.io import read_ldr
-
     several = len(args.images) > 1
     faces_all = args.faces == "all"
     forced = f".{args.format}" if args.format else None
@@ -243,14 +236,17 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     stems = [Path(p).stem for p in args.images] or [_SAMPLE]
     if several and len(set(stems)) < len(stems):
         dup = next(s for s in stems if stems.count(s) > 1)
-        raise _UsageError(f"several images are named {dup!r} (their outputs would collide); run them separately")
+        raise _UsageError(
+            f"several images are named {dup!r} (their outputs would collide); run them separately"
+        )
     for p in args.images:  # fail before any work when a path is wrong
         if not Path(p).is_file():
-            raise HDRIOError(f"cannot read {p}: " + ("it is a directory" if Path(p).is_dir() else "no such file"))
+            why = "it is a directory" if Path(p).is_dir() else "no such file"
+            raise HDRIOError(f"cannot read {p}: {why}")
 
     t0 = time.perf_counter()
-    api._named_estimator(estimator, device)  # built once (and checked: missing weights fail here)
-    api._named_detector(args.detector, device)
+    cached_estimator(estimator, device)  # built once (and checked: missing weights fail here)
+    cached_detector(args.detector, device)
     print(f"loaded estimator {estimator!r} and detector {args.detector!r} in {_ms(t0)}")
 
     written: set[Path] = set()
@@ -258,7 +254,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         image = skimage.data.astronaut() if path is None else read_ldr(path)
         t1 = time.perf_counter()
-        light = api.estimate_lighting(
+        light = estimate_lighting(
             image, estimator=estimator, detector=args.detector, faces=args.faces, fallback=args.fallback,
             device=device,
         )
@@ -267,13 +263,17 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
             files = [(out(stem, face), "lighting")] + ([(preview(stem, face), "preview")] if preview else [])
             for target, kind in files:
                 if target in written:
-                    raise RuntimeError(f"{target} would be written twice in this run; add {{stem}} or {{face}} to the name")
+                    raise RuntimeError(
+                        f"{target} would be written twice in this run; add {{stem}} or {{face}} to the name"
+                    )
                 written.add(target)
                 target.parent.mkdir(parents=True, exist_ok=True)
                 box = ", ".join(f"{v:.0f}" for v in light.boxes[face].tolist())
                 if kind == "lighting":
                     light.save(target, index=face, latlong_height=args.latlong, half=args.half)
-                    what = f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
+                    what = (
+                        f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
+                    )
                     print(f"wrote {target} ({what}, face {face} of {stem}, box [{box}])")
                 else:
                     light.preview(target, index=face, size=args.preview_size)
@@ -326,7 +326,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         except Exception as e:  # every runtime failure: one line, no traceback
             if debug:
                 raise
-            from kornia_ilum.core.errors import BaseError
-
             known = isinstance(e, (BaseError, OSError, RuntimeError, ValueError))
             return _error(str(e) if known else f"{type(e).__name__}: {e}", 1)

@@ -24,7 +24,7 @@ from kornia_ilum.core.errors import (
     TypeCheckError,
     ValueCheckError,
 )
-from kornia_ilum.detection import create_detector
+from kornia_ilum.detection import create_detector, crop_faces
 from kornia_ilum.estimators import LightingEstimate, create_estimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
@@ -185,12 +185,12 @@ class TestEstimateLighting:
             calls.append(name)
             return real(name, pretrained=pretrained, **kw)
 
-        api._named_estimator.cache_clear()
+        api.cached_estimator.cache_clear()
         monkeypatch.setattr(api, "create_estimator", counting)
         estimate_lighting(astronaut, estimator="ours")
         estimate_lighting(astronaut)  # None = DEFAULT_ESTIMATOR = "ours": the same cached model
         assert calls == ["ours"]
-        api._named_estimator.cache_clear()
+        api.cached_estimator.cache_clear()
 
     def test_yunet(self, astronaut, shared_data):
         detector = create_detector("yunet", weights_path=shared_data / "weights" / "yunet_final.pth")
@@ -261,6 +261,79 @@ class TestEstimateLighting:
         assert "estimate_lighting" in kornia_ilum.__all__
         assert kornia_ilum.create_estimator is create_estimator and "ours" in kornia_ilum.list_estimators()
         assert {"create_estimator", "list_estimators"} <= set(kornia_ilum.__all__)
+
+
+class TestChecksOnce:
+    """estimate_lighting scans the image's values once per call (NaN/Inf and the [0, 1] range together);
+    the detector, the crop and the estimator, called directly, still check their own input."""
+
+    @pytest.fixture
+    def scans(self, monkeypatch) -> list[tuple[int, ...]]:
+        """The shape of every tensor torch.aminmax scans (the value checks' one pass) during the test."""
+        shapes, real = [], torch.aminmax
+
+        def counting(x, *args, **kw):
+            shapes.append(tuple(x.shape))
+            return real(x, *args, **kw)
+
+        monkeypatch.setattr(torch, "aminmax", counting)
+        return shapes
+
+    @pytest.mark.parametrize("form", ["array", "tensor", "batch", "file"])
+    def test_one_scan_per_call(self, astronaut, astronaut_estimate, tmp_path, scans, form):
+        forms = {"array": astronaut, "tensor": _tensor(astronaut), "batch": _tensor(astronaut)[None]}
+        image = forms.get(form)
+        if form == "file":
+            write_ldr(tmp_path / "a.png", _tensor(astronaut))
+            image = tmp_path / "a.png"
+        scans.clear()
+        est = estimate_lighting(image)  # the default detector and estimator (opencv, ours)
+        image_scans = [s for s in scans if s[-2:] == (512, 512)]
+        crop_scans = [s for s in scans if s[-2:] == (256, 256)]
+        assert len(image_scans) == 1 and crop_scans == [], scans
+        torch.testing.assert_close(est.mirror_ball, astronaut_estimate.mirror_ball, atol=1e-5, rtol=1e-5)
+
+    def test_the_scan_runs_first(self, scans):
+        """The one scan still stops a bad image before detection and estimation, with the same errors."""
+        message = r"image must be sRGB-encoded in \[0, 1\], got values in \[2, 2\]"
+        with pytest.raises(ValueCheckError, match=message):
+            estimate_lighting(torch.full((3, 64, 64), 2.0), estimator="uniform")
+        inf = torch.zeros(1, 3, 64, 64)
+        inf[0, 1, 2, 3] = float("inf")
+        with pytest.raises(NonFiniteError, match=r"image must be finite, but it holds NaN or Inf"):
+            estimate_lighting(inf, estimator="uniform")
+        with pytest.raises(NonFiniteError, match=r"image must be finite"):  # before the shape's upper bound
+            estimate_lighting(torch.full((1, 1, 3, 8, 8), float("nan")))
+        assert len(scans) == 3
+
+    def test_direct_calls_still_check(self, scans):
+        bright, nan = torch.full((1, 3, 256, 256), 1.5), torch.full((1, 3, 256, 256), float("nan"))
+        detector, estimator = create_detector("none"), create_estimator("uniform")
+        with pytest.raises(ValueCheckError, match=r"image must be sRGB in \[0, 1\]"):
+            detector.detect(bright)
+        with pytest.raises(NonFiniteError, match=r"image must be finite"):
+            detector(nan)
+        with pytest.raises(ValueCheckError, match=r"crops must be sRGB-encoded values in \[0, 1\]"):
+            estimator(bright)
+        with pytest.raises(NonFiniteError, match=r"crops must be finite"):
+            estimator(nan)
+        with pytest.raises(NonFiniteError, match=r"image must be finite"):
+            crop_faces(nan, torch.tensor([[0.0, 0.0, 8.0, 8.0]]))
+        assert len(scans) == 5  # one pass each
+
+    def test_check_values_false_skips_only_the_scan(self, scans):
+        """The keyword estimate_lighting passes: no scan, but shapes and dtypes are still checked."""
+        bright = torch.full((1, 3, 256, 256), 1.5)
+        assert len(create_detector("none").detect(bright, check_values=False)) == 1
+        box = torch.tensor([[0.0, 0.0, 8.0, 8.0]])
+        assert crop_faces(bright, box, 4, check_values=False).shape == (1, 3, 4, 4)
+        assert [s for s in scans if s[-2:] == (256, 256)] == []  # only the (1, 4) boxes are scanned
+        with pytest.raises(ShapeError):
+            create_detector("none").detect(torch.rand(1, 4, 8, 8), check_values=False)
+        with pytest.raises(TypeCheckError):
+            create_estimator("uniform")(torch.zeros(1, 3, 256, 256, dtype=torch.uint8), check_values=False)
+        with pytest.raises(ShapeError):
+            create_estimator("uniform")(torch.rand(1, 3, 128, 128), check_values=False)
 
 
 class TestInputs:

@@ -147,6 +147,7 @@ class TestErrors:
         out = capsys.readouterr().out
         assert "{stem}" in out and "{face}" in out and "--latlong H" in out
 
+    @pytest.mark.slow  # subprocesses
     def test_subprocess(self, tmp_path):
         env = {**os.environ, "PYTHONWARNINGS": "ignore"}
         run = subprocess.run(

@@ -8,6 +8,7 @@ import sys
 from functools import lru_cache
 from pathlib import Path
 
+import pytest
 import torch
 
 from kornia_ilum.core.compiler import compiler_disable
@@ -33,6 +34,7 @@ def _assert_nothing_written(tmp_path: Path) -> None:
     assert sorted(os.listdir(tmp_path / "cwd")) == [], "CWD"
 
 
+@pytest.mark.slow  # a subprocess
 def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
     probe = (
         "import sys, kornia_ilum\n"
@@ -46,10 +48,28 @@ def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
     _assert_nothing_written(tmp_path)
 
 
+@pytest.mark.slow  # a subprocess
 def test_cli_list_writes_nothing(tmp_path):
     result = _run(["-m", "kornia_ilum", "list"], tmp_path)
     assert result.returncode == 0, result.stderr
     assert "ours" in result.stdout
+    _assert_nothing_written(tmp_path)
+
+
+@pytest.mark.slow  # a subprocess
+def test_cli_import_stays_light(tmp_path):
+    """``kornia-ilum --help`` and ``estimate`` build every sub-command's parser, so ``kornia_ilum.cli`` imports
+    them at the top; what only one sub-command needs (Mitsuba, matplotlib, the light stage, the environments'
+    statistics) stays inside it."""
+    probe = (
+        "import sys, kornia_ilum.cli\n"
+        "heavy = ('torch._dynamo', 'matplotlib', 'mitsuba', 'onnxruntime', 'OpenImageIO',\n"
+        "         'kornia_ilum.synth.lightstage', 'kornia_ilum.synth.stats')\n"
+        "print(','.join(m for m in heavy if m in sys.modules))\n"
+    )
+    result = _run(["-c", probe], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "", f"import kornia_ilum.cli loaded {result.stdout.strip()}"
     _assert_nothing_written(tmp_path)
 
 

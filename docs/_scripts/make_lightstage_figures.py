@@ -22,6 +22,22 @@ from pathlib import Path
 
 import matplotlib
 import torch
+from PIL import Image
+from skimage import data
+
+from kornia_ilum.color import linear_to_srgb
+from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
+from kornia_ilum.geometry import latlong_to_mirror_ball
+from kornia_ilum.io import read_hdr
+from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.lightstage.olat import render_olat
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, relight_portraits
+from kornia_ilum.synth.lightstage.preview import contact_sheet
+from kornia_ilum.synth.lightstage.scene import sample_views
+from kornia_ilum.synth.lightstage.settings import OnePass
+from kornia_ilum.synth.lightstage.subjects import subject_source
+from kornia_ilum.synth.sheets import write_grid
 
 matplotlib.use("Agg")
 
@@ -29,23 +45,15 @@ STATIC = Path(__file__).resolve().parents[1] / "_static"
 
 
 def subjects_sheet(assets: str, count: int = 12) -> None:
-    from kornia_ilum.synth.lightstage.preview import contact_sheet
-    from kornia_ilum.synth.lightstage.subjects import subject_source
-
     source = subject_source("makehuman", assets)
     out = STATIC / "subjects_contact_sheet.png"
     contact_sheet([source.sample(s) for s in range(count)], out, size=192, columns=6, spp=128, distance=0.75)
-    from PIL import Image
-
     image = Image.open(out).convert("RGB")  # 256 colours, undithered: under 300 KB
     image.quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(out, optimize=True)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
 def _relit_face(field, lighting: torch.Tensor) -> torch.Tensor:
-    from kornia_ilum.color import linear_to_srgb
-    from kornia_ilum.synth.lightstage.portraits import relight_portraits
-
     image, _ = relight_portraits(field, lighting)
     image = image[0]
     x0, y0, x1, y1 = field.face_box.tolist()
@@ -57,33 +65,19 @@ def _relit_face(field, lighting: torch.Tensor) -> torch.Tensor:
 
 
 def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
-    from kornia_ilum.geometry import latlong_to_mirror_ball
-    from kornia_ilum.io import read_hdr
-    from kornia_ilum.synth.cli import _write_grid
-    from kornia_ilum.synth.lightstage.olat import render_olat
-    from kornia_ilum.synth.lightstage.scene import sample_views
-    from kornia_ilum.synth.lightstage.subjects import subject_source
-
     subject = subject_source("makehuman", assets).sample(seed)
     camera = dataclasses.replace(sample_views(seed, 4, 256)[1], yaw_deg=20.0, pitch_deg=0.0, roll_deg=0.0)
     latlong = read_hdr(hdri).clamp(min=0)
     lighting = latlong_to_mirror_ball(latlong[None], 32).clamp(min=0)
-    tiles = [_relit_face(render_olat(subject, camera, subsurface=flag), lighting) for flag in (False, True)]
+    tiles = [_relit_face(render_olat(subject, camera, OnePass(subsurface=flag)), lighting)
+             for flag in (False, True)]
     out = STATIC / "subsurface_pair.png"
-    _write_grid(tiles, ["without subsurface", "with subsurface (screen-space diffusion)"],
+    write_grid(tiles, ["without subsurface", "with subsurface (screen-space diffusion)"],
                 f"MakeHuman subject {seed} relit by {Path(hdri).name}", out, 2, (3.0, 3.1), 8, 100, True)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
 def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int = 13) -> None:
-    from skimage import data
-
-    from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
-    from kornia_ilum.synth.cli import _write_grid
-    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
-
     sources = default_sources() + [HDRFolderSource(h) for h in hdri]
     # one lighting per field and chunk, so the sheet shows many subject-views (training uses 16 per field)
     config = PortraitConfig(split="train", environments=EnvironmentSampler(sources, seed=0), lightings_per_field=1,
@@ -108,11 +102,9 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
         captions.append(f"s{s['subject_seed']} MST {s['skin_tone']} {s['label']}")
     tiles[0] = torch.cat([tiles[0], torch.ones(3, 6 + tiles[1].shape[1] - 262, 256)], dim=1)
     png = STATIC / "lightstage_contact_sheet.png"
-    _write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
+    write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
                 "matte silver, mirror", png, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 72, False)
     # 64 portraits do not fit a 300 KB PNG; the portraits are JPEG-compressed photographs anyway
-    from PIL import Image
-
     out = png.with_suffix(".jpg")
     Image.open(png).convert("RGB").save(out, quality=80, optimize=True)
     png.unlink()

@@ -1,7 +1,8 @@
-"""Colour transfer functions: exact sRGB, gamma 2.2 with a finite slope at 0, quantisation and 8-bit sRGB codes."""
+"""Colour transfer functions: exact sRGB, gamma 2.2 (finite slope at 0), quantisation and 8-bit sRGB codes."""
 
 from kornia_ilum.color.transfer import (
     GAMMA_KNEE,
+    SRGB8_TABLE_SIZE,
     GammaEncode,
     LinearToSrgb,
     Quantize,
@@ -9,13 +10,16 @@ from kornia_ilum.color.transfer import (
     encode_srgb8,
     gamma_decode,
     gamma_encode,
+    gamma_encode_unchecked,
     linear_to_srgb,
     quantize,
+    srgb8_table,
     srgb_to_linear,
 )
 
 __all__ = [
     "GAMMA_KNEE",
+    "SRGB8_TABLE_SIZE",
     "GammaEncode",
     "LinearToSrgb",
     "Quantize",
@@ -23,7 +27,9 @@ __all__ = [
     "encode_srgb8",
     "gamma_decode",
     "gamma_encode",
+    "gamma_encode_unchecked",
     "linear_to_srgb",
     "quantize",
+    "srgb8_table",
     "srgb_to_linear",
 ]

@@ -24,6 +24,9 @@ __all__ = [
     "gamma_decode",
     "quantize",
     "encode_srgb8",
+    "gamma_encode_unchecked",
+    "srgb8_table",
+    "SRGB8_TABLE_SIZE",
     "LinearToSrgb",
     "SrgbToLinear",
     "GammaEncode",
@@ -103,11 +106,27 @@ def gamma_encode(x: torch.Tensor, gamma: float = 2.2, *, knee: float = GAMMA_KNE
         raise ValueCheckError(f"gamma must be positive, got {gamma}")
     if isinstance(knee, bool) or not isinstance(knee, (int, float)) or not 0.0 <= knee < 1.0:
         raise ValueCheckError(f"knee must be a number in [0, 1), got {knee!r}")
-    return _gamma_encode(x, float(gamma), float(knee))
+    return gamma_encode_unchecked(x, float(gamma), float(knee))
 
 
-def _gamma_encode(x: torch.Tensor, gamma: float = 2.2, knee: float = GAMMA_KNEE) -> torch.Tensor:
-    """:func:`gamma_encode` without the argument checks (for callers that checked their inputs)."""
+def gamma_encode_unchecked(x: torch.Tensor, gamma: float = 2.2, knee: float = GAMMA_KNEE) -> torch.Tensor:
+    r""":func:`gamma_encode` without the argument checks, for callers that checked their inputs.
+
+    The same values as :func:`gamma_encode`; nothing is validated (no NaN/Inf scan of ``x``), so a loss or a
+    renderer that checked its inputs once does not pay for a second pass over the data.
+
+    Args:
+        x: linear values of any shape.
+        gamma: the display gamma, > 0.
+        knee: where the chord meets the curve, in ``[0, 1)``; 0 for the exact power.
+
+    Returns:
+        encoded values of the same shape and dtype.
+
+    Examples:
+        >>> gamma_encode_unchecked(torch.tensor([0.0, 0.25, 1.0]), 2.2, 0.0)
+        tensor([0.0000, 0.5325, 1.0000])
+    """
     inv = 1.0 / gamma
     if knee == 0.0:
         tiny = torch.finfo(x.dtype).tiny if x.is_floating_point() else 1e-30
@@ -167,7 +186,8 @@ def quantize(x: torch.Tensor, bits: int = 8, straight_through: bool = False) -> 
     return y / levels
 
 
-_LUT_SIZE = 1 << 16
+#: Cells of :func:`srgb8_table`, evenly spaced in ``sqrt(x)`` over linear ``x`` in ``[0, 1]``.
+SRGB8_TABLE_SIZE = 1 << 16
 
 
 def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor:
@@ -185,11 +205,12 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
         ``torch.uint8`` codes of the shape of ``linear`` (divide by 255 for ``[0, 1]``).
 
     Convention:
-        The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)``: 5.6 to 9 times faster
-        than :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section images: 2.8 to
-        3 ms against 16 to 25 ms for 8 images of 3 x 256 x 256 on one core). A value within a cell that straddles
-        a code boundary may land on the neighbouring code: 0.1 % of the values of random images, never more
-        than one code off.
+        The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)`` (:func:`srgb8_table`):
+        one lookup per value instead of the sRGB curve's power and the rounding, so it is several times
+        faster than :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section
+        images; the numbers are in the docs' colour page). A value within a cell that straddles a code
+        boundary may land on the neighbouring code: 0.1 % of the values of random images, never more than
+        one code off.
 
     Raises:
         NonFiniteError: ``linear`` holds NaN or Inf.
@@ -202,15 +223,32 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
     if inplace and (linear.dtype != torch.float32 or not linear.is_contiguous()):
         raise ValueCheckError(f"inplace needs a contiguous float32 tensor, got {linear.dtype}")
     x = linear if inplace else linear.to(torch.float32, copy=True)
-    x = x.mul_(float(_LUT_SIZE) ** 2).clamp_(0.0, (_LUT_SIZE - 0.5) ** 2)  # float32 rounds 2^32 - 1 up to 2^32
-    codes = _srgb8_table(x.device)
+    n = SRGB8_TABLE_SIZE
+    x = x.mul_(float(n) ** 2).clamp_(0.0, (n - 0.5) ** 2)  # float32 rounds 2^32 - 1 up to 2^32
+    codes = srgb8_table(x.device)
     return codes.index_select(0, x.sqrt_().to(torch.int32).flatten()).view(x.shape)
 
 
 @functools.cache
-def _srgb8_table(device: torch.device) -> torch.Tensor:
-    """uint8 sRGB codes of ``x = ((i + 0.5) / _LUT_SIZE)^2``: cell ``i`` of ``sqrt(x)``, read by truncation."""
-    x = ((torch.arange(_LUT_SIZE, dtype=torch.float64) + 0.5) / _LUT_SIZE) ** 2
+def srgb8_table(device: torch.device) -> torch.Tensor:
+    r"""The table of :func:`encode_srgb8`: the 8-bit sRGB code of every cell of ``sqrt(x)``.
+
+    Cell ``i`` holds the code of ``x = ((i + 0.5) / SRGB8_TABLE_SIZE)^2``; a linear value ``x`` in ``[0, 1]``
+    reads cell ``floor(sqrt(x) * SRGB8_TABLE_SIZE)`` (truncation). Built once per device and cached: the
+    result is shared, do not modify it.
+
+    Args:
+        device: device of the table.
+
+    Returns:
+        ``torch.uint8`` codes of shape ``(SRGB8_TABLE_SIZE,)``.
+
+    Examples:
+        >>> table = srgb8_table(torch.device("cpu"))
+        >>> table.shape, table[0].item(), table[-1].item()
+        (torch.Size([65536]), 0, 255)
+    """
+    x = ((torch.arange(SRGB8_TABLE_SIZE, dtype=torch.float64) + 0.5) / SRGB8_TABLE_SIZE) ** 2
     encoded = quantize(linear_to_srgb(x.reshape(1, 1, 1, -1).expand(1, 3, 1, -1)), 8)[0, 0, 0]
     return torch.round(encoded * 255.0).to(device=device, dtype=torch.uint8).contiguous()
 

@@ -17,7 +17,13 @@ from typing import Any
 import torch
 from kornia.core.check import are_checks_enabled
 
-from kornia_ilum.core.errors import EmptyTensorError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.errors import (
+    EmptyTensorError,
+    NonFiniteError,
+    ShapeError,
+    TypeCheckError,
+    ValueCheckError,
+)
 
 __all__ = [
     "check_choice",
@@ -127,7 +133,9 @@ def check_tensor(
         raise TypeCheckError(f"{name} must be a floating-point tensor, got dtype {x.dtype}")
     if nonempty and x.numel() == 0:
         expected = f" {_fmt(shape)}" if shape is not None else ""
-        raise EmptyTensorError(f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)")
+        raise EmptyTensorError(
+            f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)"
+        )
     if torch.compiler.is_compiling():
         return
     if not (finite or nonnegative) or not x.is_floating_point() or x.numel() == 0:

@@ -1,11 +1,11 @@
 r"""A lazy :func:`torch.compiler.disable`: keeps ``import kornia_ilum`` free of Dynamo.
 
-``torch.compiler.disable`` imports ``torch._dynamo`` (and with it Inductor, SymPy and the distributed
-package: about a second, and a ``torchinductor_<user>`` folder in ``TMPDIR``) the moment it decorates a
-function. :func:`compiler_disable` defers that work to the first call made while Dynamo is loaded. Until
-Dynamo is imported nothing can be compiling, so the function is called directly; once it is imported, calls
-go through ``torch.compiler.disable(fn)`` (built once), which runs ``fn`` with Dynamo's frame hook off. While
-Dynamo traces, it sees the wrapper marked the way ``torch.compiler.disable`` marks its own wrappers
+``torch.compiler.disable`` imports ``torch._dynamo`` (and with it Inductor, SymPy and the distributed package,
+and a ``torchinductor_<user>`` folder in ``TMPDIR``) the moment it decorates a function.
+:func:`compiler_disable` defers that work to the first call made while Dynamo is loaded. Until Dynamo is
+imported nothing can be compiling, so the function is called directly; once it is imported, calls go through
+``torch.compiler.disable(fn)`` (built once), which runs ``fn`` with Dynamo's frame hook off. While Dynamo
+traces, it sees the wrapper marked the way ``torch.compiler.disable`` marks its own wrappers
 (``_torchdynamo_disable``), so it does not inline it and calls it eagerly instead, as with the plain
 decorator.
 """
@@ -66,7 +66,7 @@ def _skip_frames_of(wrapper: Callable[..., Any]) -> None:
     the disabled function), once per distinct argument value. All wrappers share one code object.
     """
     try:
-        from torch._dynamo.eval_frame import skip_code
+        from torch._dynamo.eval_frame import skip_code  # lazy: at module level it would load Dynamo
     except ImportError:  # pragma: no cover - a torch without it still works, with extra frame conversions
         return
     skip_code(wrapper.__code__)

@@ -12,7 +12,7 @@ __all__ = ["atomic_write", "sha256_file"]
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` for a hidden temporary file beside ``path``, flush it to disk, rename it to ``path``.
+    """Call ``write(tmp)`` for a hidden temporary file beside ``path``, flush it to disk, move it to ``path``.
 
     The temporary file is in the same folder (so the rename is atomic) and keeps ``path``'s extension (so
     writers that pick a format by extension, such as OpenImageIO, pick the right one). It is removed if

@@ -23,7 +23,7 @@ class ProgressBar:
     def __init__(self, total: int, desc: str, unit: str) -> None:
         self.total, self.desc, self.done, self.shown = total, desc, 0, -1
         try:
-            from tqdm import tqdm
+            from tqdm import tqdm  # optional dependency: a plain counter without it
         except ImportError:
             self.tqdm = None
         else:

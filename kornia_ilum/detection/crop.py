@@ -135,7 +135,12 @@ def _crop_padded(image: torch.Tensor, x0: int, y0: int, x1: int, y1: int) -> tor
 
 
 def crop_faces(
-    image: torch.Tensor, boxes: torch.Tensor, size: int = CROP_SIZE, index: torch.Tensor | None = None
+    image: torch.Tensor,
+    boxes: torch.Tensor,
+    size: int = CROP_SIZE,
+    index: torch.Tensor | None = None,
+    *,
+    check_values: bool = True,
 ) -> torch.Tensor:
     r"""Cut box regions out of an image, zero-padded outside it, and resize them with antialiasing.
 
@@ -157,6 +162,9 @@ def crop_faces(
         boxes: crop regions ``(x0, y0, x1, y1)`` in input pixels (module docstring, Convention).
         size: side of the output crops in pixels; the paper's 256 by default.
         index: ``(N,)`` integer tensor: the batch entry each box is cut from.
+        check_values: scan ``image`` for NaN/Inf. ``False`` is for a caller that has scanned this very
+            image already (:func:`kornia_ilum.estimate_lighting`); shapes, dtypes and boxes are checked
+            either way.
 
     Returns:
         the crops, same dtype and device as ``image``; differentiable with respect to ``image`` (the
@@ -192,7 +200,7 @@ def crop_faces(
     """
     if isinstance(image, torch.Tensor) and image.dim() not in (3, 4):
         raise ShapeError(f"image must have shape (C, H, W) or (B, C, H, W), got {tuple(image.shape)}")
-    check_tensor(image, "image", ["*", "C", "H", "W"])
+    check_tensor(image, "image", ["*", "C", "H", "W"], finite=check_values)
     _check_boxes(boxes)
     check_positive_int(size, "size")
     batch = image if image.dim() == 4 else image[None]

@@ -22,10 +22,19 @@ from typing import ClassVar
 
 import numpy as np
 import torch
+from kornia.contrib import FaceDetector as KorniaFaceDetector
+from kornia.geometry.bbox import nms
+from kornia.models.yunet import YuNet
 from torch import nn
 
 from kornia_ilum.core.check import check_tensor, checks_active
-from kornia_ilum.core.errors import MissingWeightsError, ShapeError, ValueCheckError, WeightsChecksumError
+from kornia_ilum.core.errors import (
+    MissingWeightsError,
+    NonFiniteError,
+    ShapeError,
+    ValueCheckError,
+    WeightsChecksumError,
+)
 from kornia_ilum.core.files import sha256_file
 from kornia_ilum.detection.crop import CROP_SCALE
 
@@ -76,13 +85,16 @@ class FaceDetector(nn.Module):
     description: ClassVar[str] = ""
     crop_scale: ClassVar[float] = CROP_SCALE
 
-    def detect(self, image: torch.Tensor) -> list[torch.Tensor]:
+    def detect(self, image: torch.Tensor, *, check_values: bool = True) -> list[torch.Tensor]:
         r"""Find the faces in each image.
 
         Args:
             image: sRGB-encoded RGB images in ``[0, 1]``, ``(B, 3, H, W)`` or one ``(3, H, W)``. Any
                 floating dtype; any device (a detector with a network runs on its own device and returns
                 the boxes on the image's).
+            check_values: scan the values (NaN/Inf, the ``[0, 1]`` range). ``False`` is for a caller that
+                has scanned this very image already (:func:`kornia_ilum.estimate_lighting`); the shape and
+                dtype are checked either way.
 
         Returns:
             one ``(N_i, 5)`` float32 tensor per image, on the image's device: ``(x0, y0, x1, y1, score)``
@@ -100,17 +112,19 @@ class FaceDetector(nn.Module):
             ValueCheckError: ``image`` has values outside ``[0, 1]``.
 
         Convention:
-            Input sRGB-encoded in ``[0, 1]`` (SPEC.md, Images). Boxes in continuous pixel coordinates,
-            ``(0, 0)`` at the image's top-left corner.
+            Input sRGB-encoded in ``[0, 1]`` (docs/conventions.rst, "Images"). Boxes in continuous pixel
+            coordinates, ``(0, 0)`` at the image's top-left corner.
         """
         if isinstance(image, torch.Tensor) and image.dim() not in (3, 4):
             raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
-        check_tensor(image, "image", ["*", "3", "H", "W"])
-        if checks_active() and not torch.compiler.is_compiling():
-            lo, hi = torch.aminmax(image.detach())
+        check_tensor(image, "image", ["*", "3", "H", "W"], finite=False)
+        if check_values and checks_active() and not torch.compiler.is_compiling():
+            lo, hi = (float(v) for v in torch.aminmax(image.detach()))  # one pass: NaN propagates into both
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise NonFiniteError("image must be finite, but it holds NaN or Inf")
             if lo < 0 or hi > 1:
                 raise ValueCheckError(
-                    f"image must be sRGB in [0, 1], got values in [{float(lo):g}, {float(hi):g}]"
+                    f"image must be sRGB in [0, 1], got values in [{lo:g}, {hi:g}]"
                     + ("; divide 8-bit images by 255" if hi > 1.5 else "")
                 )
         batch = image if image.dim() == 4 else image[None]
@@ -122,9 +136,9 @@ class FaceDetector(nn.Module):
             out.append(dets[dets[:, 4].argsort(descending=True, stable=True)])
         return out
 
-    def forward(self, image: torch.Tensor) -> list[torch.Tensor]:
+    def forward(self, image: torch.Tensor, *, check_values: bool = True) -> list[torch.Tensor]:
         """Same as :meth:`detect`."""
-        return self.detect(image)
+        return self.detect(image, check_values=check_values)
 
     def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
         """Detect in a checked ``(B, 3, H, W)`` batch; return ``B`` tensors ``(N_i, 5)`` in any order."""
@@ -207,7 +221,8 @@ class OpenCVFaceDetector(FaceDetector):
             raise ValueCheckError(f"min_neighbors must be a non-negative int, got {min_neighbors!r}")
         if not (isinstance(min_face, (int, float)) and 0 <= min_face <= 1):
             raise ValueCheckError(f"min_face must be a fraction in [0, 1], got {min_face!r}")
-        import cv2  # here, not at module level: OpenCV costs ~60 ms of `import kornia_ilum`
+        # lazy: OpenCV is a heavy import (docs/api/detection.rst, "Measured"), paid when a detector is built
+        import cv2
 
         path = Path(cascade)
         if not path.is_file():
@@ -232,7 +247,7 @@ class OpenCVFaceDetector(FaceDetector):
         self._threshold = _last_stage_threshold(path)
 
     def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
-        import cv2
+        import cv2  # lazy: as in __init__ (loaded by then)
 
         rgb8 = (image.float() * 255).round_().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
         out = []
@@ -338,9 +353,6 @@ class YuNetFaceDetector(FaceDetector):
         keep_top_k: int = 750,
     ) -> None:
         super().__init__()
-        from kornia.geometry.bbox import nms
-        from kornia.models.yunet import YuNet
-
         for name, value in (("confidence_threshold", confidence_threshold), ("nms_threshold", nms_threshold)):
             if not (isinstance(value, (int, float)) and 0 <= value <= 1):
                 raise ValueCheckError(f"{name} must be in [0, 1], got {value!r}")
@@ -376,8 +388,6 @@ class YuNetFaceDetector(FaceDetector):
         self.nms = nms
 
     def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
-        from kornia.contrib import FaceDetector as KorniaFaceDetector
-
         weight = next(self.model.parameters())
         bgr = image.flip(-3).to(device=weight.device, dtype=weight.dtype) * 255.0
         found = KorniaFaceDetector.postprocess(self, self.model(bgr), bgr.shape[-2], bgr.shape[-1])

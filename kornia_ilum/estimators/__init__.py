@@ -1,7 +1,8 @@
 """Lighting estimators: one contract (``forward(crops) -> LightingEstimate``) and a registry by name.
 
 Estimators come from entry points of the group ``kornia_ilum.estimators`` (the built-in ``ours`` and
-plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estimator`.
+plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estimator`. Weight files load only
+through :func:`read_weights`, which checks their SHA-256.
 """
 
 from kornia_ilum.estimators.base import (
@@ -10,6 +11,7 @@ from kornia_ilum.estimators.base import (
     LightingEstimator,
     WeightFile,
     check_crops,
+    read_weights,
 )
 from kornia_ilum.estimators.ours import OursEstimator
 from kornia_ilum.estimators.registry import (
@@ -28,6 +30,7 @@ __all__ = [
     "EstimatorInfo",
     "WeightFile",
     "check_crops",
+    "read_weights",
     "OursEstimator",
     "DEFAULT_ESTIMATOR",
     "ENTRY_POINT_GROUP",

@@ -12,13 +12,15 @@ on the method:
   calls :meth:`LightingEstimator.predict`, which subclasses implement. Pretrained weights load only
   through :meth:`LightingEstimator.from_pretrained`, which checks each file's SHA-256 and reads it with
   :func:`safetensors.torch.load_file` (never by unpickling); a constructor never touches weight files.
+- :func:`read_weights`: that SHA-256-checked read, the one path every weight file takes (also a
+  user's checkpoint, whose digest it returns).
 
 Convention:
-    Crops are ``(B, 3, S, S)`` sRGB-encoded in ``[0, 1]`` (SPEC.md, Images) with ``S`` the estimator's
-    ``info.input_size`` (256 for the paper's crops). Lighting is a linear mirror ball in radiance, in the
-    units of the input image (SPEC.md, "Mirror ball" and "Units of lighting"), 0 outside the ball.
-    ``log_mirror_ball``, where an estimator has it, is ``log(1 + L)`` (natural log) for every estimator,
-    so ``mirror_ball == expm1(log_mirror_ball)``.
+    Crops are ``(B, 3, S, S)`` sRGB-encoded in ``[0, 1]`` (docs/conventions.rst, "Images") with ``S`` the
+    estimator's ``info.input_size`` (256 for the paper's crops). Lighting is a linear mirror ball in
+    radiance, in the units of the input image (docs/conventions.rst, "Mirror ball" and "Units of
+    lighting"), 0 outside the ball. ``log_mirror_ball``, where an estimator has it, is ``log(1 + L)``
+    (natural log) for every estimator, so ``mirror_ball == expm1(log_mirror_ball)``.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from kornia_ilum.core.errors import (
     WeightsChecksumError,
 )
 from kornia_ilum.core.files import sha256_file
+from kornia_ilum.estimators.pretrained import pretrained_names
 from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
 from kornia_ilum.io import write_hdr, write_ldr
 from kornia_ilum.render import SPHERE_SIZES, render_spheres
@@ -55,6 +58,7 @@ __all__ = [
     "EstimatorInfo",
     "LightingEstimator",
     "check_crops",
+    "read_weights",
     "PREVIEW_BRDFS",
     "CROP_RANGE_SLACK",
 ]
@@ -98,7 +102,8 @@ class LightingEstimate:
         valid: the pixels on the ball (:func:`~kornia_ilum.geometry.mirror_ball_valid`).
         log_mirror_ball: ``log(1 + mirror_ball)`` (natural log), 0 outside the ball, where the estimator
             predicts log-HDR.
-        sh: order-2 real SH coefficients of the lighting (SPEC.md order), where the estimator has them.
+        sh: order-2 real SH coefficients of the lighting (the order of docs/conventions.rst), where the
+            estimator has them.
         boxes: face boxes ``x0, y0, x1, y1`` in input-image pixels, filled by
             :func:`kornia_ilum.estimate_lighting`.
         image_index: which input image each lighting belongs to, filled by
@@ -113,9 +118,10 @@ class LightingEstimate:
         ShapeError, TypeCheckError: on construction, when a field has the wrong shape or dtype.
 
     Convention:
-        SPEC.md, "Mirror ball" (frame, equal-area mapping) and "Units of lighting". ``len(estimate)`` is
-        ``B``; ``index`` arguments select one lighting of the batch. Estimates compare by identity
-        (``eq=False``: tensors have no single truth value) and print their fields' shapes, not values.
+        docs/conventions.rst, "Mirror ball" (frame, equal-area mapping) and "Units of lighting".
+        ``len(estimate)`` is ``B``; ``index`` arguments select one lighting of the batch. Estimates compare
+        by identity (``eq=False``: tensors have no single truth value) and print their fields' shapes, not
+        values.
 
     Examples:
         >>> from kornia_ilum.geometry import mirror_ball_valid
@@ -221,9 +227,10 @@ class LightingEstimate:
                 existing file there stays as it was).
 
         Convention:
-            The file holds the estimate in the units of the input photograph (SPEC.md, "Units of
-            lighting"). The mirror ball is ``S x S`` with 0 outside the ball (SPEC.md, "Mirror ball");
-            the lat-long map follows SPEC.md, "Lat-long" (centre column = forward, -Z).
+            The file holds the estimate in the units of the input photograph (docs/conventions.rst,
+            "Units of lighting"). The mirror ball is ``S x S`` with 0 outside the ball
+            (docs/conventions.rst, "Mirror ball"); the lat-long map follows docs/conventions.rst,
+            "Lat-long" (centre column = forward, -Z).
         """
         path = Path(os.fspath(path))
         _check_suffix(path, _HDR_SUFFIXES, "HDR lighting")
@@ -238,11 +245,11 @@ class LightingEstimate:
     def preview(self, path: str | os.PathLike[str], *, index: int = 0, size: int = 128) -> Path:
         r"""Write the three reference spheres side by side as an 8-bit PNG (or JPEG), atomically.
 
-        Left to right: diffuse, matte silver, mirror (SPEC.md, "Reference spheres"), each ``size x size``
-        on black. One exposure for all three maps the 99th percentile of the diffuse sphere's linear values
-        to 0.9; values are then clipped to ``[0, 1]`` and sRGB-encoded. Spheres are rendered at the
-        nearest supported render size (:data:`~kornia_ilum.render.SPHERE_SIZES`, at most 64) and resized
-        bilinearly to ``size`` when it is not one of them; rendering runs in float32.
+        Left to right: diffuse, matte silver, mirror (docs/conventions.rst, "Reference spheres"), each
+        ``size x size`` on black. One exposure for all three maps the 99th percentile of the diffuse
+        sphere's linear values to 0.9; values are then clipped to ``[0, 1]`` and sRGB-encoded. Spheres are
+        rendered at the nearest supported render size (:data:`~kornia_ilum.render.SPHERE_SIZES`, at most
+        64) and resized bilinearly to ``size`` when it is not one of them; rendering runs in float32.
 
         Args:
             path: destination, ``.png`` (or ``.jpg``/``.jpeg``).
@@ -349,7 +356,7 @@ class EstimatorInfo:
         return bool(self.weights) or not self.needs_weights
 
 
-def check_crops(crops: Tensor, size: int = 256) -> None:
+def check_crops(crops: Tensor, size: int = 256, *, values: bool = True) -> None:
     r"""Check estimator input: ``(B, 3, size, size)`` floating sRGB values in ``[0, 1]``.
 
     Values may exceed the range by :data:`CROP_RANGE_SLACK` (resampling round-off). The value checks
@@ -359,6 +366,7 @@ def check_crops(crops: Tensor, size: int = 256) -> None:
     Args:
         crops: the face crops.
         size: the side the estimator takes.
+        values: scan the values (NaN/Inf, range); ``False`` checks only the type and shape.
 
     Raises:
         TypeCheckError: ``crops`` is no tensor or not floating point (for ``uint8`` images divide by 255).
@@ -380,7 +388,7 @@ def check_crops(crops: Tensor, size: int = 256) -> None:
             "convert 8-bit images with image.float() / 255"
         )
     check_tensor(crops, "crops", ["B", "3", str(size), str(size)], finite=False)
-    if not checks_active() or torch.compiler.is_compiling():
+    if not values or not checks_active() or torch.compiler.is_compiling():
         return
     lo, hi = (float(v) for v in torch.aminmax(crops.detach()))  # one pass; NaN propagates into both
     if lo != lo or hi != hi or abs(lo) == float("inf") or abs(hi) == float("inf"):
@@ -404,7 +412,7 @@ class LightingEstimator(nn.Module):
 
     Convention:
         Crops are ``(B, 3, S, S)`` sRGB in ``[0, 1]``, ``S = info.input_size``; the result's lighting is
-        in the units of the input image (SPEC.md, "Units of lighting").
+        in the units of the input image (docs/conventions.rst, "Units of lighting").
 
     Examples:
         >>> from kornia_ilum.geometry import mirror_ball_valid
@@ -420,12 +428,15 @@ class LightingEstimator(nn.Module):
 
     info: ClassVar[EstimatorInfo]
 
-    def forward(self, crops: Tensor) -> LightingEstimate:
+    def forward(self, crops: Tensor, *, check_values: bool = True) -> LightingEstimate:
         r"""Estimate lighting from face crops.
 
         Args:
             crops: sRGB face crops in ``[0, 1]``, the square of side ``info.input_size`` around each face
                 (1.25 x the face box, LeGendre et al. 2020).
+            check_values: scan the crops' values (NaN/Inf, range). ``False`` is for a caller whose crops
+                are cut from an image it has checked already (:func:`kornia_ilum.estimate_lighting`); the
+                type and shape are checked either way.
 
         Returns:
             a :class:`LightingEstimate` with ``mirror_ball`` :math:`(B, 3, 32, 32)` and ``valid``, plus
@@ -435,7 +446,7 @@ class LightingEstimator(nn.Module):
             TypeCheckError, ShapeError, EmptyTensorError, NonFiniteError, ValueCheckError: see
                 :func:`check_crops`.
         """
-        check_crops(crops, self.info.input_size)
+        check_crops(crops, self.info.input_size, values=check_values)
         return self.predict(crops)
 
     def predict(self, crops: Tensor) -> LightingEstimate:
@@ -451,9 +462,10 @@ class LightingEstimator(nn.Module):
     def from_pretrained(cls, weights_dir: str | os.PathLike[str] | None = None, **kw: Any) -> Self:
         r"""Build ``cls(**kw)`` and load its weight files, each checked against its SHA-256 first.
 
-        Files are read with :func:`safetensors.torch.load_file` (no pickle, no code execution) onto the
-        CPU, merged, and loaded with ``load_state_dict(strict=True)``. The model is returned in ``eval()``
-        mode. Estimators with ``info.needs_weights == False`` are built as they are.
+        Files are checked and read by :func:`read_weights` (:func:`safetensors.torch.load_file`: no pickle,
+        no code execution) onto the CPU, merged, and loaded with ``load_state_dict(strict=True)``. The
+        model is returned in ``eval()`` mode. Estimators with ``info.needs_weights == False`` are built as
+        they are.
 
         Args:
             weights_dir: folder holding the files named in ``info.weights``; by default
@@ -474,8 +486,6 @@ class LightingEstimator(nn.Module):
             if not info.needs_weights:
                 return cls(**kw).eval()
             raise MissingWeightsError(_no_weights_message(info))
-        import safetensors.torch  # here: a weight file is read only when asked for
-
         folder = Path(os.fspath(weights_dir)) if weights_dir is not None else cls.default_weights_dir()
         state: dict[str, Tensor] = {}
         for weight in info.weights:
@@ -485,13 +495,7 @@ class LightingEstimator(nn.Module):
                 raise MissingWeightsError(
                     f"weight file {weight.name!r} of estimator '{info.name}' not found in {folder}{hint}"
                 )
-            digest = sha256_file(path)
-            if digest != weight.sha256:
-                raise WeightsChecksumError(
-                    f"{path}: SHA-256 is {digest}, but estimator '{info.name}' expects {weight.sha256}; "
-                    "the file is corrupt, truncated or from another release, and was not loaded"
-                )
-            tensors = safetensors.torch.load_file(path, device="cpu")
+            tensors, _ = read_weights(path, weight.sha256, expected_by=f"estimator '{info.name}'")
             clash = sorted(state.keys() & tensors.keys())
             if clash:
                 raise ValueCheckError(
@@ -503,10 +507,54 @@ class LightingEstimator(nn.Module):
         return model.eval()
 
 
-def _no_weights_message(info: EstimatorInfo) -> str:
-    from kornia_ilum.estimators.registry import _pretrained_names  # the registry imports this module
+def read_weights(
+    path: str | os.PathLike[str], sha256: str | None = None, *, expected_by: str = "the caller"
+) -> tuple[dict[str, Tensor], str]:
+    r"""Read a ``.safetensors`` weight file onto the CPU after checking its SHA-256: the one way weights load.
 
-    ready = ", ".join(_pretrained_names()) or "none installed (pip install ./plugins/uniform)"
+    :meth:`LightingEstimator.from_pretrained` reads every shipped file through it, and so does
+    :func:`kornia_ilum.evaluation.load_estimator` for a checkpoint given by the user. The file is read
+    with :func:`safetensors.torch.load_file` (no pickle, no code execution), never with :func:`torch.load`.
+
+    Args:
+        path: the weight file.
+        sha256: the digest the file must have (64 lowercase hex digits); ``None`` for a file whose digest
+            is not known in advance (a training run's output): it is computed and returned, so that the
+            caller can record which file it scored.
+        expected_by: who declares ``sha256``, for the error message (e.g. ``"estimator 'ours'"``).
+
+    Returns:
+        ``(tensors, digest)``: the file's tensors by name, on the CPU, and its SHA-256.
+
+    Raises:
+        WeightsChecksumError: the file's SHA-256 is not ``sha256`` (the message names the file and both
+            digests); nothing is read.
+        OSError: the file cannot be read.
+
+    Examples:
+        >>> import tempfile, safetensors.torch
+        >>> from kornia_ilum.core.files import sha256_file
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     path = Path(tmp) / "w.safetensors"
+        ...     safetensors.torch.save_file({"w": torch.ones(2)}, str(path))
+        ...     tensors, digest = read_weights(path)
+        ...     checked, _ = read_weights(path, sha256_file(path))
+        >>> tensors["w"].tolist(), len(digest), torch.equal(checked["w"], tensors["w"])
+        ([1.0, 1.0], 64, True)
+    """
+    import safetensors.torch  # lazy: a weight file is read only when asked for
+
+    digest = sha256_file(path)
+    if sha256 is not None and digest != sha256:
+        raise WeightsChecksumError(
+            f"{path}: SHA-256 is {digest}, but {expected_by} expects {sha256}; "
+            "the file is corrupt, truncated or from another release, and was not loaded"
+        )
+    return safetensors.torch.load_file(path, device="cpu"), digest
+
+
+def _no_weights_message(info: EstimatorInfo) -> str:
+    ready = ", ".join(pretrained_names()) or "none installed (pip install ./plugins/uniform)"
     return (
         f"'{info.name}' is registered but ships no trained weights yet; "
         f"pass pretrained=False for an untrained model or pick one of: {ready}"

@@ -1,9 +1,9 @@
 r"""``ours``: the lighting network of LeGendre et al. 2020, "Learning Illumination from Diverse Portraits".
 
-An encoder-decoder from a 256 x 256 sRGB face crop to a 32 x 32 log-HDR mirror ball (SPEC.md). It ships
-trained weights (``weights/ours.safetensors``, trained by ``kornia-ilum train`` on the light stage; its model
-card is ``weights/MODEL_CARD.md``): ``create_estimator("ours")`` loads them (SHA-256 checked, safetensors),
-``create_estimator("ours", pretrained=False)`` gives the untrained network.
+An encoder-decoder from a 256 x 256 sRGB face crop to a 32 x 32 log-HDR mirror ball (docs/conventions.rst,
+"Mirror ball"). It ships trained weights (``weights/ours.safetensors``, trained by ``kornia-ilum train`` on
+the light stage; its model card is ``weights/MODEL_CARD.md``): ``create_estimator("ours")`` loads them
+(SHA-256 checked, safetensors), ``create_estimator("ours", pretrained=False)`` gives the untrained network.
 
 Architecture (9,219,779 parameters at the default ``latent_dim=1024``, the paper's network size of
 about 9.2 M). From the paper's description:
@@ -24,10 +24,10 @@ the bottleneck is linear and a second fully-connected layer maps it to the decod
 PyTorch's default initialisation. The 9.2 M count depends on these: the two fully-connected layers and
 the 8 x 8 convolution hold 94 % of the parameters.
 
-Output (SPEC.md units): the head predicts ``y = log L`` (natural log of linear radiance) per pixel. The
-estimate holds ``mirror_ball = exp(y)`` and ``log_mirror_ball = softplus(y) = log(1 + L)``, both 0 outside
-the ball, so ``mirror_ball == expm1(log_mirror_ball)`` and the log form is non-negative, finite and
-well-conditioned for losses in log space.
+Output (the units of docs/conventions.rst): the head predicts ``y = log L`` (natural log of linear radiance)
+per pixel. The estimate holds ``mirror_ball = exp(y)`` and ``log_mirror_ball = softplus(y) = log(1 + L)``,
+both 0 outside the ball, so ``mirror_ball == expm1(log_mirror_ball)`` and the log form is non-negative, finite
+and well-conditioned for losses in log space.
 
 Training (:mod:`kornia_ilum.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
 (:meth:`OursEstimator.decode`) into 3-channel log lighting for the multi-scale losses; they belong to the
@@ -103,8 +103,8 @@ class OursEstimator(LightingEstimator):
         - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`; ``valid``: :math:`(32, 32)`
 
     Convention:
-        SPEC.md, "Mirror ball" and "Units of lighting": linear radiance in the units of the input image,
-        0 outside the ball. The outputs have the dtype of the module's parameters, also under
+        docs/conventions.rst, "Mirror ball" and "Units of lighting": linear radiance in the units of the
+        input image, 0 outside the ball. The outputs have the dtype of the module's parameters, also under
         :func:`torch.autocast` (the log-to-linear step runs in float32 outside autocast, then is cast);
         any memory format (``channels_last``) is accepted, the outputs are contiguous. Crops are cast to
         the parameters' dtype.
@@ -126,7 +126,11 @@ class OursEstimator(LightingEstimator):
         "256 x 256 face crop -> 32 x 32 log-HDR mirror ball",
         paper=PAPER,
         input_size=_INPUT_SIZE,
-        weights=(WeightFile("ours.safetensors", "be81e5bb50ec6ea11173c6f561cf3bd22609286c5823165038293353d097ae87"),),
+        weights=(
+            WeightFile(
+                "ours.safetensors", "be81e5bb50ec6ea11173c6f561cf3bd22609286c5823165038293353d097ae87"
+            ),
+        ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
     )
 

@@ -36,6 +36,7 @@ from types import MappingProxyType
 from typing import Any
 
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimator
+from kornia_ilum.estimators.pretrained import set_pretrained_lookup
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -155,7 +156,11 @@ def _resolve(name: str) -> type[LightingEstimator]:
 
 
 def _pretrained_names() -> list[str]:
-    """Names that ``create_estimator(name)`` with ``pretrained=True`` can build (for error messages)."""
+    """Names that ``create_estimator(name)`` with ``pretrained=True`` can build (for error messages).
+
+    Installed as :func:`kornia_ilum.estimators.pretrained.pretrained_names`'s lookup below, so that
+    :meth:`LightingEstimator.from_pretrained` can name them without importing this module.
+    """
     ready = []
     for name in _names():
         try:
@@ -164,6 +169,9 @@ def _pretrained_names() -> list[str]:
         except Exception:  # a broken runtime registration is reported when it is used, not here
             continue
     return ready
+
+
+set_pretrained_lookup(_pretrained_names)
 
 
 def list_estimators(pattern: str = "*") -> list[str]:

@@ -2,8 +2,9 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
 
 - :mod:`~kornia_ilum.evaluation.split`: what is held out (eval subjects, eval real maps, the eval sampler
   seed :data:`EVAL_SEED`).
-- :mod:`~kornia_ilum.evaluation.evaluate`: the deterministic eval set (:func:`build_eval_set`), the oracles
-  and the per-sample scores (:func:`evaluate`).
+- :mod:`~kornia_ilum.evaluation.evaluate`: the deterministic eval set (:func:`build_eval_set`), the oracles,
+  the estimators (:func:`load_estimator`; a run's weight file through :func:`load_checkpoint`, which records
+  its SHA-256) and the per-sample scores (:func:`evaluate`).
 - :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
   :func:`write_report`).
 - :mod:`~kornia_ilum.evaluation.cli`: :func:`~kornia_ilum.evaluation.cli.add_evaluate_parser` and
@@ -17,6 +18,7 @@ from kornia_ilum.evaluation.evaluate import (
     EvalSet,
     build_eval_set,
     evaluate,
+    load_checkpoint,
     load_estimator,
     oracle_predictions,
     predict,
@@ -37,6 +39,7 @@ __all__ = [
     "evaluate",
     "format_markdown",
     "heldout_maps",
+    "load_checkpoint",
     "load_estimator",
     "oracle_predictions",
     "predict",

@@ -12,7 +12,9 @@ import argparse
 import time
 from pathlib import Path
 
-from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+from kornia_ilum.core.cli import positive_int
+from kornia_ilum.evaluation.evaluate import build_eval_set, evaluate
+from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
 __all__ = ["add_evaluate_parser", "parse_weights", "run_evaluate"]
 
@@ -66,16 +68,17 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                      help="a light-stage cache; its eval subjects are used (repeatable)")
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR",
                      help="folders of real maps; their eval maps are used (default: procedural only)")
-    cmd.add_argument("--samples", type=_positive_int, default=512, metavar="N", help="eval portraits (512)")
+    cmd.add_argument("--samples", type=positive_int, default=512, metavar="N", help="eval portraits (512)")
     cmd.add_argument("--background", choices=("environment", "black"), default="environment",
                      help="the portraits' background: the matching environment (default, as ours is trained) "
                      "or black (the same portraits, as SIPR is trained)")
     cmd.add_argument("--estimator", action="append", default=None, metavar="NAME",
                      help="score only this registered estimator (repeatable; default: all)")
     cmd.add_argument("--weights", action="append", type=parse_weights, default=[], metavar="NAME=PATH",
-                     help="also score a .safetensors checkpoint of the registered estimator class NAME")
+                     help="also score a .safetensors checkpoint of the registered estimator class NAME "
+                     "(its SHA-256 is printed and recorded)")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
-    cmd.add_argument("--batch-size", type=_positive_int, default=32, metavar="B", help="crops per batch (32)")
+    cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
     cmd.add_argument("--markdown", metavar="FILE", help="write the Markdown tables here")
     cmd.add_argument("--json", metavar="FILE", help="write the JSON summary here")
@@ -92,9 +95,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
         ValueCheckError: no eval subject in the caches.
         HDRIOError: a ``--hdri`` folder is missing or holds no eval map.
     """
-    from kornia_ilum.evaluation.evaluate import build_eval_set, evaluate
-    from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
-
     t0 = time.perf_counter()
     eval_set = build_eval_set(args.cache, getattr(args, "hdri", None) or [], getattr(args, "samples", 512),
                               background=getattr(args, "background", "environment"), progress=True)

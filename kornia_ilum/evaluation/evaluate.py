@@ -24,13 +24,28 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import torch
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
+from kornia_ilum.core.progress import progress as bar
+from kornia_ilum.estimators import (
+    LightingEstimator,
+    create_estimator,
+    estimator_registry,
+    list_estimators,
+    read_weights,
+)
 from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields
+from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
+from kornia_ilum.metrics import reconstruction_loss, relative_radiance
+from kornia_ilum.sh import sh_project, sh_reconstruct
+from kornia_ilum.synth.environments import EnvironmentSampler
+from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
 
 __all__ = [
     "BRDF_NAMES",
@@ -39,6 +54,7 @@ __all__ = [
     "EvalSet",
     "build_eval_set",
     "evaluate",
+    "load_checkpoint",
     "load_estimator",
     "oracle_predictions",
     "predict",
@@ -117,11 +133,6 @@ def build_eval_set(
         ValueCheckError: no eval subject, a lighting size other than 32.
         HDRIOError: a folder of ``hdri`` is missing or holds no eval map.
     """
-    from kornia_ilum.core.progress import progress as bar
-    from kornia_ilum.synth.environments import EnvironmentSampler
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
-
     check_positive_int(samples, "samples")
     t0 = time.perf_counter()
     subjects = eval_fields(caches, fields)
@@ -196,9 +207,6 @@ def oracle_predictions(mirror_ball: torch.Tensor) -> dict[str, torch.Tensor]:
         >>> bool(relative_radiance(out["mean of GT"], gt).abs().max() < 1e-5)
         True
     """
-    from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
-    from kornia_ilum.sh import sh_project, sh_reconstruct
-
     check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"])
     s = mirror_ball.shape[-1]
     sh = sh_reconstruct(sh_project(mirror_ball), size=s, clamp_negative=False)
@@ -218,8 +226,6 @@ def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
         >>> sorted(s), s["diffuse"].tolist()
         (['diffuse', 'matte_silver', 'mirror', 'relative_radiance'], [0.0, 0.0])
     """
-    from kornia_ilum.metrics import reconstruction_loss, relative_radiance
-
     out = {b: reconstruction_loss(pred, target, b, size=32, reduction="none") for b in BRDF_NAMES}
     out["relative_radiance"] = relative_radiance(pred, target)
     return out
@@ -239,35 +245,56 @@ def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batc
     return torch.cat(out)
 
 
-def load_estimator(name: str, weights: str | os.PathLike[str] | None = None):
+def load_estimator(name: str, weights: str | os.PathLike[str] | None = None) -> LightingEstimator:
     r"""A registered estimator: ``create_estimator(name)``, or with ``weights`` the class of ``name`` built
     untrained and loaded from that ``.safetensors`` file (``strict=True``), in ``eval()`` mode.
+
+    Either way the weights go through :func:`~kornia_ilum.estimators.read_weights`, the SHA-256-checked path of
+    :meth:`~kornia_ilum.estimators.LightingEstimator.from_pretrained`; for a file of ``weights``, whose digest
+    is not known in advance, :func:`load_checkpoint` also returns the digest.
 
     Raises:
         ValueError: unknown name.
         MissingWeightsError: no shipped weights (``weights=None``) or the file is missing.
         ValueCheckError: the file is not ``.safetensors``.
+        WeightsChecksumError: a shipped weight file fails its SHA-256 check.
     """
-    from pathlib import Path
-
-    from kornia_ilum.estimators import create_estimator, estimator_registry
-
     if weights is None:
         return create_estimator(name)
+    return load_checkpoint(name, weights)[0]
+
+
+def load_checkpoint(name: str, weights: str | os.PathLike[str]) -> tuple[LightingEstimator, str]:
+    r"""The class of the registered estimator ``name``, built untrained and loaded from a ``.safetensors`` file.
+
+    The file is read by :func:`~kornia_ilum.estimators.read_weights` (safetensors, never unpickled), which
+    computes its SHA-256; the digest is returned so that the evaluation records which file it scored.
+
+    Args:
+        name: a registered estimator name; its class is built with its default arguments.
+        weights: the weight file, such as a training run's ``<name>.safetensors``.
+
+    Returns:
+        ``(estimator, sha256)``: the estimator in ``eval()`` mode, and the file's SHA-256.
+
+    Raises:
+        ValueError: unknown name.
+        MissingWeightsError: the file is missing.
+        ValueCheckError: the file is not ``.safetensors``.
+    """
     path = Path(weights)
     if path.suffix != ".safetensors":
         raise ValueCheckError(f"weights must be a .safetensors file, got {path}")
     if not path.is_file():
         raise MissingWeightsError(f"weight file {path} not found")
-    import safetensors.torch
-
     cls = estimator_registry().get(name)
     if cls is None:
         create_estimator(name, pretrained=False)  # raises the registry's ValueError for an unknown name
         cls = estimator_registry()[name]
     model = cls()
-    model.load_state_dict(safetensors.torch.load_file(path, device="cpu"), strict=True)
-    return model.eval()
+    state, digest = read_weights(path)
+    model.load_state_dict(state, strict=True)
+    return model.eval(), digest
 
 
 def evaluate(
@@ -282,19 +309,17 @@ def evaluate(
     Args:
         eval_set: from :func:`build_eval_set`.
         estimators: registered names (``None``: all of :func:`~kornia_ilum.estimators.list_estimators`).
-        weights: ``{name: checkpoint.safetensors}``, each scored as ``"name@file"`` (the class of ``name``).
+        weights: ``{name: checkpoint.safetensors}``, each scored as ``"name@file"`` (the class of ``name``,
+            :func:`load_checkpoint`).
         oracles: also score :data:`ORACLES`.
         batch_size: crops per forward pass.
 
     Returns:
         ``{"methods": {name: {"scores": {key: tensor}, "seconds": float}}, "skipped": {name: reason}}``
-        (:func:`score`'s per-sample tensors): an estimator without weights (:class:`MissingWeightsError`) is
+        (:func:`score`'s per-sample tensors); a method scored from a file of ``weights`` also has
+        ``"sha256"``, the file's digest. An estimator without weights (:class:`MissingWeightsError`) is
         skipped with the reason instead of failing the evaluation; other errors propagate.
     """
-    from pathlib import Path
-
-    from kornia_ilum.estimators import list_estimators
-
     names = list(list_estimators() if estimators is None else estimators)
     jobs: list[tuple[str, str, Any]] = [(n, n, None) for n in names]
     jobs += [(f"{n}@{Path(p).name}", n, p) for n, p in (weights or {}).items()]
@@ -303,13 +328,15 @@ def evaluate(
     gt = eval_set.mirror_ball
     for label, name, path in jobs:
         try:
-            model = load_estimator(name, path)
+            model, digest = (load_estimator(name), None) if path is None else load_checkpoint(name, path)
         except MissingWeightsError as e:
             skipped[label] = f"MissingWeightsError: {e}"
             continue
         t0 = time.perf_counter()
         pred = predict(model, eval_set.images, batch_size)
         methods[label] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
+        if digest is not None:
+            methods[label]["sha256"] = digest
     if oracles:
         t0 = time.perf_counter()
         preds = oracle_predictions(gt)

@@ -63,7 +63,8 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
         ``per_skin_tone`` (method, tone to ``count``, the mean per brdf, ``relative_radiance`` and
         ``relative_radiance_abs``); the groups are ``indoor``, ``outdoor`` and ``all`` (a group without
         samples holds ``None``); ``paired`` (``reference`` and, per other method and brdf, ``mean``, ``low``,
-        ``high`` and ``better``: the module docstring).
+        ``high`` and ``better``: the module docstring); and, where methods were scored from weight files
+        (``--weights``), ``weights`` (method to the file's SHA-256).
     """
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
@@ -81,10 +82,12 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
             m = tones == tone
             t3[name][str(tone)] = {"count": int(m.sum()), **{b: _mean(s[b][m]) for b in BRDF_NAMES},
                                    "relative_radiance": _means(rr[m]), "relative_radiance_abs": _means(rr[m].abs())}
+    digests = {n: m["sha256"] for n, m in results["methods"].items() if "sha256" in m}
     return {
         "eval_set": eval_set.description,
         "skipped": dict(results["skipped"]),
         "seconds": {n: m["seconds"] for n, m in results["methods"].items()},
+        **({"weights": digests} if digests else {}),
         "table1_l_rec": t1,
         "table2_relative_radiance": t2,
         "per_skin_tone": t3,
@@ -104,7 +107,8 @@ def _rgb(x: list[float] | None) -> str:
 
 
 def format_markdown(summary: dict[str, Any]) -> str:
-    r"""The tables of :func:`summarize` as Markdown (with a line on the eval set and the skipped estimators)."""
+    r"""The tables of :func:`summarize` as Markdown (with a line on the eval set, the skipped estimators and
+    the SHA-256 of the weight files scored)."""
     d = summary["eval_set"]
     lab = d.get("labels", {})
     n_maps = sum(len(v) for v in d.get("eval_maps", {}).values())
@@ -161,6 +165,8 @@ def format_markdown(summary: dict[str, Any]) -> str:
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if summary["skipped"]:
         lines += ["", "Skipped:"] + [f"- {n}: {' '.join(r.split())}" for n, r in summary["skipped"].items()]
+    if summary.get("weights"):
+        lines += ["", "Weight files:"] + [f"- {n}: sha256 {h}" for n, h in summary["weights"].items()]
     if d.get("eval_maps"):
         lines += ["", "Held-out real maps:"]
         for folder, maps in d["eval_maps"].items():

@@ -28,6 +28,10 @@ from pathlib import Path
 from typing import Any
 
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
+from kornia_ilum.synth.environments.indoor import IndoorSource
+from kornia_ilum.synth.environments.real import HDRFolderSource, folder_splits, guess_label
+from kornia_ilum.synth.environments.sky import SkySource
+from kornia_ilum.synth.lightstage.portraits import load_fields
 
 __all__ = ["EVAL_SEED", "eval_environment_sources", "eval_fields", "heldout_maps"]
 
@@ -50,8 +54,6 @@ def heldout_maps(folders: Sequence[str | os.PathLike[str]]) -> dict[str, dict[st
     Raises:
         HDRIOError: a folder does not exist.
     """
-    from kornia_ilum.synth.environments.real import folder_splits, guess_label
-
     out: dict[str, dict[str, Any]] = {}
     for folder in folders:
         splits = folder_splits(folder)
@@ -74,10 +76,6 @@ def eval_environment_sources(hdri: Sequence[str | os.PathLike[str]] = (), height
     Raises:
         HDRIOError: a folder does not exist or holds no map of split ``"eval"``.
     """
-    from kornia_ilum.synth.environments.indoor import IndoorSource
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.environments.sky import SkySource
-
     return [SkySource(height=height), IndoorSource(height=height)] + [
         HDRFolderSource(folder, height=height, split="eval") for folder in hdri
     ]
@@ -99,8 +97,6 @@ def eval_fields(caches: Sequence[str | os.PathLike[str]] = (), fields: Sequence[
         ValueCheckError: no eval field at all, the same subject seed in two caches, or a lighting size other
             than 32 (the estimators' and the metrics' size).
     """
-    from kornia_ilum.synth.lightstage.portraits import load_fields
-
     if isinstance(caches, (str, os.PathLike)):
         raise TypeCheckError("caches must be a sequence of folders, not one folder")
     out: list = []

@@ -7,6 +7,14 @@ max-blur-pool is Kornia's, re-exported unchanged (it already checks its input's 
 from kornia.filters import MaxBlurPool2D, max_blur_pool2d
 
 from kornia_ilum.filters.blur_pool import BlurPool2D, blur_pool2d
-from kornia_ilum.filters.soft_clip import SoftClip, soft_clip
+from kornia_ilum.filters.soft_clip import SoftClip, soft_clip, soft_clip_unchecked
 
-__all__ = ["soft_clip", "SoftClip", "blur_pool2d", "BlurPool2D", "max_blur_pool2d", "MaxBlurPool2D"]
+__all__ = [
+    "soft_clip",
+    "soft_clip_unchecked",
+    "SoftClip",
+    "blur_pool2d",
+    "BlurPool2D",
+    "max_blur_pool2d",
+    "MaxBlurPool2D",
+]

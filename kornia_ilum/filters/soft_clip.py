@@ -1,4 +1,8 @@
-r"""Soft clip: a monotone, differentiable clamp to ``[0, 1]`` (SPEC.md, ``L_rec``)."""
+r"""Soft clip: a monotone, differentiable clamp to ``[0, 1]``.
+
+Convention:
+    docs/conventions.rst, "The paper's error measure L_rec": the ``softclip`` of the sphere-render loss.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +14,7 @@ from torch import nn
 from kornia_ilum.core.check import check_tensor, checks_active
 from kornia_ilum.core.errors import NonFiniteError, ValueCheckError
 
-__all__ = ["soft_clip", "SoftClip"]
+__all__ = ["soft_clip", "soft_clip_unchecked", "SoftClip"]
 
 
 def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
@@ -28,8 +32,8 @@ def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
     strictly increasing (``f'(x) = (1 - sigmoid(beta (x - 1))) / (1 + c) > 0``), equals ``x`` up to
     ``e^{-beta (1 - x)} / beta`` below the knee, and ``f(1) = 1 - ln 2 / beta``.
 
-    Negative values map to 0 (SPEC.md: negative sphere values, for example renders of SH lighting with
-    negative lobes, count as 0), with gradient 0. So ``f`` is monotone (non-decreasing), continuous, and
+    Negative values map to 0 (docs/conventions.rst: negative sphere values, for example renders of SH lighting
+    with negative lobes, count as 0), with gradient 0. So ``f`` is monotone (non-decreasing), continuous, and
     differentiable everywhere except for the kink at 0, where the gradient used is the right-hand one,
     ``f'(0+) = (1 - sigmoid(-beta)) / (1 + c)`` (1 to within ``2e-9`` for ``beta = 20``); every gradient is
     finite. Without the clamp the formula would pass negatives through almost unchanged, and a power law
@@ -62,13 +66,29 @@ def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
         raise ValueCheckError(f"sharpness must be a finite positive number, got {sharpness!r}")
     if checks_active() and not torch.compiler.is_compiling() and bool(torch.isnan(x).any()):
         raise NonFiniteError("x must not hold NaN")
-    return _soft_clip(x, float(sharpness))
+    return soft_clip_unchecked(x, float(sharpness))
 
 
-def _soft_clip(x: torch.Tensor, beta: float = 20.0) -> torch.Tensor:
-    """:func:`soft_clip` without the argument checks (for callers that checked their inputs)."""
+def soft_clip_unchecked(x: torch.Tensor, beta: float = 20.0) -> torch.Tensor:
+    r""":func:`soft_clip` without the argument checks, for callers that checked their inputs.
+
+    The same values and gradients as :func:`soft_clip` with ``sharpness=beta``; nothing is validated (no
+    NaN scan of ``x``), so a loss that checked its inputs once does not pay for a second pass over the data.
+
+    Args:
+        x: tensor of any shape.
+        beta: the knee's sharpness, > 0.
+
+    Returns:
+        tensor of the shape and dtype of ``x``, in ``[0, 1]``.
+
+    Examples:
+        >>> soft_clip_unchecked(torch.tensor([-3.0, 0.0, 0.5, 1.0, 1e6]))
+        tensor([0.0000, 0.0000, 0.5000, 0.9653, 1.0000])
+    """
     work = x.float() if x.dtype in (torch.float16, torch.bfloat16) else x
-    work = work.clamp(min=0.0)  # negatives count as 0 (SPEC.md); clamp's gradient at exactly 0 is 1
+    # negatives count as 0 (docs/conventions.rst); clamp's gradient at exactly 0 is 1
+    work = work.clamp(min=0.0)
     softplus = nn.functional.softplus
     c = softplus(torch.tensor(-beta, dtype=work.dtype, device=work.device)) / beta  # cancels f(0) exactly
     t = work - 1.0

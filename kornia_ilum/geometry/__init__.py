@@ -1,4 +1,7 @@
-"""Sphere geometry: mirror-ball and lat-long grids, solid angles, resampling and rotation (SPEC.md)."""
+"""Sphere geometry: mirror-ball and lat-long grids, solid angles, resampling and rotation.
+
+The frame and the grids are those of docs/conventions.rst ("Frames", "Mirror ball", "Lat-long").
+"""
 
 from kornia_ilum.geometry.latlong import (
     angles_to_latlong_pixel,
@@ -25,8 +28,13 @@ from kornia_ilum.geometry.resample import (
     LatLongToMirrorBall,
     MirrorBallToLatLong,
     ResizeMirrorBall,
+    check_layout,
+    check_lighting,
+    grid_overlaps,
+    grid_solid_angles,
     latlong_to_mirror_ball,
     mirror_ball_to_latlong,
+    resample_bilinear,
     resize_mirror_ball,
 )
 from kornia_ilum.geometry.transform import (
@@ -60,6 +68,11 @@ __all__ = [
     "LatLongToMirrorBall",
     "MirrorBallToLatLong",
     "ResizeMirrorBall",
+    "check_layout",
+    "check_lighting",
+    "grid_overlaps",
+    "grid_solid_angles",
+    "resample_bilinear",
     "rotate_lighting",
     "flip_lighting_horizontal",
     "RotateLighting",

@@ -1,4 +1,4 @@
-r"""The lat-long (equirectangular) grid of SPEC.md.
+r"""The lat-long (equirectangular) grid of docs/conventions.rst ("Lat-long").
 
 Convention:
     An ``H x 2H`` image. Pixel centre of row ``i``, column ``j``: ``phi = 2 pi (j + 0.5) / W - pi``,

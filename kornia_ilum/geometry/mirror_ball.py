@@ -1,4 +1,4 @@
-r"""The mirror-ball (Lambert azimuthal equal-area) lighting grid of SPEC.md.
+r"""The mirror-ball (Lambert azimuthal equal-area) lighting grid of docs/conventions.rst ("Mirror ball").
 
 Convention:
     Frame: +X right, +Y up, +Z toward the camera; a direction ``d`` means light arriving *from* ``d``.
@@ -91,7 +91,7 @@ def mirror_ball_to_direction(uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tens
         outside the ball are clamped radially onto the rim (direction -Z) so that ``d`` stays finite.
 
     Convention:
-        ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)`` (SPEC.md, mirror ball).
+        ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)`` (docs/conventions.rst, "Mirror ball").
 
     Examples:
         >>> d, valid = mirror_ball_to_direction(torch.tensor([[0.0, 0.0], [1.0, 0.0]]))
@@ -248,7 +248,8 @@ def mirror_ball_pixel_index(uv: torch.Tensor, size: int) -> torch.Tensor:
         ``(...)`` int64 indices into the flattened ``S x S`` grid, always of a valid pixel.
 
     Examples:
-        >>> mirror_ball_pixel_index(torch.tensor([[0.1, 0.1], [0.95, 0.9]]), 4)  # the 2nd is in an invalid corner
+        >>> uv = torch.tensor([[0.1, 0.1], [0.95, 0.9]])  # the 2nd is in an invalid corner
+        >>> mirror_ball_pixel_index(uv, 4)
         tensor([6, 7])
     """
     check_tensor(uv, "uv", ["*", "2"], finite=True)
@@ -284,8 +285,10 @@ def _solid_angles_f64(size: int) -> torch.Tensor:
         # each sample's share goes to its nearest rim pixel; exact ties split equally (keeps symmetry)
         ties = (dist <= dist.min(dim=-1, keepdim=True).values + 1e-9) & inside[..., None]
         weight = ties.to(torch.float64) / ties.sum(-1, keepdim=True).clamp(min=1)
-        per_sliver = weight.sum((1, 2))  # samples inside the disk, per sliver (0 for a corner that only touches)
-        scale = torch.where(per_sliver > 0, area[slivers[:, 0], slivers[:, 1]] / per_sliver.clamp(min=1.0), 0.0)
+        # samples inside the disk, per sliver (0 for a corner that only touches)
+        per_sliver = weight.sum((1, 2))
+        sliver_area = area[slivers[:, 0], slivers[:, 1]]
+        scale = torch.where(per_sliver > 0, sliver_area / per_sliver.clamp(min=1.0), 0.0)
         weight = weight * scale[:, None, None]
         omega.index_add_(0, cand.flatten(), weight.flatten())
     return (4.0 * omega).reshape(size, size)

@@ -1,4 +1,4 @@
-r"""Resampling lighting between the lat-long and mirror-ball grids of SPEC.md.
+r"""Resampling lighting between the lat-long and mirror-ball grids of docs/conventions.rst.
 
 Two methods, picked by pixel count (``mode="auto"``: area when the target has no more valid pixels
 than the source, i.e. fewer pixels per steradian on average; bilinear otherwise) or by name:
@@ -20,9 +20,9 @@ than the source, i.e. fewer pixels per steradian on average; bilinear otherwise)
     matrices", Pacific J. Math. 1967) make the overlaps sum to ``Omega_t`` over each target pixel (a
     constant map stays constant) and, last, exactly to ``Omega_s`` over each source pixel. Hence
     ``sum(L * Omega)`` per channel is conserved to float precision, and a small bright source (the
-    0.5-degree sun of SPEC.md) keeps its full energy in the target pixel that contains it: scaling never
-    creates an overlap, and a source pixel inside one target pixel overlaps no other. Point sampling at
-    pixel centres would miss it or multiply it.
+    0.5-degree sun of docs/conventions.rst) keeps its full energy in the target pixel that contains it:
+    scaling never creates an overlap, and a source pixel inside one target pixel overlaps no other. Point
+    sampling at pixel centres would miss it or multiply it.
 
 ``"bilinear"``: interpolation, for upsampling
     The source is sampled at each target pixel centre's direction with
@@ -44,23 +44,23 @@ Supersampling factor:
     0.1 % / 0.7 % / 0.5 % for mirror ball 32 -> 16 / 8 / 4, 0.1 % for mirror ball 32 -> lat-long 8 x 16.
 
 Implementation:
-    The table is built once per (grids, dtype, device), in float64 on the CPU (1 to 2 s for a 512 x 1024
-    map: 8.4 M sub-cells, 0.6 M entries after merging), stored as a ``torch.sparse_csr`` matrix ``M``
+    The table is built once per (grids, dtype, device), in float64 on the CPU (for a 512 x 1024 map:
+    8.4 M sub-cells, 0.6 M entries after merging), stored as a ``torch.sparse_csr`` matrix ``M``
     (``T x N``) with int32 indices (MKL's own; int64 ones are converted on every call) and its
     transpose for the backward pass, and cached. Applying it is one sparse matrix-vector product per map
-    and channel (differentiable, batched over ``B`` and ``C``). Measured on 2 CPU threads for
-    512 x 1024 -> 32 x 32, per map: 1.0 to 1.6 ms forward (4.5 ms with backward), against 7 to 9 ms
-    (16 to 18 ms) for the gather + :func:`torch.index_add` scatter of the same table, whose scatter
-    serialises on write conflicts, and 4.3 ms (10 to 70 ms) for a single CSR x dense product, which
-    needs an ``(N, B C)`` transposed copy of the input and rebuilds the transpose for the backward pass.
+    and channel (differentiable, batched over ``B`` and ``C``). That is faster, forward and backward, than
+    the gather + :func:`torch.index_add` scatter of the same table, whose scatter serialises on write
+    conflicts, and than a single CSR x dense product, which needs an ``(N, B C)`` transposed copy of the
+    input and rebuilds the transpose for the backward pass (the measured times are in the docs' geometry
+    page, ``benchmarks/bench_ops.py``, section resample).
     CSR products have no half-precision kernels: float16 / bfloat16 inputs are resampled in float32 and
     cast back. Tables are built and applied outside ``torch.compile`` graphs
     (:func:`torch.compiler.disable`); the input checks cost more than the product itself on large maps.
 
 Convention:
-    Frame, grids and directions of SPEC.md ("Mirror ball", "Lat-long"); a direction means light
-    arriving *from* it. Lighting is linear HDR radiance, never negative. Output mirror balls hold 0
-    at invalid pixels.
+    Frame, grids and directions of docs/conventions.rst ("Frames", "Mirror ball", "Lat-long"); a direction
+    means light arriving *from* it. Lighting is linear HDR radiance, never negative. Output mirror balls hold
+    0 at invalid pixels.
 """
 
 from __future__ import annotations
@@ -102,6 +102,11 @@ __all__ = [
     "LatLongToMirrorBall",
     "MirrorBallToLatLong",
     "ResizeMirrorBall",
+    "check_layout",
+    "check_lighting",
+    "grid_overlaps",
+    "grid_solid_angles",
+    "resample_bilinear",
 ]
 
 Layout = Literal["mirror_ball", "latlong"]
@@ -110,8 +115,8 @@ _MODES = ("auto", "area", "bilinear")
 _LAYOUTS = ("mirror_ball", "latlong")
 _K_MIN = 4  # sub-cells per axis at least (module docstring: the 0.5-degree sun)
 _BUDGET = 1 << 23  # at most this many sub-cells per grid (lat-long 512 x 1024 at k = 4)
-#: (k_rel = k_max, scaling rounds) for the cached resampling tables and for per-call rotation tables
-_CACHED, _PER_CALL = (16, 30), (8, 10)
+#: (k_rel = k_max, scaling rounds) for the cached resampling tables
+_CACHED = (16, 30)
 _CHUNK = 1 << 20  # sub-cells per chunk while building tables (bounds the float64 temporaries)
 
 
@@ -129,8 +134,24 @@ def _num_valid(layout: str, size: int) -> int:
 
 
 @lru_cache(maxsize=64)
-def _solid_angles_flat(layout: str, size: int) -> torch.Tensor:
-    """Exact solid angle of every pixel (0 at invalid mirror-ball pixels), flattened, float64, CPU."""
+def grid_solid_angles(layout: str, size: int) -> torch.Tensor:
+    r"""Exact solid angle of every pixel of a grid (0 at invalid mirror-ball pixels), flattened.
+
+    The weights that :func:`grid_overlaps` sums to; cached per grid and shared: read-only.
+
+    Args:
+        layout: ``"mirror_ball"`` (an ``S x S`` ball) or ``"latlong"`` (an ``S x 2S`` map).
+        size: the grid's side ``S`` (the map's height for lat-long).
+
+    Returns:
+        float64 CPU ``(N,)`` solid angles in sr, row-major
+        (:func:`~kornia_ilum.geometry.mirror_ball_solid_angles`,
+        :func:`~kornia_ilum.geometry.latlong_solid_angles`).
+
+    Examples:
+        >>> round(grid_solid_angles("latlong", 8).sum().item(), 6)  # 4 pi
+        12.566371
+    """
     if layout == "mirror_ball":
         return mirror_ball_solid_angles(size, dtype=torch.float64).flatten()
     return latlong_solid_angles(size, dtype=torch.float64).flatten()
@@ -205,13 +226,13 @@ def _subcells(
     blocks = [range(r0, min(size * k, r0 + step)) for r0 in range(0, size * k, step)]
     owners = [mirror_ball_pixel_index(_mirror_ball_subcells(size, k, b), size) for b in blocks]
     count = torch.bincount(torch.cat(owners), minlength=size * size).to(torch.float64)
-    per_cell = _solid_angles_flat(layout, size) / count.clamp(min=1.0)
+    per_cell = grid_solid_angles(layout, size) / count.clamp(min=1.0)
     for b, idx in zip(blocks, owners, strict=True):
         yield mirror_ball_to_direction(_mirror_ball_subcells(size, k, b))[0], idx, per_cell[idx], 0
 
 
 # ----------------------------------------------------------------------------------------------
-# overlap tables (shared with kornia_ilum.geometry.transform)
+# overlap tables (also used by kornia_ilum.geometry.transform and kornia_ilum.render.pyramid)
 
 
 def _merge(s: torch.Tensor, t: torch.Tensor, w: torch.Tensor, n_tgt: int, group: int = 0):
@@ -226,30 +247,42 @@ def _merge(s: torch.Tensor, t: torch.Tensor, w: torch.Tensor, n_tgt: int, group:
     return uniq // n_tgt, uniq % n_tgt, torch.zeros(uniq.numel(), dtype=w.dtype).index_add_(0, inv, w)
 
 
-def _overlaps(
+def grid_overlaps(
     src: tuple[str, int],
     tgt: tuple[str, int],
     rotation: torch.Tensor | None = None,
     merge: bool = True,
     quality: tuple[int, int] = _CACHED,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Estimated solid angles ``a`` of the overlaps of source pixel ``s`` (rotated by ``R``) and target ``t``.
+    r"""Estimated solid angles ``a`` shared by source pixel ``s`` (rotated by ``R``) and target pixel ``t``.
 
-    Both grids are supersampled (module docstring): source sub-cells are pushed to the target pixel that
-    owns ``R d``, target sub-cells pull from the source pixel that owns ``R^T d``, the two estimates are
-    mixed, trusting each in proportion to the other grid's sub-cell size, and rounds of scaling
-    (Sinkhorn) make the target sums ``Omega_t`` and (last) the source sums exactly ``Omega_s``.
+    The table behind ``mode="area"`` resampling, lighting rotation
+    (:func:`~kornia_ilum.geometry.rotate_lighting`) and the mirror-ball pyramid
+    (:func:`~kornia_ilum.render.mirror_ball_downsample_matrix`). Both grids are supersampled (module
+    docstring): source sub-cells are pushed to the target pixel that owns ``R d``, target sub-cells pull
+    from the source pixel that owns ``R^T d``, the two estimates are mixed, trusting each in proportion to
+    the other grid's sub-cell size, and rounds of scaling (Sinkhorn) make the target sums ``Omega_t`` and
+    (last) the source sums exactly ``Omega_s`` (:func:`grid_solid_angles`). Built on every call, in
+    float64 on the CPU; the arguments are not checked.
 
     Args:
-        src, tgt: grids ``(layout, size)``.
+        src, tgt: grids ``(layout, size)``, ``layout`` ``"mirror_ball"`` or ``"latlong"``.
         rotation: ``(3, 3)`` float64 CPU rotation, or ``None`` for the identity.
         merge: merge repeated ``(s, t)`` pairs (needed for cached tables; costs a sort).
-        quality: ``(k_rel, rounds)``: see :func:`_supersampling`, and the number of scaling rounds.
+        quality: ``(k_rel, rounds)``: the supersampling's ``k_rel`` (the most sub-cells per axis, module
+            docstring) and the number of scaling rounds.
 
     Returns:
-        float64 CPU ``(s, t, a)`` with ``sum_t a[s, t] = Omega_s``.
+        float64 CPU ``(s, t, a)``, one entry per overlap (per sub-cell pair without ``merge``), with
+        ``sum_t a[s, t] = Omega_s``.
+
+    Examples:
+        >>> s, t, a = grid_overlaps(("mirror_ball", 8), ("mirror_ball", 4))
+        >>> per_source = torch.zeros(64, dtype=a.dtype).index_add_(0, s, a)
+        >>> torch.allclose(per_source, grid_solid_angles("mirror_ball", 8))
+        True
     """
-    om_s, om_t = _solid_angles_flat(*src), _solid_angles_flat(*tgt)
+    om_s, om_t = grid_solid_angles(*src), grid_solid_angles(*tgt)
     k_rel, rounds = quality
     k_s, k_t = _supersampling(src, tgt, k_rel), _supersampling(tgt, src, k_rel)
     q_s, q_t = om_s / k_s**2, om_t / k_t**2  # sub-cell sizes: the error of each estimate
@@ -269,28 +302,6 @@ def _overlaps(
         a = a * (om_t / torch.zeros_like(om_t).index_add_(0, t, a).clamp(min=1e-300))[t]
         a = a * (om_s / torch.zeros_like(om_s).index_add_(0, s, a).clamp(min=1e-300))[s]
     return s, t, a
-
-
-def _splat(
-    x: torch.Tensor, s: torch.Tensor, t: torch.Tensor, weight: torch.Tensor, n_tgt: int
-) -> torch.Tensor:
-    """``out[b, :, t] = sum_m weight[b, m] x[b, :, s[b, m]]`` over entries ``m`` with ``t[b, m] = t``.
-
-    Args:
-        x: ``(B, C, N)``.
-        s, t, weight: ``(B, M)`` per-map tables, or ``(1, M)`` shared ones (``weight`` in the dtype of ``x``).
-        n_tgt: number of target pixels ``T``.
-
-    Returns:
-        ``(B, C, T)``; differentiable in ``x`` (a gather and :func:`torch.index_add`).
-    """
-    b, c, n = x.shape
-    s, t, weight = (z.expand(b, -1) for z in (s, t, weight))
-    offs = torch.arange(b, device=x.device).unsqueeze(1)
-    rows = x.transpose(1, 2).reshape(b * n, c).index_select(0, (s + n * offs).flatten())
-    out = torch.zeros(b * n_tgt, c, dtype=x.dtype, device=x.device)
-    out = out.index_add(0, (t + n_tgt * offs).flatten(), rows * weight.reshape(-1, 1))
-    return out.reshape(b, n_tgt, c).transpose(1, 2)
 
 
 class _SparseLinear(torch.autograd.Function):
@@ -325,10 +336,10 @@ def _csr(rows: torch.Tensor, cols: torch.Tensor, vals: torch.Tensor, shape: tupl
 @lru_cache(maxsize=16)
 def _area_operator_f64(src: tuple[str, int], tgt: tuple[str, int]) -> tuple[torch.Tensor, torch.Tensor]:
     """``M`` (``T x N``, ``M[t, s] = a[s, t] / Omega_t``) and its transpose, float64 CSR on the CPU."""
-    s, t, a = _overlaps(src, tgt)
-    om_t = _solid_angles_flat(*tgt)
+    s, t, a = grid_overlaps(src, tgt)
+    om_t = grid_solid_angles(*tgt)
     vals = a / om_t[t]
-    n_src, n_tgt = _solid_angles_flat(*src).numel(), om_t.numel()
+    n_src, n_tgt = grid_solid_angles(*src).numel(), om_t.numel()
     return _csr(t, s, vals, (n_tgt, n_src)), _csr(s, t, vals, (n_src, n_tgt))
 
 
@@ -375,9 +386,33 @@ def _bilinear_grid_f64(src: tuple[str, int], tgt: tuple[str, int]) -> torch.Tens
     return torch.stack([gx, gy], -1).unsqueeze(0)
 
 
-def _resample_bilinear(
-    x: torch.Tensor, src: tuple[str, int], grid: torch.Tensor, nearest: torch.Tensor | None
-):
+def resample_bilinear(
+    x: torch.Tensor, src: tuple[str, int], grid: torch.Tensor, nearest: torch.Tensor | None = None
+) -> torch.Tensor:
+    r"""Bilinear lookup of lighting at ``grid_sample`` coordinates into its padded grid (no checks).
+
+    The sampling step of ``mode="bilinear"``, for callers that compute their own grid of directions once and
+    look up many maps (a camera's rays). A lat-long source is padded by one pixel on every side: it wraps
+    in azimuth, and the row beyond a pole is the same row half a turn on. A mirror-ball source is first
+    extended outward: each pixel takes the value of pixel ``nearest`` (its nearest valid pixel), so that the
+    rim does not darken.
+
+    Args:
+        x: lighting ``(B, C, H, W)`` on grid ``src``.
+        src: the source grid ``(layout, size)``.
+        grid: ``(1, H_t, W_t, 2)`` (or ``(B, ...)``) normalised coordinates, ``align_corners=True``, into
+            the padded source: ``(H + 2) x (W + 2)`` for lat-long, ``H x W`` for a mirror ball.
+        nearest: for a mirror-ball source, ``(H W,)`` flat index of each pixel's nearest valid pixel;
+            ``None`` for lat-long.
+
+    Returns:
+        ``(B, C, H_t, W_t)`` samples in the dtype of ``x``.
+
+    Examples:
+        >>> grid = torch.zeros(1, 1, 1, 2)  # the centre of the padded 4 x 8 map
+        >>> resample_bilinear(torch.ones(1, 3, 2, 4), ("latlong", 2), grid).flatten()
+        tensor([1., 1., 1.])
+    """
     if src[0] == "mirror_ball":
         xp = x.flatten(2).index_select(2, nearest).reshape(x.shape)
     else:
@@ -394,7 +429,15 @@ def _resample_bilinear(
 # dispatch
 
 
-def _check_layout(layout: str) -> None:
+def check_layout(layout: str) -> None:
+    """Require ``layout`` to be ``"mirror_ball"`` or ``"latlong"``.
+
+    Raises:
+        ValueCheckError: any other value; the message lists both.
+
+    Examples:
+        >>> check_layout("latlong")
+    """
     check_choice(layout, "layout", _LAYOUTS)
 
 
@@ -402,8 +445,23 @@ def _check_mode(mode: str) -> None:
     check_choice(mode, "mode", _MODES)
 
 
-def _check_lighting(x: torch.Tensor, name: str, layout: str) -> None:
-    """Shape (B, C, S, S) / (B, C, H, 2H), floating, finite, non-negative."""
+def check_lighting(x: torch.Tensor, name: str, layout: str) -> None:
+    """Check lighting on a grid: ``(B, C, S, S)`` or ``(B, C, H, 2H)``, floating, finite, non-negative.
+
+    Args:
+        x: the value to check.
+        name: the argument's name, used in the messages.
+        layout: ``"mirror_ball"`` or ``"latlong"`` (checked by the caller, :func:`check_layout`).
+
+    Raises:
+        ShapeError: a wrong shape for ``layout``.
+        TypeCheckError: no floating-point tensor.
+        NonFiniteError: NaN or Inf.
+        ValueCheckError: a negative value.
+
+    Examples:
+        >>> check_lighting(torch.ones(1, 3, 4, 8), "env", "latlong")
+    """
     expected = ["B", "C", "S", "S"] if layout == "mirror_ball" else ["B", "C", "H", "2H"]
     check_tensor(x, name, expected, nonnegative=True)
     if not checks_active():
@@ -452,7 +510,7 @@ def _resample(x: torch.Tensor, src: tuple[str, int], tgt: tuple[str, int], mode:
     elif mode == "area":
         out = _apply_sparse(work.flatten(2), *tensors).reshape(*x.shape[:2], *_shape(*tgt))
     else:
-        out = _resample_bilinear(work, src, *tensors)
+        out = resample_bilinear(work, src, *tensors)
     if mask is not None:
         out = out * mask
     return out.to(x.dtype)
@@ -475,7 +533,7 @@ def latlong_to_mirror_ball(env: torch.Tensor, size: int = 32, mode: Mode = "auto
         - Output: :math:`(B, C, S, S)`
 
     Convention:
-        SPEC.md: ``d = (sin(phi) cos(el), sin(el), -cos(phi) cos(el))`` for the map, the Lambert
+        docs/conventions.rst: ``d = (sin(phi) cos(el), sin(el), -cos(phi) cos(el))`` for the map, the Lambert
         equal-area ball for the output (centre +Z, rim -Z). In ``"area"`` mode
         ``sum(L * Omega)`` per channel is conserved to float precision (module docstring). Half
         precision is computed in float32 and cast back.
@@ -494,7 +552,7 @@ def latlong_to_mirror_ball(env: torch.Tensor, size: int = 32, mode: Mode = "auto
         >>> round((ball[0, 0] * omega).sum().item(), 4)  # 4 pi, conserved
         12.5664
     """
-    _check_lighting(env, "env", "latlong")
+    check_lighting(env, "env", "latlong")
     check_positive_int(size, "size")
     _check_mode(mode)
     return _resample(env, ("latlong", env.shape[-2]), ("mirror_ball", size), mode)
@@ -517,8 +575,8 @@ def mirror_ball_to_latlong(mirror_ball: torch.Tensor, height: int, mode: Mode = 
         - Output: :math:`(B, C, H, 2H)`
 
     Convention:
-        SPEC.md grids. Bilinear mode extends the valid pixels outward (nearest valid pixel) before
-        interpolating, so the rim (-Z) does not darken.
+        Grids of docs/conventions.rst. Bilinear mode extends the valid pixels outward (nearest valid pixel)
+        before interpolating, so the rim (-Z) does not darken.
 
     Examples:
         >>> ball = latlong_to_mirror_ball(torch.ones(1, 3, 64, 128), 32)
@@ -526,7 +584,7 @@ def mirror_ball_to_latlong(mirror_ball: torch.Tensor, height: int, mode: Mode = 
         >>> env.shape, round(env.min().item(), 2), round(env.max().item(), 2)
         (torch.Size([1, 3, 64, 128]), 1.0, 1.0)
     """
-    _check_lighting(mirror_ball, "mirror_ball", "mirror_ball")
+    check_lighting(mirror_ball, "mirror_ball", "mirror_ball")
     check_positive_int(height, "height")
     _check_mode(mode)
     return _resample(mirror_ball, ("mirror_ball", mirror_ball.shape[-1]), ("latlong", height), mode)
@@ -550,7 +608,7 @@ def resize_mirror_ball(mirror_ball: torch.Tensor, size: int, mode: Mode = "auto"
         - Output: :math:`(B, C, S', S')`
 
     Convention:
-        SPEC.md mirror-ball grid; see :func:`latlong_to_mirror_ball` for the modes.
+        Mirror-ball grid of docs/conventions.rst; see :func:`latlong_to_mirror_ball` for the modes.
 
     Examples:
         >>> ball = torch.zeros(1, 1, 32, 32)
@@ -559,7 +617,7 @@ def resize_mirror_ball(mirror_ball: torch.Tensor, size: int, mode: Mode = "auto"
         >>> round((small * mirror_ball_solid_angles(8)).sum().item(), 5)
         1.0
     """
-    _check_lighting(mirror_ball, "mirror_ball", "mirror_ball")
+    check_lighting(mirror_ball, "mirror_ball", "mirror_ball")
     check_positive_int(size, "size")
     _check_mode(mode)
     return _resample(mirror_ball, ("mirror_ball", mirror_ball.shape[-1]), ("mirror_ball", size), mode)

@@ -1,9 +1,9 @@
-r"""Rigid transforms of lighting: rotation and the horizontal flip that matches a flipped photo (SPEC.md).
+r"""Rigid transforms of lighting: rotation and the horizontal flip that matches a flipped photo.
 
 Convention:
-    Frame of SPEC.md (+X right, +Y up, +Z toward the camera); a direction ``d`` means light arriving
-    *from* ``d``. Lighting is an ``S x S`` mirror ball (``layout="mirror_ball"``) or an ``H x 2H``
-    lat-long map (``layout="latlong"``), linear HDR, never negative.
+    Frame of docs/conventions.rst ("Frames": +X right, +Y up, +Z toward the camera); a direction ``d`` means
+    light arriving *from* ``d``. Lighting is an ``S x S`` mirror ball (``layout="mirror_ball"``) or an
+    ``H x 2H`` lat-long map (``layout="latlong"``), linear HDR, never negative.
 """
 
 from __future__ import annotations
@@ -15,16 +15,16 @@ from kornia_ilum.core.check import check_same_device, check_tensor, checks_activ
 from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.resample import (
-    _PER_CALL,
     Layout,
-    _check_layout,
-    _check_lighting,
-    _overlaps,
-    _solid_angles_flat,
-    _splat,
+    check_layout,
+    check_lighting,
+    grid_overlaps,
+    grid_solid_angles,
 )
 
 __all__ = ["rotate_lighting", "flip_lighting_horizontal", "RotateLighting", "FlipLightingHorizontal"]
+
+_PER_CALL = (8, 10)  # (k_rel = k_max, scaling rounds) of the per-call rotation tables (grid_overlaps)
 
 
 def _check_rotation(rotation: torch.Tensor, batch: int | None = None) -> None:
@@ -54,14 +54,36 @@ def _check_rotation(rotation: torch.Tensor, batch: int | None = None) -> None:
         )
 
 
+def _splat(
+    x: torch.Tensor, s: torch.Tensor, t: torch.Tensor, weight: torch.Tensor, n_tgt: int
+) -> torch.Tensor:
+    """``out[b, :, t] = sum_m weight[b, m] x[b, :, s[b, m]]`` over entries ``m`` with ``t[b, m] = t``.
+
+    Args:
+        x: ``(B, C, N)``.
+        s, t, weight: ``(B, M)`` per-map tables, or ``(1, M)`` shared ones (``weight`` in the dtype of ``x``).
+        n_tgt: number of target pixels ``T``.
+
+    Returns:
+        ``(B, C, T)``; differentiable in ``x`` (a gather and :func:`torch.index_add`).
+    """
+    b, c, n = x.shape
+    s, t, weight = (z.expand(b, -1) for z in (s, t, weight))
+    offs = torch.arange(b, device=x.device).unsqueeze(1)
+    rows = x.transpose(1, 2).reshape(b * n, c).index_select(0, (s + n * offs).flatten())
+    out = torch.zeros(b * n_tgt, c, dtype=x.dtype, device=x.device)
+    out = out.index_add(0, (t + n_tgt * offs).flatten(), rows * weight.reshape(-1, 1))
+    return out.reshape(b, n_tgt, c).transpose(1, 2)
+
+
 @compiler_disable
 def _rotation_tables(
     grid: tuple[str, int], rotation: torch.Tensor, dtype: torch.dtype, device: torch.device
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Per-rotation ``(s, t, weight)`` tables ``(B_R, M)`` for ``resample._splat``."""
+    """Per-rotation ``(s, t, weight)`` tables ``(B_R, M)`` for :func:`_splat`."""
     rot = rotation.detach().to(device="cpu", dtype=torch.float64).reshape(-1, 3, 3)
-    om = _solid_angles_flat(*grid)
-    tables = [_overlaps(grid, grid, r, merge=False, quality=_PER_CALL) for r in rot]
+    om = grid_solid_angles(*grid)
+    tables = [grid_overlaps(grid, grid, r, merge=False, quality=_PER_CALL) for r in rot]
     s, t, a = (torch.stack(p) for p in zip(*tables, strict=True))
     return s.to(device), t.to(device), (a / om[t]).to(device=device, dtype=dtype)
 
@@ -98,9 +120,9 @@ def rotate_lighting(
         - Output: as ``lighting``
 
     Convention:
-        SPEC.md frame. ``R`` acts on the directions light arrives from: with ``R`` the rotation by
-        +90 degrees about +Y (``R (0, 0, -1) = (-1, 0, 0)``), light from straight ahead (-Z) arrives from
-        the left (-X) afterwards. Half precision is computed in float32 and cast back.
+        Frame of docs/conventions.rst. ``R`` acts on the directions light arrives from: with ``R`` the
+        rotation by +90 degrees about +Y (``R (0, 0, -1) = (-1, 0, 0)``), light from straight ahead (-Z)
+        arrives from the left (-X) afterwards. Half precision is computed in float32 and cast back.
 
     Raises:
         ShapeError: wrong shapes.
@@ -117,8 +139,8 @@ def rotate_lighting(
         >>> abs((out * omega).sum().item() - (ball * omega).sum().item()) < 1e-6  # energy conserved
         True
     """
-    _check_layout(layout)
-    _check_lighting(lighting, "lighting", layout)
+    check_layout(layout)
+    check_lighting(lighting, "lighting", layout)
     _check_rotation(rotation, lighting.shape[0])
     check_same_device(("lighting", lighting), ("rotation", rotation))
     work = lighting.float() if lighting.dtype in (torch.float16, torch.bfloat16) else lighting
@@ -147,7 +169,7 @@ def flip_lighting_horizontal(lighting: torch.Tensor, layout: Layout = "mirror_ba
         - Output: as ``lighting``
 
     Convention:
-        SPEC.md frame and grids.
+        Frame and grids of docs/conventions.rst.
 
     Raises:
         ShapeError: wrong shape for ``layout``.
@@ -161,8 +183,8 @@ def flip_lighting_horizontal(lighting: torch.Tensor, layout: Layout = "mirror_ba
         tensor([[0., 0., 0., 1.],
                 [0., 0., 0., 0.]])
     """
-    _check_layout(layout)
-    _check_lighting(lighting, "lighting", layout)
+    check_layout(layout)
+    check_lighting(lighting, "lighting", layout)
     return lighting.flip(-1)
 
 
@@ -182,7 +204,7 @@ class RotateLighting(nn.Module):
 
     def __init__(self, rotation: torch.Tensor, layout: Layout = "mirror_ball") -> None:
         super().__init__()
-        _check_layout(layout)
+        check_layout(layout)
         _check_rotation(rotation)
         self.layout = layout
         self.register_buffer("rotation", rotation, persistent=False)
@@ -207,7 +229,7 @@ class FlipLightingHorizontal(nn.Module):
 
     def __init__(self, layout: Layout = "mirror_ball") -> None:
         super().__init__()
-        _check_layout(layout)
+        check_layout(layout)
         self.layout = layout
 
     def forward(self, lighting: torch.Tensor) -> torch.Tensor:

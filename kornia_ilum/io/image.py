@@ -12,9 +12,10 @@ own messages are appended, never raised raw. A file that ends before its image d
 subclass :class:`~kornia_ilum.core.errors.TruncatedImageError`, also where OpenImageIO would return the
 pixels it could decode: a PNG whose chunks stop before ``IEND``, a JPEG whose data stop early (libjpeg's
 "Premature end of JPEG file", which OpenImageIO reports but does not fail on). Truncated EXR, HDR and TIFF
-files fail to decode and raise :class:`~kornia_ilum.core.errors.HDRIOError`. Bad tensors given to the writers raise the usual typed
-input errors (:class:`~kornia_ilum.core.errors.ShapeError`, :class:`~kornia_ilum.core.errors.NonFiniteError`,
-:class:`~kornia_ilum.core.errors.ValueCheckError`) naming the argument.
+files fail to decode and raise :class:`~kornia_ilum.core.errors.HDRIOError`. Bad tensors given to the writers
+raise the usual typed input errors (:class:`~kornia_ilum.core.errors.ShapeError`,
+:class:`~kornia_ilum.core.errors.NonFiniteError`, :class:`~kornia_ilum.core.errors.ValueCheckError`) naming
+the argument.
 
 Writes are atomic: pixels go to a hidden temporary file in the destination's folder, which replaces the
 destination (:func:`os.replace`) only once it is complete. A failed write leaves the destination as it
@@ -24,8 +25,8 @@ These are file functions, not tensor ops, so they have no :class:`torch.nn.Modul
 functional + module rule applies to the differentiable ops only).
 
 Convention:
-    Images are RGB, channel-first (SPEC.md, Images). Lat-long files keep their orientation on disk
-    (centre column = forward, -Z); the EXIF ``Orientation`` tag of photographs is applied on read, so a
+    Images are RGB, channel-first (docs/conventions.rst, "Images"). Lat-long files keep their orientation on
+    disk (centre column = forward, -Z); the EXIF ``Orientation`` tag of photographs is applied on read, so a
     portrait comes back upright.
 """
 
@@ -84,7 +85,9 @@ def _png_truncation(path: Path) -> str | None:
             if not kind.isalpha():
                 return None  # corrupt, not truncated
             if kind == b"IEND":
-                return None if pos + 12 <= size else f"it ends after {size} bytes, inside the PNG's IEND chunk"
+                if pos + 12 <= size:
+                    return None
+                return f"it ends after {size} bytes, inside the PNG's IEND chunk"
             pos += 12 + length  # header, data, CRC
             if pos > size:
                 return (
@@ -99,7 +102,7 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
 
     ``hdr`` selects the pixel types accepted: floating point (HDR) or 8/16-bit integers (LDR).
     """
-    import OpenImageIO as oiio  # here, not at module level: it costs ~50 ms of `import kornia_ilum`
+    import OpenImageIO as oiio  # lazy: keeps import kornia_ilum cheap
 
     if not path.exists():
         raise HDRIOError(f"cannot read {path}: no such file")
@@ -184,8 +187,8 @@ def read_hdr(path: str | os.PathLike[str], *, clamp_negative: bool = True) -> to
     Args:
         path: the file.
         clamp_negative: clamp negative values to 0. Lossy EXR compression (DWAA/DWAB) stores small
-            negative values (down to about -0.004 in the shared maps) that HDR data never has (SPEC.md,
-            Images). Pass ``False`` to get the stored values unchanged.
+            negative values (down to about -0.004 in the shared maps) that HDR data never has
+            (docs/conventions.rst, "Images"). Pass ``False`` to get the stored values unchanged.
 
     Returns:
         ``(3, H, W)`` float32 CPU tensor, linear, as stored in the file. Alpha, depth and extra
@@ -201,9 +204,9 @@ def read_hdr(path: str | os.PathLike[str], *, clamp_negative: bool = True) -> to
         - Output: :math:`(3, H, W)`
 
     Convention:
-        Linear, unbounded above (SPEC.md, Images). A lat-long map comes back with the orientation it has
-        on disk; the usual one (centre column = forward) is the library's lat-long convention (SPEC.md,
-        Lat-long). Add the batch dimension with ``image[None]``.
+        Linear, unbounded above (docs/conventions.rst, "Images"). A lat-long map comes back with the
+        orientation it has on disk; the usual one (centre column = forward) is the library's lat-long
+        convention (docs/conventions.rst, "Lat-long"). Add the batch dimension with ``image[None]``.
 
     Examples:
         >>> import tempfile
@@ -245,8 +248,8 @@ def read_ldr(path: str | os.PathLike[str]) -> torch.Tensor:
         - Output: :math:`(3, H, W)`
 
     Convention:
-        sRGB-encoded, display-referred (SPEC.md, Images); :func:`kornia_ilum.color.srgb_to_linear`
-        decodes it. No ICC profile or PNG gamma chunk is applied.
+        sRGB-encoded, display-referred (docs/conventions.rst, "Images");
+        :func:`kornia_ilum.color.srgb_to_linear` decodes it. No ICC profile or PNG gamma chunk is applied.
 
     Examples:
         >>> import tempfile
@@ -289,7 +292,7 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
     if not path.parent.is_dir():
         raise HDRIOError(f"cannot write {path}: the folder {path.parent} does not exist")
 
-    import OpenImageIO as oiio
+    import OpenImageIO as oiio  # lazy: keeps import kornia_ilum cheap
 
     def write(tmp: Path) -> None:
         out = oiio.ImageOutput.create(str(tmp))
@@ -341,10 +344,10 @@ def write_hdr(
           float32 on the CPU; gradients are not tracked).
 
     Convention:
-        Linear, non-negative (SPEC.md, Images). Radiance RGBE keeps an 8-bit mantissa per channel with a
-        shared exponent, truncated by OpenImageIO: each channel comes back at most 1/128 of the pixel's
-        largest channel below the value written (0.78 %). EXR float32 is exact; EXR half has a relative
-        error of at most 2^-11 in the normal range.
+        Linear, non-negative (docs/conventions.rst, "Images"). Radiance RGBE keeps an 8-bit mantissa per
+        channel with a shared exponent, truncated by OpenImageIO: each channel comes back at most 1/128 of the
+        pixel's largest channel below the value written (0.78 %). EXR float32 is exact; EXR half has a
+        relative error of at most 2^-11 in the normal range.
 
     Examples:
         >>> import tempfile

@@ -1,4 +1,8 @@
-r"""Lighting errors of LeGendre et al. 2020: sphere-render loss ``L_rec``, relative radiance (SPEC.md)."""
+r"""Lighting errors of LeGendre et al. 2020: sphere-render loss ``L_rec``, relative radiance.
+
+Convention:
+    docs/conventions.rst, "The paper's error measure L_rec" and "Relative radiance".
+"""
 
 from __future__ import annotations
 
@@ -17,20 +21,20 @@ from kornia_ilum.geometry.mirror_ball import (
 )
 from kornia_ilum.render.spheres import (
     SPHERE_SIZES,
-    _check_brdf,
-    _check_gamma,
-    _check_sizes,
-    _lighting_size,
-    _encode,
-    _Plan,
-    _render_plan,
-    _stacked_plan,
+    SpherePlan,
+    check_brdf,
+    check_sphere_lighting,
+    check_sphere_sizes,
+    gamma_knee,
+    render_plan,
+    sphere_plan,
 )
 
 __all__ = [
     "MultiscaleReconstructionLoss",
     "ReconstructionLoss",
     "RelativeRadiance",
+    "check_lighting_pair",
     "multiscale_reconstruction_loss",
     "reconstruction_loss",
     "relative_radiance",
@@ -40,13 +44,39 @@ _REDUCTIONS = ("mean", "sum", "none")
 _HALF = (torch.float16, torch.bfloat16)
 
 
-def _check_pair(pred: torch.Tensor, target: torch.Tensor) -> int:
-    """Check two mirror-ball lighting batches of one shape; return their side ``S_L``."""
-    s = _lighting_size(pred, "pred")
-    _lighting_size(target, "target")
+def check_lighting_pair(pred: torch.Tensor, target: torch.Tensor, lighting_size: int | None = None) -> int:
+    r"""Check a predicted and a ground-truth mirror-ball lighting batch of one shape; return their side.
+
+    Each is checked by :func:`~kornia_ilum.render.check_sphere_lighting` (``(B, 3, S_L, S_L)``, finite,
+    ``S_L`` in :data:`~kornia_ilum.render.SPHERE_SIZES`), then their shapes are compared, then ``S_L`` with
+    ``lighting_size``.
+
+    Args:
+        pred: predicted lighting.
+        target: ground-truth lighting.
+        lighting_size: the side ``S_L`` required (a module's), or ``None`` for any.
+
+    Returns:
+        the side ``S_L``.
+
+    Raises:
+        ShapeError: a wrong shape, different shapes, or a side other than ``lighting_size``.
+        TypeCheckError: no floating-point tensor.
+        NonFiniteError: NaN or Inf in either.
+
+    Examples:
+        >>> check_lighting_pair(torch.ones(2, 3, 16, 16), torch.zeros(2, 3, 16, 16))
+        16
+    """
+    s = check_sphere_lighting(pred, "pred")
+    check_sphere_lighting(target, "target")
     if pred.shape != target.shape:
         raise ShapeError(
             f"pred and target must have the same shape, got {tuple(pred.shape)} and {tuple(target.shape)}"
+        )
+    if lighting_size is not None and s != lighting_size:
+        raise ShapeError(
+            f"pred must have shape (B, 3, {lighting_size}, {lighting_size}), got {tuple(pred.shape)}"
         )
     return s
 
@@ -60,15 +90,15 @@ def _reduce(x: torch.Tensor, reduction: str) -> torch.Tensor:
 
 
 def _l_rec(
-    plan: _Plan, counts: tuple[int, ...], pred: torch.Tensor, target: torch.Tensor, knee: float
+    plan: SpherePlan, counts: tuple[int, ...], pred: torch.Tensor, target: torch.Tensor, knee: float
 ) -> torch.Tensor:
     """Per-item ``L_rec`` averaged over the scales, ``(B,)``, from a render plan of one sphere at all scales.
 
     The target's renders are made without autograd unless it requires a gradient.
     """
-    encoded_pred = _encode(_render_plan(plan, mirror_ball_to_lights(pred)), knee)
+    encoded_pred = render_plan(plan, mirror_ball_to_lights(pred), knee=knee)
     with torch.set_grad_enabled(torch.is_grad_enabled() and target.requires_grad):
-        encoded_target = _encode(_render_plan(plan, mirror_ball_to_lights(target)), knee)
+        encoded_target = render_plan(plan, mirror_ball_to_lights(target), knee=knee)
     diff = (encoded_pred - encoded_target).abs().sum(1)  # (B, sum P)
     if len(counts) == 1:
         return diff.mean(1) / 3.0
@@ -98,8 +128,8 @@ def reconstruction_loss(
     ``| softclip(I_pred)^(1/2.2) - softclip(I_gt)^(1/2.2) |`` (:func:`~kornia_ilum.render.encode_sphere`:
     :func:`~kornia_ilum.filters.soft_clip`, which counts negative values as 0, then the power).
 
-    Use ``gamma="exact"`` (the default) to evaluate: it is SPEC's metric. Train with ``gamma="safe"``,
-    whose gradient stays bounded on black pixels; targets precomputed for it with
+    Use ``gamma="exact"`` (the default) to evaluate: it is the metric of docs/conventions.rst. Train with
+    ``gamma="safe"``, whose gradient stays bounded on black pixels; targets precomputed for it with
     :func:`~kornia_ilum.render.sphere_pyramid` must use the same mode.
 
     Args:
@@ -108,9 +138,9 @@ def reconstruction_loss(
         brdf: the sphere, ``"diffuse"``, ``"matte_silver"`` or ``"mirror"``.
         size: side of the sphere render in pixels, one of :data:`~kornia_ilum.render.SPHERE_SIZES`.
         reduction: ``"mean"`` over the batch (a scalar), ``"sum"``, or ``"none"`` (one loss per item).
-        gamma: the power ``x^(1/2.2)``: ``"exact"`` (default; SPEC's metric, gradient unbounded near 0)
-            or ``"safe"`` (for training: the chord below 1e-6, finite slope at 0, at most 5.3e-4 below
-            the exact power), see :func:`~kornia_ilum.render.encode_sphere`.
+        gamma: the power ``x^(1/2.2)``: ``"exact"`` (default; the metric of docs/conventions.rst, gradient
+            unbounded near 0) or ``"safe"`` (for training: the chord below 1e-6, finite slope at 0, at most
+            5.3e-4 below the exact power), see :func:`~kornia_ilum.render.encode_sphere`.
 
     Returns:
         the loss: a scalar, or ``(B,)`` for ``reduction="none"``.
@@ -120,9 +150,9 @@ def reconstruction_loss(
         - Output: :math:`()` or :math:`(B,)`
 
     Convention:
-        SPEC.md, "The paper's error measure L_rec" and "Reference spheres" (multi-scale): the spheres
-        shaded with lighting in the units of the input image, so the soft clip at 1 is the camera's white
-        point.
+        docs/conventions.rst, "The paper's error measure L_rec" and "Reference spheres" (multi-scale): the
+        spheres shaded with lighting in the units of the input image, so the soft clip at 1 is the camera's
+        white point.
 
     Examples:
         >>> gt = torch.ones(2, 3, 32, 32)
@@ -133,12 +163,12 @@ def reconstruction_loss(
         >>> round(reconstruction_loss(-0.1 * gt, gt, "diffuse").item(), 3)  # negative light counts as 0
         0.903
     """
-    s_l = _check_pair(pred, target)
-    _check_brdf(brdf)
+    s_l = check_lighting_pair(pred, target)
+    check_brdf(brdf)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_reduction(reduction)
-    knee = _check_gamma(gamma)
-    plan = _stacked_plan((brdf,), (size,), s_l, pred.device, pred.dtype)
+    knee = gamma_knee(gamma)
+    plan = sphere_plan((brdf,), (size,), s_l, pred.device, pred.dtype)
     return _reduce(_l_rec(plan, _counts((size,)), pred, target, knee), reduction)
 
 
@@ -154,11 +184,11 @@ def multiscale_reconstruction_loss(
     r"""``L_rec`` averaged over several sphere resolutions.
 
     ``(1 / K) sum_k reconstruction_loss(pred, target, brdf, sizes[k])``: the sphere of size ``s`` is
-    rendered from the lighting brought down to ``s`` by the energy-keeping pyramid (SPEC.md, multi-scale;
-    :func:`~kornia_ilum.render.mirror_ball_pyramid`), shaded at each pixel centre; the coarse renders weigh
-    the low-frequency content (overall level and colour) as much as the 32 x 32 render weighs detail. Each
-    scale is a mean over its own sphere pixels, so every scale counts equally whatever its pixel count.
-    All the scales are one matrix product per lighting. For a generator with one output per scale
+    rendered from the lighting brought down to ``s`` by the energy-keeping pyramid (docs/conventions.rst,
+    "Multi-scale"; :func:`~kornia_ilum.render.mirror_ball_pyramid`), shaded at each pixel centre; the coarse
+    renders weigh the low-frequency content (overall level and colour) as much as the 32 x 32 render weighs
+    detail. Each scale is a mean over its own sphere pixels, so every scale counts equally whatever its pixel
+    count. All the scales are one matrix product per lighting. For a generator with one output per scale
     (MSG-GAN style), call :func:`reconstruction_loss` on each.
 
     Args:
@@ -181,12 +211,12 @@ def multiscale_reconstruction_loss(
         >>> bool(multiscale_reconstruction_loss(pred, gt, "mirror", sizes=(4,), gamma="safe") > 0)
         True
     """
-    s_l = _check_pair(pred, target)
-    _check_brdf(brdf)
-    sizes = _check_sizes(sizes)
+    s_l = check_lighting_pair(pred, target)
+    check_brdf(brdf)
+    sizes = check_sphere_sizes(sizes)
     _check_reduction(reduction)
-    knee = _check_gamma(gamma)
-    plan = _stacked_plan((brdf,), sizes, s_l, pred.device, pred.dtype)
+    knee = gamma_knee(gamma)
+    plan = sphere_plan((brdf,), sizes, s_l, pred.device, pred.dtype)
     return _reduce(_l_rec(plan, _counts(sizes), pred, target, knee), reduction)
 
 
@@ -211,7 +241,7 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         - Output: :math:`(B, 3)`
 
     Convention:
-        SPEC.md, "Relative radiance"; the mirror-ball grid of SPEC.md (equal-area, exact rim solid angles).
+        docs/conventions.rst, "Relative radiance"; its mirror-ball grid (equal-area, exact rim solid angles).
 
     Raises:
         ValueCheckError: ``target`` has a negative value or a channel with zero total radiance.
@@ -221,7 +251,7 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         >>> relative_radiance(2.0 * gt, gt)
         tensor([[-1., -1., -1.]])
     """
-    s = _check_pair(pred, target)
+    s = check_lighting_pair(pred, target)
     check_tensor(target, "target", ["B", "3", "S", "S"], nonnegative=True)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
     omega = mirror_ball_solid_angles(s, device=pred.device, dtype=work)
@@ -238,14 +268,14 @@ class _PlanBuffers(nn.Module):
     """Holds a render plan of one sphere at several scales as non-persistent buffers."""
 
     def _register_plan(self, brdf: str, sizes: tuple[int, ...], lighting_size: int) -> None:
-        plan = _stacked_plan((brdf,), sizes, lighting_size, torch.device("cpu"), torch.float32)
+        plan = sphere_plan((brdf,), sizes, lighting_size, torch.device("cpu"), torch.float32)
         self.register_buffer("field", plan.field.clone(), persistent=False)
         self.register_buffer("index", plan.index.clone(), persistent=False)
         self.register_buffer("order", None if plan.order is None else plan.order.clone(), persistent=False)
         self.counts = _counts(sizes)
 
-    def _plan(self, dtype: torch.dtype) -> _Plan:
-        return _Plan(self.field.to(dtype), self.index, self.order)
+    def _plan(self, dtype: torch.dtype) -> SpherePlan:
+        return SpherePlan(self.field.to(dtype), self.index, self.order)
 
 
 class ReconstructionLoss(_PlanBuffers):
@@ -265,14 +295,20 @@ class ReconstructionLoss(_PlanBuffers):
     """
 
     def __init__(
-        self, brdf: str, size: int = 32, reduction: str = "mean", lighting_size: int = 32, *, gamma: str = "exact"
+        self,
+        brdf: str,
+        size: int = 32,
+        reduction: str = "mean",
+        lighting_size: int = 32,
+        *,
+        gamma: str = "exact",
     ) -> None:
         super().__init__()
         _check_reduction(reduction)
-        _check_brdf(brdf)
+        check_brdf(brdf)
         check_positive_int(size, "size", allowed=SPHERE_SIZES)
         check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
-        self.knee = _check_gamma(gamma)
+        self.knee = gamma_knee(gamma)
         self.brdf, self.size, self.reduction, self.lighting_size, self.gamma = (
             brdf,
             size,
@@ -283,7 +319,7 @@ class ReconstructionLoss(_PlanBuffers):
         self._register_plan(brdf, (size,), lighting_size)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        _check_lighting_size(_check_pair(pred, target), self.lighting_size, pred)
+        check_lighting_pair(pred, target, self.lighting_size)
         return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
 
     def extra_repr(self) -> str:
@@ -317,12 +353,12 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
     ) -> None:
         super().__init__()
         _check_reduction(reduction)
-        _check_brdf(brdf)
+        check_brdf(brdf)
         check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
-        self.knee = _check_gamma(gamma)
+        self.knee = gamma_knee(gamma)
         self.brdf, self.sizes, self.reduction, self.lighting_size, self.gamma = (
             brdf,
-            _check_sizes(sizes),
+            check_sphere_sizes(sizes),
             reduction,
             lighting_size,
             gamma,
@@ -330,7 +366,7 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
         self._register_plan(brdf, self.sizes, lighting_size)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        _check_lighting_size(_check_pair(pred, target), self.lighting_size, pred)
+        check_lighting_pair(pred, target, self.lighting_size)
         return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
 
     def extra_repr(self) -> str:
@@ -347,8 +383,3 @@ class RelativeRadiance(nn.Module):
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return relative_radiance(pred, target)
-
-
-def _check_lighting_size(s_l: int, expected: int, pred: torch.Tensor) -> None:
-    if s_l != expected:
-        raise ShapeError(f"pred must have shape (B, 3, {expected}, {expected}), got {tuple(pred.shape)}")

@@ -26,11 +26,11 @@ github.com/DiffusionLight/DiffusionLight-evaluation:
      0 for a pixel where either vector is zero (their ``nan_to_num``). Computed as
      ``atan2(|P x G|, P . G)``, which is exact near 0 where ``arccos`` of a rounded cosine is not.
 
-Differences from the published numbers, by design: the spheres are SPEC.md's reference spheres rendered by
-reflectance fields (:mod:`kornia_ilum.render`) from 32 x 32 mirror-ball lighting, not Blender Cycles
-renders of 128 x 256 lat-long maps, and the tone-mapping median is over equal solid angles (mirror-ball
-pixels) rather than lat-long pixels. The metric definitions are theirs, so the numbers rank methods
-the same way but are not interchangeable with the published tables.
+Differences from the published numbers, by design: the spheres are the reference spheres of
+docs/conventions.rst rendered by reflectance fields (:mod:`kornia_ilum.render`) from 32 x 32 mirror-ball
+lighting, not Blender Cycles renders of 128 x 256 lat-long maps, and the tone-mapping median is over equal
+solid angles (mirror-ball pixels) rather than lat-long pixels. The metric definitions are theirs, so the
+numbers rank methods the same way but are not interchangeable with the published tables.
 """
 
 from __future__ import annotations
@@ -43,9 +43,9 @@ from torch import nn
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry.mirror_ball import mirror_ball_to_lights, mirror_ball_valid
-from kornia_ilum.metrics.lighting import _check_lighting_size, _check_pair
+from kornia_ilum.metrics.lighting import check_lighting_pair
 from kornia_ilum.render.relight import relight
-from kornia_ilum.render.spheres import BRDFS, SPHERE_SIZES, _shared_field, sphere_reflectance_field
+from kornia_ilum.render.spheres import BRDFS, SPHERE_SIZES, shared_sphere_field, sphere_reflectance_field
 
 __all__ = ["METRICS", "ThreeSphereMetrics", "TonemapStylelight", "three_sphere_metrics", "tonemap_stylelight"]
 
@@ -154,8 +154,8 @@ def three_sphere_metrics(
         - Output: ``{(brdf, metric):`` :math:`(B,)` ``}``
 
     Convention:
-        SPEC.md, "Reference spheres" and the mirror-ball grid. Half-precision inputs are evaluated in
-        float32 and the metrics returned in float32.
+        docs/conventions.rst, "Reference spheres" and the mirror-ball grid. Half-precision inputs are
+        evaluated in float32 and the metrics returned in float32.
 
     Examples:
         >>> gt = torch.rand(2, 3, 32, 32)
@@ -165,13 +165,13 @@ def three_sphere_metrics(
         >>> scores[("mirror", "rmse")]
         tensor([0., 0.])
     """
-    s_l = _check_pair(pred, target)
+    s_l = check_lighting_pair(pred, target)
     check_tensor(pred, "pred", ["B", "3", "S", "S"], nonnegative=True)
     check_tensor(target, "target", ["B", "3", "S", "S"], nonnegative=True)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_tonemap(tonemap)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
-    fields = {b: _shared_field(b, size, s_l, pred.device, work, True, multiscale=True) for b in BRDFS}
+    fields = {b: shared_sphere_field(b, size, s_l, pred.device, work, True, multiscale=True) for b in BRDFS}
     return _three_sphere(fields, pred, target, tonemap)
 
 
@@ -196,11 +196,12 @@ class ThreeSphereMetrics(nn.Module):
         _check_tonemap(tonemap)
         self.size, self.tonemap, self.lighting_size = size, tonemap, lighting_size
         for b in BRDFS:
-            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)[mirror_ball_valid(size).flatten()]
+            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)
+            field = field[mirror_ball_valid(size).flatten()]
             self.register_buffer(f"field_{b}", field, persistent=False)
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> dict[tuple[str, str], torch.Tensor]:
-        _check_lighting_size(_check_pair(pred, target), self.lighting_size, pred)
+        check_lighting_pair(pred, target, self.lighting_size)
         check_tensor(pred, "pred", ["B", "3", "S", "S"], nonnegative=True)
         check_tensor(target, "target", ["B", "3", "S", "S"], nonnegative=True)
         return _three_sphere({b: getattr(self, f"field_{b}") for b in BRDFS}, pred, target, self.tonemap)

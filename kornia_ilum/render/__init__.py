@@ -1,4 +1,7 @@
-"""Image-based relighting (``I = R . L``), the three reference spheres of SPEC.md and their pyramid."""
+"""Image-based relighting (``I = R . L``), the three reference spheres and their pyramid.
+
+The spheres and the pyramid are those of docs/conventions.rst ("Reference spheres", "Multi-scale").
+"""
 
 from kornia_ilum.render.pyramid import (
     PYRAMID_SIZES,
@@ -6,7 +9,7 @@ from kornia_ilum.render.pyramid import (
     mirror_ball_downsample_matrix,
     mirror_ball_pyramid,
 )
-from kornia_ilum.render.relight import Relight, relight
+from kornia_ilum.render.relight import Relight, relight, relight_product
 from kornia_ilum.render.spheres import (
     BRDFS,
     DIFFUSE_ALBEDO,
@@ -17,8 +20,16 @@ from kornia_ilum.render.spheres import (
     SILVER_F0,
     SPHERE_SIZES,
     RenderSpheres,
+    SpherePlan,
+    check_brdf,
+    check_sphere_lighting,
+    check_sphere_sizes,
     encode_sphere,
+    gamma_knee,
+    render_plan,
     render_spheres,
+    shared_sphere_field,
+    sphere_plan,
     sphere_pyramid,
     sphere_reflectance_field,
 )
@@ -36,11 +47,20 @@ __all__ = [
     "MirrorBallPyramid",
     "Relight",
     "RenderSpheres",
+    "SpherePlan",
+    "check_brdf",
+    "check_sphere_lighting",
+    "check_sphere_sizes",
     "encode_sphere",
+    "gamma_knee",
     "mirror_ball_downsample_matrix",
     "mirror_ball_pyramid",
     "relight",
+    "relight_product",
+    "render_plan",
     "render_spheres",
+    "shared_sphere_field",
+    "sphere_plan",
     "sphere_pyramid",
     "sphere_reflectance_field",
 ]

@@ -1,4 +1,4 @@
-r"""The energy-keeping mirror-ball pyramid of SPEC.md ("Reference spheres", multi-scale).
+r"""The energy-keeping mirror-ball pyramid of docs/conventions.rst ("Reference spheres", "Multi-scale").
 
 The multi-scale losses render the ``S x S`` reference spheres from lighting of size ``S``, and the lighting
 at size ``S / 2`` keeps the energy of the lighting at size ``S``: ``sum(L * omega)`` per channel, with the
@@ -28,9 +28,9 @@ Convention:
     Smaller sizes are chained halvings, ``D_{32 -> 4} = D_{8 -> 4} D_{16 -> 8} D_{32 -> 16}``.
 
 Implementation:
-    The matrices are built once per size in float64 on the CPU (about 0.1 s for 32 -> 16), cached, and
-    applied as one dense product ``(B C, S^2) @ (S^2, sum s^2)`` for all the coarse levels together:
-    differentiable, and about 1 ms at ``B = 32`` on one CPU thread.
+    The matrices are built once per size in float64 on the CPU, cached, and applied as one dense product
+    ``(B C, S^2) @ (S^2, sum s^2)`` for all the coarse levels together: differentiable, and one matrix
+    product for the whole batch instead of one resampling per level.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import mirror_ball_solid_angles
+from kornia_ilum.geometry.resample import grid_overlaps
 
 __all__ = ["PYRAMID_SIZES", "MirrorBallPyramid", "mirror_ball_downsample_matrix", "mirror_ball_pyramid"]
 
@@ -57,9 +58,7 @@ _K_REL = 16  # supersampling of the overlaps, as for the cached resampling table
 @lru_cache(maxsize=len(PYRAMID_SIZES))
 def _halving_f64(size: int) -> torch.Tensor:
     """Dense ``((S/2)^2, S^2)`` float64 map of one halving ``S -> S/2`` (module docstring)."""
-    from kornia_ilum.geometry.resample import _overlaps
-
-    s, t, a = _overlaps(("mirror_ball", size), ("mirror_ball", size // 2), quality=(_K_REL, _ROUNDS))
+    s, t, a = grid_overlaps(("mirror_ball", size), ("mirror_ball", size // 2), quality=(_K_REL, _ROUNDS))
     omega = mirror_ball_solid_angles(size // 2, dtype=torch.float64).flatten()
     mat = torch.zeros((size // 2) ** 2, size * size, dtype=torch.float64)
     mat.index_put_((t, s), a / omega[t], accumulate=True)
@@ -77,7 +76,9 @@ def _downsample_f64(size: int, target: int) -> torch.Tensor:
 def _check_target(size: int, target: int, name: str) -> None:
     check_positive_int(target, name, allowed=PYRAMID_SIZES)
     if target > size:
-        raise ValueCheckError(f"{name} must not exceed the lighting's side {size} (the pyramid only goes down)")
+        raise ValueCheckError(
+            f"{name} must not exceed the lighting's side {size} (the pyramid only goes down)"
+        )
 
 
 def mirror_ball_downsample_matrix(
@@ -115,7 +116,8 @@ def mirror_ball_downsample_matrix(
 @lru_cache(maxsize=32)
 def _stacked(size: int, targets: tuple[int, ...], device: torch.device, dtype: torch.dtype) -> torch.Tensor:
     """``(S^2, sum t^2)``: the transposed maps of all ``targets`` side by side, for one product."""
-    return torch.cat([_downsample_f64(size, t) for t in targets]).T.contiguous().to(device=device, dtype=dtype)
+    stacked = torch.cat([_downsample_f64(size, t) for t in targets]).T.contiguous()
+    return stacked.to(device=device, dtype=dtype)
 
 
 def _side(lighting: torch.Tensor) -> int:
@@ -123,7 +125,8 @@ def _side(lighting: torch.Tensor) -> int:
     s = lighting.shape[-1]
     if lighting.shape[-2] != s or s not in PYRAMID_SIZES:
         raise ShapeError(
-            f"lighting must be a mirror ball (B, C, S, S) with S in {PYRAMID_SIZES}, got {tuple(lighting.shape)}"
+            f"lighting must be a mirror ball (B, C, S, S) with S in {PYRAMID_SIZES}, "
+            f"got {tuple(lighting.shape)}"
         )
     return s
 
@@ -137,7 +140,9 @@ def _check_sizes(sizes: Sequence[int], size: int) -> tuple[int, ...]:
     return sizes
 
 
-def mirror_ball_pyramid(lighting: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 32)) -> dict[int, torch.Tensor]:
+def mirror_ball_pyramid(
+    lighting: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 32)
+) -> dict[int, torch.Tensor]:
     r"""Energy-keeping mirror-ball lighting at several sizes, as the multi-scale losses see it.
 
     Level ``s`` is ``D_{S -> s} L`` (:func:`mirror_ball_downsample_matrix`, module docstring): inside the
@@ -157,7 +162,7 @@ def mirror_ball_pyramid(lighting: torch.Tensor, sizes: Sequence[int] = (4, 8, 16
         - Output: ``{s:`` :math:`(B, C, s, s)` ``}``
 
     Convention:
-        SPEC.md, "Reference spheres", Multi-scale; the mirror-ball grid of SPEC.md.
+        docs/conventions.rst, "Reference spheres", "Multi-scale"; its mirror-ball grid.
 
     Examples:
         >>> ball = torch.zeros(1, 3, 32, 32)

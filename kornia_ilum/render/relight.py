@@ -6,18 +6,16 @@ under any lighting ``L`` is then a matrix product, linear in ``L``:
 ``I[b, c, p] = sum_n R[c, p, n] L[b, n, c]`` (Debevec et al. 2000, "Acquiring the reflectance field of a
 human face"; LeGendre et al. 2020 render their reference spheres and training portraits this way).
 
-Memory layout, measured at ``P = 256^2``, ``N = 1024`` (a 32 x 32 mirror ball), ``C = 3`` on the project's
-shared 2-core AVX512-BF16/AMX CPU (best of several runs; under load every figure doubles or triples):
+Memory layout, chosen by measurement at ``P = 256^2``, ``N = 1024`` (a 32 x 32 mirror ball), ``C = 3``
+(the times are in the docs' render page, ``benchmarks/bench_ops.py``, section relight):
 
-- channel-major field ``(C, P, N)``: one ``torch.bmm`` with the lighting transposed to ``(C, N, B)``.
-  bfloat16: 15 ms at ``B = 1`` and 0.49 ms per portrait at ``B = 32``; float32: 27 ms and 2.4 ms. The
-  light-major ``(C, N, P)`` product is as fast in float32 but 1.2 to 1.7 times slower in bfloat16; a loop
-  over channels 1.3 to 2 times slower.
-- shared field ``(P, N)``: one ``torch.mm`` with ``(N, B * C)``: bfloat16 3.4 ms at ``B = 1`` and 0.24 ms
-  per portrait at ``B = 32``; float32 17 ms and 1.6 ms. A broadcast ``matmul`` of ``(P, N)`` with
-  ``(B, N, C)`` is 50 to 100 times slower.
+- channel-major field ``(C, P, N)``: one ``torch.bmm`` with the lighting transposed to ``(C, N, B)``. The
+  light-major ``(C, N, P)`` product is as fast in float32 but slower in bfloat16; a loop over channels is
+  slower too.
+- shared field ``(P, N)``: one ``torch.mm`` with ``(N, B * C)``, the fastest of all (one matrix for the
+  three channels). A broadcast ``matmul`` of ``(P, N)`` with ``(B, N, C)`` is far slower.
 - ``einsum("cpn,bnc->bcp")`` of a bfloat16 field with float32 lighting upcasts the whole field on every
-  call: 200 ms at ``B = 1`` (13 times the ``bmm``) and 8 ms per portrait at ``B = 32`` (17 times).
+  call, which costs many times the ``bmm``.
 """
 
 from __future__ import annotations
@@ -30,7 +28,7 @@ from torch import nn
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 
-__all__ = ["Relight", "relight"]
+__all__ = ["Relight", "relight", "relight_product"]
 
 _HALF = (torch.float16, torch.bfloat16)
 
@@ -82,8 +80,26 @@ def _dtypes(field: torch.Tensor, lighting: torch.Tensor) -> tuple[torch.dtype, t
     return (field.dtype if field.dtype in _HALF else out), out
 
 
-def _product(field: torch.Tensor, lights: torch.Tensor) -> torch.Tensor:
-    """Dense ``(B, C, P)`` product of a ``(C, P, N)`` or ``(P, N)`` field with ``(B, N, C)`` lights."""
+def relight_product(field: torch.Tensor, lights: torch.Tensor) -> torch.Tensor:
+    r"""The dense product of :func:`relight`, without its checks, dtype rule or reshape.
+
+    ``out[b, c, p] = sum_n R[c, p, n] L[b, n, c]`` for a channel-major field (one ``torch.bmm``), or
+    ``sum_n R[p, n] L[b, n, c]`` for a field shared by the channels (one ``torch.mm`` with the lighting laid
+    out as ``(N, B C)``). For callers that checked their inputs and hold ``field`` and ``lights`` in one
+    dtype: nothing is validated, and the result stays flat over the pixels.
+
+    Args:
+        field: reflectance field ``(C, P, N)`` or ``(P, N)``.
+        lights: light list ``(B, N, C)`` in the dtype of ``field``.
+
+    Returns:
+        ``(B, C, P)``, possibly a non-contiguous view of the product.
+
+    Examples:
+        >>> relight_product(torch.eye(2), torch.tensor([[[1.0, 2.0], [3.0, 4.0]]]))
+        tensor([[[1., 3.],
+                 [2., 4.]]])
+    """
     b, n, c = lights.shape
     if field.dim() == 2:  # (P, N) @ (N, B*C) -> (P, B*C)
         out = field @ lights.permute(1, 0, 2).reshape(n, b * c)
@@ -121,7 +137,7 @@ def _relight_light_major(field_t: torch.Tensor, lights: torch.Tensor, keep: torc
     b, n, c = lights.shape
     cf, _, p = field_t.shape
     counts = keep.sum(1)
-    if int(counts.sum()) > n:  # measured: bags of up to N rows cost at most one dense pass
+    if int(counts.sum()) > n:  # bags of up to N rows cost at most one dense pass; beyond, the product wins
         lights = lights * keep[..., None].to(lights.dtype)
         if cf == 1:  # shared: (B*C, N) @ (N, P)
             return (lights.permute(0, 2, 1).reshape(b * c, n) @ field_t[0]).reshape(b, c, p)
@@ -174,7 +190,7 @@ def relight(
     Args:
         field: reflectance field ``R``, channel-major ``(C, P, N)`` or shared across channels ``(P, N)``.
             It is not scanned for NaN/Inf on every call (at ``P = 256^2``, ``N = 1024`` that scan costs
-            ~0.5 s, 30 times the product); :class:`Relight` checks it once.
+            many times the product); :class:`Relight` checks it once.
         lighting: ``L`` as a light list ``(B, N, C)`` in radiance (for a mirror-ball image use
             :func:`~kornia_ilum.geometry.mirror_ball_to_lights`). Any finite values; negative lighting is
             allowed (for example differences of lightings).
@@ -197,7 +213,7 @@ def relight(
         float32 lighting returns float32 at bfloat16 speed, with bfloat16 rounding of the lighting and of
         the result (relative error ~2^-8); float16 lighting above 65504 overflows, use bfloat16. Other
         dtype pairs compute in the promoted dtype. Units: ``I`` is in the units of ``L`` times those of
-        ``R`` (SPEC.md: radiance in, linear pixel values out).
+        ``R`` (docs/conventions.rst: radiance in, linear pixel values out).
 
     Raises:
         ShapeError: wrong ranks, ``N`` or ``C`` mismatch, or ``P`` no square without ``size``.
@@ -224,7 +240,7 @@ def relight(
     if eps > 0.0:
         keep = _kept_lights(lighting, _light_norms(field), eps)
         lights = lights * keep[..., None].to(compute)
-    out = _product(field.to(compute), lights)
+    out = relight_product(field.to(compute), lights)
     return out.reshape(out.shape[0], out.shape[1], h, w).to(out_dtype)
 
 
@@ -236,12 +252,11 @@ class Relight(nn.Module):
     truncated relighting reads only the field rows of each item's kept lights: its cost is proportional to
     the number of kept lights summed over the batch, ``K``. While ``K <= N`` each (item, channel) is a
     weighted sum of ``K`` field rows (:func:`torch.nn.functional.embedding_bag`); beyond that, one dense
-    product in the light-major layout with the dropped lights zeroed, which is 1.5 to 2 times slower than
-    dense mode (the BLAS prefers the channel-major layout), so use ``eps > 0`` for peaky (HDR, sunny)
-    lighting. Measured on one CPU thread at ``P = 256^2``, ``N = 1024``, ``C = 3`` with a sun over 2 pixels
-    and a dim sky (``eps = 0.05`` keeps 2 lights, L1 error 2.5% of the image): 0.9 ms per portrait at
-    ``B = 1`` against 31 ms (bfloat16) and 53 ms (float32) dense, 0.3 ms at ``B = 32`` against 1.1 and
-    4.7 ms. Results equal :func:`relight` with the same ``eps``, including the error bound documented there.
+    product in the light-major layout with the dropped lights zeroed, which is slower than dense mode (the
+    BLAS prefers the channel-major layout), so use ``eps > 0`` for peaky (HDR, sunny) lighting: with a sun
+    over 2 pixels and a dim sky, ``eps = 0.05`` keeps 2 lights (L1 error 2.5% of the image) and reads 2 rows
+    of the field instead of all of it (the measured times are in the docs' render page). Results equal
+    :func:`relight` with the same ``eps``, including the error bound documented there.
 
     Args:
         field: reflectance field, ``(C, P, N)`` or ``(P, N)``.

@@ -1,11 +1,11 @@
-r"""The three reference spheres of SPEC.md (diffuse, matte silver, mirror) as reflectance fields.
+r"""The three reference spheres of docs/conventions.rst (diffuse, matte silver, mirror) as reflectance fields.
 
 A sphere render is a reflectance field applied to mirror-ball lighting (:func:`~kornia_ilum.render.relight`):
 ``I[p, c] = sum_n R[p, n] L[n, c]``. This module builds the fields ``R`` once, in float64, and caches them.
 
 Convention:
-    Orthographic view along -Z (SPEC.md, "Reference spheres"). The sphere image uses the mirror-ball pixel
-    grid: the pixel centre ``(u, v)`` of an ``S x S`` image sees the surface normal
+    Orthographic view along -Z (docs/conventions.rst, "Reference spheres"). The sphere image uses the
+    mirror-ball pixel grid: the pixel centre ``(u, v)`` of an ``S x S`` image sees the surface normal
     ``n = (u, v, sqrt(1 - r^2))`` with view direction ``v = +Z``; pixels with ``r > 1`` are off the sphere
     and their rows of ``R`` are zero. Lighting is an ``S_L x S_L`` mirror-ball image in radiance
     (:mod:`kornia_ilum.geometry.mirror_ball`), so ``R`` is unitless (BRDF times cosine times solid angle):
@@ -24,11 +24,11 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from kornia_ilum.color.transfer import _gamma_encode
+from kornia_ilum.color.transfer import gamma_encode_unchecked
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor
 from kornia_ilum.core.compiler import compiler_disable
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.filters.soft_clip import _soft_clip
+from kornia_ilum.filters.soft_clip import soft_clip_unchecked
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_pixel_index,
     mirror_ball_solid_angles,
@@ -37,8 +37,8 @@ from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_uv,
     mirror_ball_valid,
 )
-from kornia_ilum.render.pyramid import _downsample_f64
-from kornia_ilum.render.relight import _product, relight
+from kornia_ilum.render.pyramid import mirror_ball_downsample_matrix
+from kornia_ilum.render.relight import relight, relight_product
 
 __all__ = [
     "BRDFS",
@@ -50,13 +50,21 @@ __all__ = [
     "SILVER_F0",
     "SPHERE_SIZES",
     "RenderSpheres",
+    "SpherePlan",
+    "check_brdf",
+    "check_sphere_lighting",
+    "check_sphere_sizes",
     "encode_sphere",
+    "gamma_knee",
+    "render_plan",
     "render_spheres",
+    "shared_sphere_field",
+    "sphere_plan",
     "sphere_pyramid",
     "sphere_reflectance_field",
 ]
 
-#: Names of the reference spheres, in SPEC.md's order.
+#: Names of the reference spheres, in the order of docs/conventions.rst.
 BRDFS: tuple[str, ...] = ("diffuse", "matte_silver", "mirror")
 #: Sphere and lighting resolutions for which fields can be built.
 SPHERE_SIZES: tuple[int, ...] = (4, 8, 16, 32, 64)
@@ -78,7 +86,24 @@ _SUPERSAMPLES = 8  # sub-samples per lighting pixel and axis (64 per pixel)
 _CHUNK = 8  # sphere pixels per chunk: float64 temporaries of _CHUNK * 51k samples stay in cache
 
 
-def _check_brdf(brdf: str, name: str = "brdf") -> None:
+def check_brdf(brdf: str, name: str = "brdf") -> None:
+    """Require ``brdf`` to name a reference sphere, one of :data:`BRDFS`.
+
+    Args:
+        brdf: the value to check.
+        name: the argument's name, used in the message.
+
+    Raises:
+        ValueCheckError: ``brdf`` is not in :data:`BRDFS`; the message lists them.
+
+    Examples:
+        >>> check_brdf("mirror")
+        >>> try:
+        ...     check_brdf("chrome")
+        ... except ValueError as error:
+        ...     print(error)
+        brdf must be one of ('diffuse', 'matte_silver', 'mirror'), got 'chrome'
+    """
     check_choice(brdf, name, BRDFS)
 
 
@@ -211,7 +236,7 @@ def sphere_reflectance_field(
       ``F0 = 0.827`` at ``(v.h)``, no diffuse term: ``int_n D F G / (4 (n.l)(n.v)) (n.l)+ dw``. Its
       directional albedo (the render under ``L = 1``) is 0.726 at the centre, dips to 0.674 at
       ``n.v = 0.36`` and rises again towards the silhouette as Fresnel grows (0.737 at the outermost
-      pixels of a 64 x 64 sphere, ``n.v = 0.04``): SPEC's "0.68 to 0.73" to within 1%.
+      pixels of a 64 x 64 sphere, ``n.v = 0.04``): the "0.68 to 0.73" of docs/conventions.rst to within 1%.
     - ``"mirror"``: reflectivity 0.827 in the single lighting pixel that owns the reflected view direction
       (:func:`~kornia_ilum.geometry.mirror_ball_pixel_index`); at the pixel centre that direction is
       exactly the mirror-ball direction of the pixel, so at ``size == lighting_size`` the mirror field is
@@ -220,17 +245,18 @@ def sphere_reflectance_field(
     The integrals are quadratures over ``8 x 8`` equal-area sub-samples per lighting pixel, each assigned to
     the lighting pixel that owns it and weighted so that every pixel's weights sum exactly to its solid
     angle (:func:`~kornia_ilum.geometry.mirror_ball_solid_angles`). Fields are computed once per
-    ``(brdf, size, lighting_size)`` in float64 (about 1 s for the three 64 x 64 spheres on 2 CPU cores, so
-    there is no disk cache), cached in memory, and returned as a fresh copy. Against 16 x 16 sub-samples,
+    ``(brdf, size, lighting_size)`` in float64 (fast enough that there is no disk cache: the time is in the
+    docs' render page), cached in memory, and returned as a fresh copy. Against 16 x 16 sub-samples,
     renders differ by at most 0.25% (matte silver) and 0.01% (diffuse).
 
     With ``multiscale=True`` and ``size < lighting_size`` the field is the one that
-    :func:`render_spheres` and the losses use (SPEC.md, multi-scale): the lighting is first brought down to
-    ``size`` by the energy-keeping pyramid (:func:`~kornia_ilum.render.mirror_ball_downsample_matrix`
-    ``D``), and the sphere is rendered from it, ``R_multiscale = R(size, size) D``. So a coarse sphere sees
-    all of the lighting (the coarse mirror shows ``0.827`` times the pyramid level, a bright pixel
-    included), where the plain ``R(size, lighting_size)`` samples the mirror direction at each pixel centre
-    and misses most lighting pixels. For ``size >= lighting_size`` both are the same field.
+    :func:`render_spheres` and the losses use (docs/conventions.rst, "Multi-scale"): the lighting is first
+    brought down to ``size`` by the energy-keeping pyramid
+    (:func:`~kornia_ilum.render.mirror_ball_downsample_matrix` ``D``), and the sphere is rendered from it,
+    ``R_multiscale = R(size, size) D``. So a coarse sphere sees all of the lighting (the coarse mirror shows
+    ``0.827`` times the pyramid level, a bright pixel included), where the plain ``R(size, lighting_size)``
+    samples the mirror direction at each pixel centre and misses most lighting pixels. For
+    ``size >= lighting_size`` both are the same field.
 
     Args:
         brdf: one of :data:`BRDFS`: ``"diffuse"``, ``"matte_silver"``, ``"mirror"``.
@@ -248,8 +274,8 @@ def sphere_reflectance_field(
         - Output: :math:`(S^2, S_L^2)`, row-major sphere pixels by row-major lighting pixels.
 
     Convention:
-        SPEC.md, "Reference spheres": orthographic view along -Z, sphere pixel ``(u, v)`` has normal
-        ``(u, v, sqrt(1 - r^2))`` and is shaded at its centre with view direction ``+Z``; lighting in
+        docs/conventions.rst, "Reference spheres": orthographic view along -Z, sphere pixel ``(u, v)`` has
+        normal ``(u, v, sqrt(1 - r^2))`` and is shaded at its centre with view direction ``+Z``; lighting in
         radiance, so a white uniform environment renders the diffuse sphere at 0.8 everywhere.
 
     Raises:
@@ -263,16 +289,16 @@ def sphere_reflectance_field(
         >>> round(R.sum(1).max().item(), 4)  # uniform white lighting -> albedo 0.8
         0.8
     """
-    _check_brdf(brdf)
+    check_brdf(brdf)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     check_positive_int(lighting_size, "lighting_size", allowed=SPHERE_SIZES)
-    field = _multiscale_f64(brdf, size, lighting_size) if multiscale else _field_f64(brdf, size, lighting_size)
-    return field.to(device=device, dtype=dtype, copy=True)
+    build = _multiscale_f64 if multiscale else _field_f64
+    return build(brdf, size, lighting_size).to(device=device, dtype=dtype, copy=True)
 
 
 @lru_cache(maxsize=2 * len(BRDFS) * len(SPHERE_SIZES))
 def _multiscale_f64(brdf: str, size: int, lighting_size: int) -> torch.Tensor:
-    """The field of :func:`render_spheres`: the sphere of size ``s`` lit by the lighting brought down to ``s``.
+    """The field of :func:`render_spheres`: the sphere of size ``s`` lit by the lighting brought down to it.
 
     For ``size < lighting_size``: ``R_s D`` with ``D = D(lighting_size -> size)`` (the pyramid) and ``R_s``
     the field of the ``size`` sphere over the ``size x size`` lighting pixels. For the mirror
@@ -284,7 +310,7 @@ def _multiscale_f64(brdf: str, size: int, lighting_size: int) -> torch.Tensor:
     """
     if size >= lighting_size:
         return _field_f64(brdf, size, lighting_size)
-    down = _downsample_f64(lighting_size, size)
+    down = mirror_ball_downsample_matrix(lighting_size, size, dtype=torch.float64)
     if brdf == "mirror":
         return MIRROR_REFLECTIVITY * down
     omega_f = mirror_ball_solid_angles(lighting_size, dtype=torch.float64).flatten()
@@ -295,7 +321,7 @@ def _multiscale_f64(brdf: str, size: int, lighting_size: int) -> torch.Tensor:
 
 @compiler_disable  # called eagerly from compiled code: Dynamo would otherwise trace the build itself
 @lru_cache(maxsize=64)
-def _shared_field(
+def shared_sphere_field(
     brdf: str,
     size: int,
     lighting_size: int,
@@ -304,34 +330,85 @@ def _shared_field(
     on_sphere: bool = False,
     multiscale: bool = False,
 ) -> torch.Tensor:
-    """Cached field on ``device`` in ``dtype`` for internal, read-only use (no copy per call).
+    r"""The field of :func:`sphere_reflectance_field`, cached on ``device`` in ``dtype`` and shared (no copy).
 
-    With ``on_sphere`` only the rows of the pixels on the sphere, ``(P_valid, N)``, in row-major order.
-    With ``multiscale`` the field of :func:`render_spheres` (:func:`sphere_reflectance_field`).
+    For losses and metrics that render many batches with one field: the field is built once per
+    arguments (up to 64 of them cached) and every call returns the same tensor. It is read-only: modify
+    it and every later render changes. The arguments are not checked (:func:`check_brdf`,
+    :data:`SPHERE_SIZES`); use :func:`sphere_reflectance_field` for a checked, private copy.
+
+    Args:
+        brdf: one of :data:`BRDFS`.
+        size: sphere image side ``S``, one of :data:`SPHERE_SIZES`.
+        lighting_size: mirror-ball lighting side ``S_L``, one of :data:`SPHERE_SIZES`.
+        device: device of the field.
+        dtype: floating dtype of the field.
+        on_sphere: keep only the rows of the pixels on the sphere, in row-major order.
+        multiscale: the field of :func:`render_spheres` (see :func:`sphere_reflectance_field`).
+
+    Returns:
+        the field ``(S^2, S_L^2)``, or ``(P_valid, S_L^2)`` with ``on_sphere``.
+
+    Examples:
+        >>> args = ("mirror", 8, 32, torch.device("cpu"), torch.float32)
+        >>> field = shared_sphere_field(*args, on_sphere=True)
+        >>> field.shape, field is shared_sphere_field(*args, on_sphere=True)
+        (torch.Size([52, 1024]), True)
     """
-    field = _multiscale_f64(brdf, size, lighting_size) if multiscale else _field_f64(brdf, size, lighting_size)
+    field = (_multiscale_f64 if multiscale else _field_f64)(brdf, size, lighting_size)
     if on_sphere:
         field = field[mirror_ball_valid(size).flatten()]
     return field.to(device=device, dtype=dtype)
 
 
-class _Plan(NamedTuple):
-    """How to render the on-sphere pixels of several ``(brdf, size)`` at once (see :func:`_stacked_plan`)."""
+class SpherePlan(NamedTuple):
+    r"""How to render the on-sphere pixels of several spheres ``(brdf, size)`` at once.
 
-    field: torch.Tensor  # (P_mm, N): the rows rendered by one matrix product
-    index: torch.Tensor  # (P_copy,): lighting pixels shown as they are, times MIRROR_REFLECTIVITY
-    order: torch.Tensor | None  # (P,): cat([product, copies])[..., order] is brdf-major, in ``sizes`` order
+    Built by :func:`sphere_plan`, applied by :func:`render_plan`. The rows of the multi-scale fields
+    (:func:`sphere_reflectance_field` with ``multiscale=True``) are one matrix product, except the mirror at
+    the lighting's own size, whose renders are copies of lighting pixels.
+    """
+
+    #: ``(P_mm, N)``: the rows rendered by one matrix product.
+    field: torch.Tensor
+    #: ``(P_copy,)``: the lighting pixels shown as they are, times :data:`MIRROR_REFLECTIVITY`.
+    index: torch.Tensor
+    #: ``(P,)``: the permutation that makes ``cat([product, copies])`` brdf-major and in the order of the
+    #: sizes; ``None`` when that is already the order.
+    order: torch.Tensor | None
 
 
 @compiler_disable
 @lru_cache(maxsize=64)
-def _stacked_plan(
-    brdfs: tuple[str, ...], sizes: tuple[int, ...], lighting_size: int, device: torch.device, dtype: torch.dtype
-) -> _Plan:
-    """The on-sphere rows of the multi-scale fields of every ``(brdf, size)``, brdf-major, as one product.
+def sphere_plan(
+    brdfs: tuple[str, ...],
+    sizes: tuple[int, ...],
+    lighting_size: int,
+    device: torch.device,
+    dtype: torch.dtype,
+) -> SpherePlan:
+    r"""The on-sphere rows of the multi-scale fields of every ``(brdf, size)``, brdf-major, as one product.
 
     The mirror at ``size == lighting_size`` is ``0.827`` times the lighting on the valid pixels: those rows
-    are copies (a gather), not rows of a dense product, which saves most of the mirror's cost.
+    are copies (a gather), not rows of a dense product, which saves most of the mirror's cost. Plans are
+    cached (up to 64) and shared: read-only. The arguments are not checked (:func:`check_brdf`,
+    :func:`check_sphere_sizes`, :data:`SPHERE_SIZES`).
+
+    Args:
+        brdfs: names from :data:`BRDFS`, a tuple.
+        sizes: sphere sides from :data:`SPHERE_SIZES`, a tuple.
+        lighting_size: side ``S_L`` of the mirror-ball lighting, from :data:`SPHERE_SIZES`.
+        device: device of the plan.
+        dtype: floating dtype of the plan's field.
+
+    Returns:
+        the :class:`SpherePlan`; :func:`render_plan` renders ``P`` values per channel, the pixels on each
+        sphere in row-major order, brdf-major and in the order of ``sizes``.
+
+    Examples:
+        >>> plan = sphere_plan(("diffuse", "mirror"), (4, 32), 32, torch.device("cpu"), torch.float32)
+        >>> plan.field.shape, plan.index.shape  # the 32 x 32 mirror is a copy of the lighting
+        (torch.Size([836, 1024]), torch.Size([812]))
     """
     rows, copies, kinds = [], [], []
     for b in brdfs:
@@ -351,22 +428,63 @@ def _stacked_plan(
     position[~is_copy] = torch.arange(field.shape[0])
     position[is_copy] = field.shape[0] + torch.arange(index.numel())
     order = None if bool((position == torch.arange(position.numel())).all()) else position.to(device)
-    return _Plan(field.to(device=device, dtype=dtype), index.to(device), order)
+    return SpherePlan(field.to(device=device, dtype=dtype), index.to(device), order)
 
 
-def _render_plan(plan: _Plan, lights: torch.Tensor) -> torch.Tensor:
-    """``(B, 3, P)`` renders of a checked ``(B, N, 3)`` light list through a :class:`_Plan`."""
+def render_plan(plan: SpherePlan, lights: torch.Tensor, *, knee: float | None = None) -> torch.Tensor:
+    r"""Render the spheres of a :class:`SpherePlan` from a light list, optionally encoded for ``L_rec``.
+
+    For callers that checked the lighting (:func:`check_sphere_lighting`): nothing is validated. With
+    ``knee`` the renders are mapped through :func:`encode_sphere` (``softclip(I)^(1/2.2)``) with that knee of
+    the power (:func:`gamma_knee`), as the losses compare them.
+
+    Args:
+        plan: from :func:`sphere_plan`.
+        lights: ``(B, N, 3)`` light list of the mirror-ball lighting
+            (:func:`~kornia_ilum.geometry.mirror_ball_to_lights`).
+        knee: ``None`` for the linear renders, else the knee of :func:`gamma_knee`.
+
+    Returns:
+        ``(B, 3, P)``: the pixels on each sphere in row-major order, brdf-major, in the order of the plan's
+        sizes; in the dtype of the plan's field.
+
+    Examples:
+        >>> plan = sphere_plan(("diffuse",), (4,), 32, torch.device("cpu"), torch.float32)
+        >>> out = render_plan(plan, torch.ones(1, 1024, 3))
+        >>> out.shape, round(out[0, 0, 0].item(), 4)  # uniform white lighting: the albedo
+        (torch.Size([1, 3, 12]), 0.8)
+    """
     parts = []
     if plan.field.shape[0]:
-        parts.append(_product(plan.field, lights.to(plan.field.dtype)))
+        parts.append(relight_product(plan.field, lights.to(plan.field.dtype)))
     if plan.index.numel():
         parts.append(MIRROR_REFLECTIVITY * lights.index_select(1, plan.index).transpose(1, 2))
     out = parts[0] if len(parts) == 1 else torch.cat(parts, -1)
-    return out if plan.order is None else out.index_select(-1, plan.order)
+    out = out if plan.order is None else out.index_select(-1, plan.order)
+    return out if knee is None else _encode(out, knee)
 
 
-def _lighting_size(lighting: torch.Tensor, name: str = "lighting") -> int:
-    """Check a mirror-ball lighting batch ``(B, 3, S_L, S_L)`` and return ``S_L``."""
+def check_sphere_lighting(lighting: torch.Tensor, name: str = "lighting", size: int | None = None) -> int:
+    r"""Check a mirror-ball lighting batch that the reference spheres can be rendered from; return its side.
+
+    Args:
+        lighting: the value to check: ``(B, 3, S_L, S_L)``, floating, finite, ``S_L`` in
+            :data:`SPHERE_SIZES`.
+        name: the argument's name, used in the messages.
+        size: the side ``S_L`` required, or ``None`` for any of :data:`SPHERE_SIZES`.
+
+    Returns:
+        the side ``S_L``.
+
+    Raises:
+        ShapeError: wrong shape, a side outside :data:`SPHERE_SIZES`, or not ``size``.
+        TypeCheckError: no floating-point tensor.
+        NonFiniteError: ``lighting`` holds NaN or Inf.
+
+    Examples:
+        >>> check_sphere_lighting(torch.ones(2, 3, 32, 32))
+        32
+    """
     check_tensor(lighting, name, ["B", "3", "S", "S"])
     s = lighting.shape[-1]
     if lighting.shape[-2] != s:
@@ -375,6 +493,8 @@ def _lighting_size(lighting: torch.Tensor, name: str = "lighting") -> int:
         raise ShapeError(
             f"{name} must be a mirror ball of side in {SPHERE_SIZES}, got {tuple(lighting.shape)}"
         )
+    if size is not None and s != size:
+        raise ShapeError(f"{name} must have shape (B, 3, {size}, {size}), got {tuple(lighting.shape)}")
     return s
 
 
@@ -383,11 +503,27 @@ def _check_brdfs(brdfs: Sequence[str]) -> tuple[str, ...]:
     if not names:
         raise ValueCheckError(f"brdfs must name at least one of {BRDFS}, got {brdfs!r}")
     for b in names:
-        _check_brdf(b, "brdfs")
+        check_brdf(b, "brdfs")
     return names
 
 
-def _check_sizes(sizes: Sequence[int]) -> tuple[int, ...]:
+def check_sphere_sizes(sizes: Sequence[int]) -> tuple[int, ...]:
+    """Check sphere sides, each one of :data:`SPHERE_SIZES`, and return them as a tuple.
+
+    Args:
+        sizes: the sides, or one side as an int.
+
+    Returns:
+        the sides as a tuple, in the order given.
+
+    Raises:
+        ValueCheckError: no side, or a side outside :data:`SPHERE_SIZES`.
+        TypeCheckError: a side is not an int.
+
+    Examples:
+        >>> check_sphere_sizes([4, 16])
+        (4, 16)
+    """
     sizes = tuple(sizes) if not isinstance(sizes, int) else (sizes,)
     if not sizes:
         raise ValueCheckError("sizes must name at least one sphere size")
@@ -396,8 +532,19 @@ def _check_sizes(sizes: Sequence[int]) -> tuple[int, ...]:
     return sizes
 
 
-def _check_gamma(gamma: str) -> float:
-    """Check a gamma mode and return the knee for :func:`~kornia_ilum.color.gamma_encode`."""
+def gamma_knee(gamma: str) -> float:
+    """The knee of the power ``x^(1/2.2)`` for a gamma mode of :data:`GAMMA_MODES`.
+
+    ``0.0`` for ``"exact"`` (the exact power), :data:`SAFE_GAMMA_KNEE` for ``"safe"``: the ``knee`` of
+    :func:`~kornia_ilum.color.gamma_encode` and of :func:`render_plan`.
+
+    Raises:
+        ValueCheckError: ``gamma`` is not one of :data:`GAMMA_MODES`.
+
+    Examples:
+        >>> gamma_knee("exact"), gamma_knee("safe")
+        (0.0, 1e-06)
+    """
     check_choice(gamma, "gamma", GAMMA_MODES)
     return 0.0 if gamma == "exact" else SAFE_GAMMA_KNEE
 
@@ -407,8 +554,8 @@ def encode_sphere(render: torch.Tensor, gamma: str = "exact") -> torch.Tensor:
 
     :func:`~kornia_ilum.filters.soft_clip` (negative values count as 0) then the power ``1/2.2``:
 
-    - ``gamma="exact"``: the exact ``x^(1/2.2)`` (SPEC.md: the metric). Its gradient is finite but
-      unbounded near 0 (0 at exactly 0).
+    - ``gamma="exact"``: the exact ``x^(1/2.2)`` (docs/conventions.rst: the metric). Its gradient is finite
+      but unbounded near 0 (0 at exactly 0).
     - ``gamma="safe"``: :func:`~kornia_ilum.color.gamma_encode` with knee :data:`SAFE_GAMMA_KNEE` (1e-6): the
       chord through 0 below the knee, slope 1874 there, at most 5.3e-4 below the exact power. For training.
 
@@ -424,12 +571,12 @@ def encode_sphere(render: torch.Tensor, gamma: str = "exact") -> torch.Tensor:
         tensor([0.0000, 0.0000, 0.5325, 1.0000])
     """
     check_tensor(render, "render", None, nonempty=False)
-    return _encode(render, _check_gamma(gamma))
+    return _encode(render, gamma_knee(gamma))
 
 
 def _encode(render: torch.Tensor, knee: float) -> torch.Tensor:
     """:func:`encode_sphere` without the checks."""
-    return _gamma_encode(_soft_clip(render), 2.2, knee)
+    return gamma_encode_unchecked(soft_clip_unchecked(render), 2.2, knee)
 
 
 def render_spheres(
@@ -437,8 +584,8 @@ def render_spheres(
 ) -> dict[str, torch.Tensor]:
     r"""Render the reference spheres from mirror-ball lighting.
 
-    A sphere of size ``S`` is rendered from the lighting of size ``S`` (SPEC.md, multi-scale): lighting
-    larger than ``size`` is first brought down by the energy-keeping pyramid
+    A sphere of size ``S`` is rendered from the lighting of size ``S`` (docs/conventions.rst, "Multi-scale"):
+    lighting larger than ``size`` is first brought down by the energy-keeping pyramid
     (:func:`~kornia_ilum.render.mirror_ball_pyramid`), so a coarse sphere sees all of the lighting, a single
     bright pixel included. Spheres larger than the lighting are rendered from it directly (the field
     integrates each lighting pixel over its solid angle). This is ``sphere_reflectance_field(brdf, size,
@@ -459,9 +606,9 @@ def render_spheres(
         - Output: ``{name:`` :math:`(B, 3, S, S)` ``}``
 
     Convention:
-        SPEC.md, "Reference spheres" (see :func:`sphere_reflectance_field`); the renders are linear HDR in
-        the units of the lighting. Reference spheres as in LeGendre et al. 2020, "Learning Illumination
-        from Diverse Portraits".
+        docs/conventions.rst, "Reference spheres" (see :func:`sphere_reflectance_field`); the renders are
+        linear HDR in the units of the lighting. Reference spheres as in LeGendre et al. 2020, "Learning
+        Illumination from Diverse Portraits".
 
     Examples:
         >>> out = render_spheres(torch.ones(2, 3, 32, 32), size=16)
@@ -470,12 +617,14 @@ def render_spheres(
         >>> round(out["diffuse"][0, 0, 8, 8].item(), 4)
         0.8
     """
-    s_l = _lighting_size(lighting)
+    s_l = check_sphere_lighting(lighting)
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     names = _check_brdfs(brdfs)
     lights = mirror_ball_to_lights(lighting)
     return {
-        b: relight(_shared_field(b, size, s_l, lighting.device, lighting.dtype, multiscale=True), lights, size)
+        b: relight(
+            shared_sphere_field(b, size, s_l, lighting.device, lighting.dtype, multiscale=True), lights, size
+        )
         for b in names
     }
 
@@ -483,7 +632,10 @@ def render_spheres(
 def _scatter_on_sphere(
     values: torch.Tensor, brdfs: tuple[str, ...], sizes: tuple[int, ...]
 ) -> dict[str, torch.Tensor]:
-    """Split ``(B, 3, sum P_valid)`` brdf-major rows into ``{f"{brdf}_{size}": (B, 3, s, s)}``, 0 off-sphere."""
+    """Split the brdf-major rows ``(B, 3, sum P_valid)`` into images ``{f"{brdf}_{size}": (B, 3, s, s)}``.
+
+    Pixels off the sphere are 0.
+    """
     b = values.shape[0]
     out, start = {}, 0
     for name in brdfs:
@@ -531,7 +683,7 @@ def sphere_pyramid(
         - Output: ``{key:`` :math:`(B, 3, s, s)` ``}``
 
     Convention:
-        SPEC.md, "Reference spheres" (multi-scale) and "The paper's error measure L_rec".
+        docs/conventions.rst, "Reference spheres" ("Multi-scale") and "The paper's error measure L_rec".
 
     Examples:
         >>> out = sphere_pyramid(torch.ones(1, 3, 32, 32), sizes=(4, 16), gamma="safe")
@@ -540,14 +692,12 @@ def sphere_pyramid(
         >>> round(out["diffuse_4"][0, 0, 1, 1].item(), 3)  # softclip(0.8)^(1/2.2)
         0.903
     """
-    s_l = _lighting_size(lighting)
-    sizes = _check_sizes(sizes)
+    s_l = check_sphere_lighting(lighting)
+    sizes = check_sphere_sizes(sizes)
     names = _check_brdfs(brdfs)
-    knee = _check_gamma(gamma)
-    plan = _stacked_plan(names, sizes, s_l, lighting.device, lighting.dtype)
-    values = _render_plan(plan, mirror_ball_to_lights(lighting))
-    if encode:
-        values = _encode(values, knee)
+    knee = gamma_knee(gamma)
+    plan = sphere_plan(names, sizes, s_l, lighting.device, lighting.dtype)
+    values = render_plan(plan, mirror_ball_to_lights(lighting), knee=knee if encode else None)
     return _scatter_on_sphere(values, names, sizes)
 
 
@@ -573,17 +723,11 @@ class RenderSpheres(nn.Module):
         self.lighting_size = lighting_size
         self.brdfs = _check_brdfs(brdfs)
         for b in self.brdfs:
-            self.register_buffer(
-                f"field_{b}", sphere_reflectance_field(b, size, lighting_size, multiscale=True), persistent=False
-            )
+            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)
+            self.register_buffer(f"field_{b}", field, persistent=False)
 
     def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:
-        s_l = _lighting_size(lighting)
-        if s_l != self.lighting_size:
-            raise ShapeError(
-                f"lighting must have shape (B, 3, {self.lighting_size}, {self.lighting_size}), "
-                f"got {tuple(lighting.shape)}"
-            )
+        check_sphere_lighting(lighting, size=self.lighting_size)
         lights = mirror_ball_to_lights(lighting)
         return {
             b: relight(getattr(self, f"field_{b}").to(lighting.dtype), lights, self.size) for b in self.brdfs

@@ -1,10 +1,10 @@
-r"""Real spherical harmonics up to order 2: basis, projection, reconstruction and irradiance (SPEC.md).
+r"""Real spherical harmonics up to order 2: basis, projection, reconstruction and irradiance.
 
 Convention:
-    Real, orthonormal SH up to order 2 (9 coefficients), ordered
+    docs/conventions.rst, "Spherical harmonics": real, orthonormal SH up to order 2 (9 coefficients), ordered
     ``(l, m) = (0,0), (1,-1), (1,0), (1,1), (2,-2), (2,-1), (2,0), (2,1), (2,2)`` and stored as
-    ``(B, 9, 3)`` (coefficient, RGB). With ``(x, y, z)`` a unit direction in the SPEC frame (+X right,
-    +Y up, +Z toward the camera) the basis is
+    ``(B, 9, 3)`` (coefficient, RGB). With ``(x, y, z)`` a unit direction in the frame of docs/conventions.rst
+    (+X right, +Y up, +Z toward the camera) the basis is
 
     ========  =======================================
     index     function
@@ -27,7 +27,8 @@ Convention:
 
     Irradiance follows Ramamoorthi & Hanrahan 2001, "An efficient representation for irradiance
     environment maps": ``E_lm = A_l L_lm`` with ``A_0 = pi``, ``A_1 = 2 pi / 3``, ``A_2 = pi / 4``. A white
-    Lambertian surface (albedo 1) with normal ``n`` shows ``E(n) / pi`` (SPEC.md, units).
+    Lambertian surface (albedo 1) with normal ``n`` shows ``E(n) / pi`` (docs/conventions.rst, "Units of
+    lighting").
 
 Projection by least squares:
     The projection of a lighting image is the integral ``c = integral L(d) Y(d) dOmega``. On a pixel grid
@@ -54,7 +55,8 @@ Projection by least squares:
       to a 32 x 32 mirror ball they differ by at most 1.0% of ``|c|`` and 0.3% in the constant term.
 
     Consequently the constant coefficient of non-order-2 lighting is not exactly ``0.282095`` times its
-    solid-angle-weighted sum; compute energy (SPEC.md, relative radiance) from the lighting itself.
+    solid-angle-weighted sum; compute energy (docs/conventions.rst, "Relative radiance") from the lighting
+    itself.
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ __all__ = [
     "SHIrradianceAt",
 ]
 
-#: Normalisation constants of the 9 basis functions, in SPEC order.
+#: Normalisation constants of the 9 basis functions, in the order of docs/conventions.rst.
 SH_CONSTANTS: tuple[float, ...] = (
     0.5 * math.sqrt(1.0 / math.pi),  # 0.282095
     math.sqrt(3.0 / (4.0 * math.pi)),  # 0.488603
@@ -121,19 +123,20 @@ def sh_basis(directions: torch.Tensor) -> torch.Tensor:
     r"""Evaluate the 9 real orthonormal SH basis functions (order <= 2) at directions.
 
     Args:
-        directions: ``(..., 3)`` directions ``(x, y, z)`` in the SPEC frame. They are normalised first
-            (a zero vector stays zero and gives the value of the basis at ``(0, 0, 0)``).
+        directions: ``(..., 3)`` directions ``(x, y, z)`` in the frame of docs/conventions.rst. They are
+            normalised first (a zero vector stays zero and gives the value of the basis at ``(0, 0, 0)``).
 
     Returns:
-        ``(..., 9)`` basis values in SPEC order, dtype of ``directions`` (half precision is evaluated in
-        float32 and cast back).
+        ``(..., 9)`` basis values in the order of docs/conventions.rst, dtype of ``directions`` (half
+        precision is evaluated in float32 and cast back).
 
     Shape:
         - Input: :math:`(*, 3)`
         - Output: :math:`(*, 9)`
 
     Convention:
-        SPEC.md, spherical harmonics; the table is in the module docstring. No Condon-Shortley phase.
+        docs/conventions.rst, "Spherical harmonics"; the table is in the module docstring. No Condon-Shortley
+        phase.
 
     Examples:
         >>> sh_basis(torch.tensor([0.0, 1.0, 0.0]))[:4]  # from +Y: the (1, -1) function is positive
@@ -243,8 +246,8 @@ def sh_project(lighting: torch.Tensor, layout: str = "mirror_ball") -> torch.Ten
         ShapeError: ``lighting`` has the wrong shape for ``layout``.
 
     Convention:
-        SPEC.md: frame, mirror-ball and lat-long pixel centres, SH order. Pixel-centre directions and
-        :func:`~kornia_ilum.geometry.mirror_ball_solid_angles` /
+        docs/conventions.rst: frame, mirror-ball and lat-long pixel centres, SH order. Pixel-centre directions
+        and :func:`~kornia_ilum.geometry.mirror_ball_solid_angles` /
         :func:`~kornia_ilum.geometry.latlong_solid_angles`.
 
     Examples:
@@ -281,8 +284,8 @@ def sh_reconstruct(
 
     Reconstruction is exact: the order-2 function is evaluated as is, so it may be negative near the
     antipode of a bright light (ringing). ``clamp_negative=True`` clips it at 0 to obtain valid lighting
-    (SPEC.md: lighting is never negative); the clipped image is then no longer an order-2 function and
-    :func:`sh_project` of it does not return ``sh``.
+    (docs/conventions.rst: lighting is never negative); the clipped image is then no longer an order-2
+    function and :func:`sh_project` of it does not return ``sh``.
 
     Args:
         sh: ``(B, 9, 3)`` radiance SH coefficients.
@@ -298,7 +301,7 @@ def sh_reconstruct(
         - Output: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`
 
     Convention:
-        SPEC.md: pixel-centre directions of each layout, SH order and frame.
+        docs/conventions.rst: pixel-centre directions of each layout, SH order and frame.
 
     Notes:
         The irradiance map (irradiance for every normal direction) is
@@ -337,8 +340,8 @@ def sh_irradiance(sh: torch.Tensor) -> torch.Tensor:
         ``(B, 9, 3)`` irradiance SH coefficients.
 
     Convention:
-        SPEC.md, spherical harmonics. Irradiance in the lighting's units times steradians; a white
-        Lambertian surface shows ``E / pi``.
+        docs/conventions.rst, "Spherical harmonics". Irradiance in the lighting's units times steradians; a
+        white Lambertian surface shows ``E / pi``.
 
     Examples:
         >>> sh = torch.zeros(1, 9, 3)
@@ -359,8 +362,8 @@ def sh_irradiance_at(sh: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
 
     Args:
         sh: ``(B, 9, 3)`` radiance SH coefficients.
-        normals: ``(B, N, 3)`` (or ``(1, N, 3)``, shared by the batch) normals in the SPEC frame; they are
-            normalised first.
+        normals: ``(B, N, 3)`` (or ``(1, N, 3)``, shared by the batch) normals in the frame of
+            docs/conventions.rst; they are normalised first.
 
     Returns:
         ``(B, N, 3)`` RGB irradiance, dtype of ``sh``. It can be slightly negative facing away from a
@@ -374,7 +377,7 @@ def sh_irradiance_at(sh: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
         ShapeError: the batch sizes differ (and ``normals``' is not 1).
 
     Convention:
-        SPEC.md, frame and spherical harmonics.
+        docs/conventions.rst, "Frames" and "Spherical harmonics".
 
     Examples:
         >>> sh = torch.zeros(1, 9, 3)

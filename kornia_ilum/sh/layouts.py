@@ -1,35 +1,37 @@
-r"""Converters between SPEC's SH lighting and the SH layouts of DPR, SfSNet, DECA, ARCore and WebXR.
+r"""Converters between our SH lighting and the SH layouts of DPR, SfSNet, DECA, ARCore and WebXR.
 
 Every converter is linear (a fixed signed permutation, for DPR a rotation, and a scale per coefficient), so
 round trips are exact to rounding (bit-exact for ARCore / WebXR, whose conversion is only signs) and
 gradients pass through.
 
 Convention:
-    SPEC side: ``(B, 9, 3)`` radiance coefficients ``L_lm`` in the orthonormal real basis of
-    :mod:`kornia_ilum.sh.harmonics` (SPEC order, no Condon-Shortley phase, frame +X right, +Y up, +Z toward
-    the camera; a direction means "light arriving from it"). A white Lambertian surface with normal ``n``
-    shows ``E(n) / pi`` where ``E = sum_lm A_l L_lm Y_lm(n)`` and ``A = (pi, 2 pi / 3, pi / 4)``
+    Ours (kornia_ilum's, docs/conventions.rst, "Spherical harmonics"): ``(B, 9, 3)`` radiance coefficients
+    ``L_lm`` in the orthonormal real basis of :mod:`kornia_ilum.sh.harmonics` (that order, no
+    Condon-Shortley phase, frame +X right, +Y up, +Z toward the camera; a direction means "light arriving
+    from it"). A white Lambertian surface with normal ``n`` shows ``E(n) / pi`` where
+    ``E = sum_lm A_l L_lm Y_lm(n)`` and ``A = (pi, 2 pi / 3, pi / 4)``
     (:func:`~kornia_ilum.sh.sh_irradiance_at`). Every converter here is defined so that the other project's
-    own shading formula of the converted coefficients gives exactly that ``E(n) / pi`` (SPEC.md, units:
-    the same pixels for the same albedo), which fixes the factors in the last column.
+    own shading formula of the converted coefficients gives exactly that ``E(n) / pi``
+    (docs/conventions.rst, "Units of lighting": the same pixels for the same albedo), which fixes the
+    factors in the last column.
 
     The conventions, as read from each project's own code (sources in each function). "Axes" gives their
-    ``x, y, z`` in SPEC's ``X, Y, Z``; "shading" is what their renderer multiplies the albedo with, as a
+    ``x, y, z`` in our ``X, Y, Z``; "shading" is what their renderer multiplies the albedo with, as a
     function of their coefficients ``c`` read as radiance; the last column is the converter.
 
     ======  ===============  =================  =================  ===========  ======================
-    layout  shape            basis order        axes (up;          shading      SPEC ``L`` from
+    layout  shape            basis order        axes (up;          shading      our ``L`` from
                              (own axes)         toward camera)                  their ``c``
     ======  ===============  =================  =================  ===========  ======================
-    SPEC    ``(B, 9, 3)``    1 y z x xy yz      X Y Z              ``E/pi``     ``L = c``
+    ours    ``(B, 9, 3)``    1 y z x xy yz      X Y Z              ``E/pi``     ``L = c``
                              3z2-1 xz x2-y2     (+y; +z)
-    DPR     ``(B, 9)`` grey  as SPEC (shtools,  X -Z Y             ``E``        ``pi R^T c``, ``R``
+    DPR     ``(B, 9)`` grey  as ours (shtools,  X -Z Y             ``E``        ``pi R^T c``, ``R``
                              no CS phase)       (+z; -y)                        the axes' rotation
     SfSNet  ``(B, 27)``      1 z x y 3z2-1      -Y X Z             ``E``        ``pi`` times a signed
             R, then G, B     xz yz x2-y2 xy     (-x; +z)                        permutation
     DECA    ``(B, 9, 3)``    1 x y z xy xz      X Y Z              ``E``, but   ``c0``, ``pi c1..c8``,
                              yz x2-y2 3z2-1     (+y; +z)           ``A_0 = 1``  reordered
-    ARCore  ``(B, 27)`` RGB  as SPEC, with the  X Y Z (world,      ``E/pi``     signs ``(-1)^m``
+    ARCore  ``(B, 27)`` RGB  as ours, with the  X Y Z (world,      ``E/pi``     signs ``(-1)^m``
             per coefficient  phase ``(-1)^m``   camera at origin)
     WebXR   = ARCore         = ARCore           probe space        ``E/pi``     = ARCore
     ======  ===============  =================  =================  ===========  ======================
@@ -38,9 +40,9 @@ Convention:
 
     - DPR and SfSNet coefficients are radiance coefficients in the orthonormal basis (DPR projects HDR
       environment maps with shtools, ``norm=4``), and their renderers multiply the albedo by the irradiance
-      ``E`` itself, not ``E / pi``; to keep the same pixels, SPEC's coefficients are ``pi`` times theirs.
+      ``E`` itself, not ``E / pi``; to keep the same pixels, our coefficients are ``pi`` times theirs.
       Divide :func:`sh_from_dpr` / :func:`sh_from_sfsnet` by ``pi`` for the other reading (the same
-      environment-map radiance, a ``pi`` times darker render under SPEC's units).
+      environment-map radiance, a ``pi`` times darker render in the units of docs/conventions.rst).
     - DECA's band 0 lacks ``A_0 = pi``; the code that reproduces its shading has ``c[0] = L_00`` and
       ``c[i] = L_lm / pi`` for the rest.
     - DPR, SfSNet and DECA all fit sRGB-encoded (not linearised) photographs, DPR the ``L`` of CIE Lab, so
@@ -80,7 +82,7 @@ _ARCORE_SIGN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0)
 
 _S3 = math.sqrt(3.0) / 2.0
 
-# DPR: its basis function k, evaluated in its own axes (x, y, z) = (X, -Z, Y), is sum_j R[k][j] Y_j(SPEC);
+# DPR: its basis function k, evaluated in its own axes (x, y, z) = (X, -Z, Y), is sum_j R[k][j] Y_j (ours);
 # e.g. its y = -Z, and its 3 z^2 - 1 = 3 Y^2 - 1 = -(3 Z^2 - 1) / 2 - 3 (X^2 - Y^2) / 2.
 _DPR_ROTATION = (
     (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
@@ -95,7 +97,7 @@ _DPR_ROTATION = (
 )
 
 # SfSNet: its basis function k in its axes (x, y, z) = (-Y, X, Z) is
-# _SFSNET_SIGN[k] * Y_{_SFSNET_FROM_SPEC[k]} (SPEC's basis).
+# _SFSNET_SIGN[k] * Y_{_SFSNET_FROM_SPEC[k]} (our basis).
 _SFSNET_FROM_SPEC = (0, 2, 1, 3, 6, 5, 7, 8, 4)  # 1, z, x, y, 3z^2-1, xz, yz, x^2-y^2, xy
 _SFSNET_SIGN = (1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, -1.0)
 _SPEC_FROM_SFSNET = tuple(_SFSNET_FROM_SPEC.index(j) for j in range(9))
@@ -123,7 +125,7 @@ def _index(values: tuple[int, ...], like: torch.Tensor) -> torch.Tensor:
 
 
 def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
-    r"""Convert SPEC SH lighting to DECA's ``light`` code.
+    r"""Convert our SH lighting to DECA's ``light`` code.
 
     DECA (Feng et al. 2021, "Learning an Animatable Detailed 3D Face Model from In-The-Wild Images")
     shades a face as ``albedo * shading`` with
@@ -133,11 +135,11 @@ def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
     Ramamoorthi-Hanrahan factors, except that band 0 lacks ``A_0 = pi``.
 
     This function returns the code for which DECA's ``shading`` equals ``E(n) / pi``, the value a white
-    Lambertian surface shows under ``sh`` (SPEC.md, units): ``light[0] = L_00`` and
+    Lambertian surface shows under ``sh`` (docs/conventions.rst, "Units of lighting"): ``light[0] = L_00`` and
     ``light[i] = L_lm / pi`` for the other coefficients, reordered to DECA's basis order.
 
     Args:
-        sh: ``(B, 9, 3)`` SPEC SH lighting.
+        sh: ``(B, 9, 3)`` our SH lighting.
 
     Returns:
         ``(B, 9, 3)`` DECA ``codedict['light']``.
@@ -146,7 +148,7 @@ def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
         Source: ``decalib/utils/renderer.py`` of https://github.com/yfeng95/DECA (``SRenderY.__init__``,
         ``constant_factor``; ``SRenderY.add_SHlight``). The normals DECA shades with are FLAME-space vertex
         normals (``decalib/deca.py``, ``decode``: ``self.render(verts, trans_verts, albedo, light)``), and
-        FLAME space under DECA's orthographic camera is SPEC's frame: ``batch_orth_proj`` only scales and
+        FLAME space under DECA's orthographic camera is our frame: ``batch_orth_proj`` only scales and
         shifts x, y; the renderer then flips y and z for rasterisation, and its visibility mask keeps
         normals whose flipped z is negative, i.e. outward normals facing +Z. No sign changes are needed.
 
@@ -157,7 +159,7 @@ def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
 
     Examples:
         >>> sh = torch.zeros(1, 9, 3)
-        >>> sh[:, 1] = 1.0  # light from +Y (SPEC coefficient (1, -1))
+        >>> sh[:, 1] = 1.0  # light from +Y (our coefficient (1, -1))
         >>> sh_to_deca(sh)[0, :, 0]  # lands on DECA's y coefficient, divided by pi
         tensor([0.0000, 0.0000, 0.3183, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000])
     """
@@ -166,13 +168,13 @@ def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
 
 
 def sh_from_deca(light: torch.Tensor) -> torch.Tensor:
-    r"""Convert DECA's ``light`` code to SPEC SH lighting; the inverse of :func:`sh_to_deca`.
+    r"""Convert DECA's ``light`` code to our SH lighting; the inverse of :func:`sh_to_deca`.
 
     Args:
         light: ``(B, 9, 3)`` DECA ``codedict['light']``.
 
     Returns:
-        ``(B, 9, 3)`` SPEC SH lighting (see :func:`sh_to_deca` for the convention and its source).
+        ``(B, 9, 3)`` our SH lighting (see :func:`sh_to_deca` for the convention and its source).
 
     Examples:
         >>> light = torch.zeros(1, 9, 3)
@@ -185,18 +187,18 @@ def sh_from_deca(light: torch.Tensor) -> torch.Tensor:
 
 
 def sh_to_arcore(sh: torch.Tensor) -> torch.Tensor:
-    r"""Convert SPEC SH lighting to ARCore's 27 floats (also WebXR's, see :func:`sh_to_webxr`).
+    r"""Convert our SH lighting to ARCore's 27 floats (also WebXR's, see :func:`sh_to_webxr`).
 
     ARCore's ``LightEstimate.getEnvironmentalHdrAmbientSphericalHarmonics()`` (C:
     ``ArLightEstimate_getEnvironmentalHdrAmbientSphericalHarmonics``, ``out_coefficients_27``) returns 9
-    coefficients x RGB, interleaved per coefficient (``[c0.r, c0.g, c0.b, c1.r, ...]``), in SPEC's
+    coefficients x RGB, interleaved per coefficient (``[c0.r, c0.g, c0.b, c1.r, ...]``), in our
     ``(l, m)`` order. They are *radiance* coefficients in the orthonormal basis, but with the
     Condon-Shortley phase of Filament's SH (Filament's ``CubemapSH``), so the ``m = +-1`` functions of
     bands 1 and 2 (indices 1, 3, 5, 7) change sign: ``c_arcore = s * c_spec``,
     ``s = (+, -, +, -, +, -, +, -, +)``. A light from +Y gives a *negative* ``c_arcore[1]``.
 
     Args:
-        sh: ``(B, 9, 3)`` SPEC SH lighting.
+        sh: ``(B, 9, 3)`` our SH lighting.
 
     Returns:
         ``(B, 27)`` ARCore coefficients.
@@ -205,7 +207,7 @@ def sh_to_arcore(sh: torch.Tensor) -> torch.Tensor:
         Source: the ARCore SDK sample ``samples/hello_ar_java`` of
         https://github.com/google-ar/arcore-android-sdk: ``sphericalHarmonicFactors`` =
         ``(0.282095, -0.325735, 0.325735, -0.325735, 0.273137, -0.273137, 0.078848, -0.273137, 0.136569)``
-        (the SPEC constants times ``A_l / pi`` times the sign ``s``) multiply the ARCore coefficients, and
+        (our constants times ``A_l / pi`` times the sign ``s``) multiply the ARCore coefficients, and
         ``shaders/environmental_hdr.frag`` evaluates them with the sign-free polynomials
         ``1, y, z, x, yx, yz, 3z^2 - 1, zx, x^2 - y^2`` of the world-space normal to get the Lambertian
         ``E(n) / pi``. The tests check that formula against :func:`~kornia_ilum.sh.sh_irradiance_at`.
@@ -213,7 +215,7 @@ def sh_to_arcore(sh: torch.Tensor) -> torch.Tensor:
         ``updateFromHarmonics`` negates ``l1_1``, ``l11``, ``l2_1``, ``l21``).
 
         Frame: ARCore world space (right-handed, +Y up against gravity; cameras look along their -Z). It
-        coincides with SPEC's frame when the camera's rotation in the world is the identity; otherwise
+        coincides with our frame when the camera's rotation in the world is the identity; otherwise
         rotate the lighting into the camera frame first (not done here).
 
         Uncertain: the absolute scale (ARCore's relative linear units are not calibrated to the camera's
@@ -231,13 +233,13 @@ def sh_to_arcore(sh: torch.Tensor) -> torch.Tensor:
 
 
 def sh_from_arcore(coefficients: torch.Tensor) -> torch.Tensor:
-    r"""Convert ARCore's (or WebXR's) 27 floats to SPEC SH lighting; the inverse of :func:`sh_to_arcore`.
+    r"""Convert ARCore's (or WebXR's) 27 floats to our SH lighting; the inverse of :func:`sh_to_arcore`.
 
     Args:
         coefficients: ``(B, 27)`` coefficients, RGB interleaved per coefficient.
 
     Returns:
-        ``(B, 9, 3)`` SPEC SH lighting (see :func:`sh_to_arcore` for the convention and its sources).
+        ``(B, 9, 3)`` our SH lighting (see :func:`sh_to_arcore` for the convention and its sources).
 
     Examples:
         >>> sh_from_arcore(torch.arange(27.0)[None])[0, 1]  # coefficient 1 changes sign
@@ -267,11 +269,11 @@ def _matrix(values: tuple[tuple[float, ...], ...], like: torch.Tensor) -> torch.
 
 
 def sh_to_dpr(sh: torch.Tensor, channel: str = "luminance") -> torch.Tensor:
-    r"""Convert SPEC SH lighting to DPR's 9 grey SH coefficients.
+    r"""Convert our SH lighting to DPR's 9 grey SH coefficients.
 
     DPR (Zhou et al. 2019, "Deep Single-Image Portrait Relighting") relights the ``L`` channel of CIE Lab
     with one grey SH lighting of 9 coefficients. Its renderer (``utils/utils_SH.py``, ``SH_basis`` and
-    ``get_shading``) shades ``shading(n) = sum_k c_k A_l Y_k(n')``: the orthonormal basis in SPEC's order
+    ``get_shading``) shades ``shading(n) = sum_k c_k A_l Y_k(n')``: the orthonormal basis in our order
     and signs (``1, y, z, x, yx, yz, 3z^2 - 1, xz, x^2 - y^2``, shtools' real SH without Condon-Shortley
     phase) times ``att = pi (1, 2/3, 1/4)``, evaluated at the normal ``n'`` in DPR's axes. ``c`` are
     radiance coefficients (DPR's lightings are shtools projections of environment maps) and ``shading`` is
@@ -279,18 +281,18 @@ def sh_to_dpr(sh: torch.Tensor, channel: str = "luminance") -> torch.Tensor:
 
     DPR's axes are shtools' (``utils/utils_normal.py``, ``sh_cvt``; the half sphere of
     ``testNetwork_demo_512.py``): x right, **z up**, **y away from the camera** (the visible half sphere has
-    ``y = -sqrt(1 - x^2 - z^2)``). So ``n' = (X, -Z, Y)`` for a SPEC normal ``(X, Y, Z)``, and in SPEC's
+    ``y = -sqrt(1 - x^2 - z^2)``). So ``n' = (X, -Z, Y)`` for our normal ``(X, Y, Z)``, and in our
     basis DPR's function ``k`` is ``sum_j R_kj Y_j`` with ``R`` a rotation that keeps bands (signed
     permutation except for ``3z^2 - 1`` and ``x^2 - y^2``, which mix). This function returns
     ``c = R L_grey / pi``, for which DPR's shading is exactly ``E(n) / pi`` of the grey lighting: the value
-    that a white Lambertian surface shows under ``sh`` (SPEC.md, units).
+    that a white Lambertian surface shows under ``sh`` (docs/conventions.rst, "Units of lighting").
 
     Args:
-        sh: ``(B, 9, 3)`` SPEC SH lighting.
+        sh: ``(B, 9, 3)`` our SH lighting.
         channel: which grey lighting DPR gets: ``"luminance"`` (default; ``0.2126 R + 0.7152 G + 0.0722 B``,
             the linear luminance of Rec. 709 / sRGB primaries), or one of ``"r"``, ``"g"``, ``"b"``. The
             conversion is linear, so DPR's shading of the result is that channel (or the luminance) of
-            SPEC's shading. See :data:`DPR_CHANNELS`.
+            our shading. See :data:`DPR_CHANNELS`.
 
     Returns:
         ``(B, 9)`` DPR coefficients (DPR's network takes them as ``(B, 9, 1, 1)``: ``reshape(B, 9, 1, 1)``).
@@ -328,9 +330,9 @@ def sh_to_dpr(sh: torch.Tensor, channel: str = "luminance") -> torch.Tensor:
 
 
 def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
-    r"""Convert DPR's 9 grey SH coefficients to (grey) SPEC SH lighting; the inverse of :func:`sh_to_dpr`.
+    r"""Convert DPR's 9 grey SH coefficients to our (grey) SH lighting; the inverse of :func:`sh_to_dpr`.
 
-    Returns ``L = pi R^T c`` in all three channels, so that a white Lambertian surface under the SPEC
+    Returns ``L = pi R^T c`` in all three channels, so that a white Lambertian surface under our
     lighting shows DPR's shading of ``c`` (see :func:`sh_to_dpr` for the convention and its sources).
     Divide by ``pi`` to read ``c`` as the radiance of an environment map instead.
 
@@ -338,7 +340,7 @@ def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
         coefficients: ``(B, 9)`` DPR coefficients (flatten DPR's ``(B, 9, 1, 1)`` first).
 
     Returns:
-        ``(B, 9, 3)`` SPEC SH lighting, the same in R, G and B.
+        ``(B, 9, 3)`` our SH lighting, the same in R, G and B.
 
     Shape:
         - Input: :math:`(B, 9)`
@@ -349,7 +351,7 @@ def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
 
     Examples:
         >>> c = torch.zeros(1, 9)
-        >>> c[:, 1] = 1.0  # DPR's y: light from behind the subject (SPEC -Z)
+        >>> c[:, 1] = 1.0  # DPR's y: light from behind the subject (our -Z)
         >>> (sh_from_dpr(c)[0, :, 0] / math.pi).round(decimals=4) + 0.0
         tensor([ 0.,  0., -1.,  0.,  0.,  0.,  0.,  0.,  0.])
     """
@@ -360,7 +362,7 @@ def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
 
 
 def sh_to_sfsnet(sh: torch.Tensor) -> torch.Tensor:
-    r"""Convert SPEC SH lighting to SfSNet's 27 lighting values.
+    r"""Convert our SH lighting to SfSNet's 27 lighting values.
 
     SfSNet (Sengupta et al. 2018, "SfSNet: Learning Shape, Reflectance and Illuminance of Faces in the
     Wild") predicts ``fc_light``, 27 values: 9 for R, then 9 for G, then 9 for B. Its shading layer
@@ -371,14 +373,14 @@ def sh_to_sfsnet(sh: torch.Tensor) -> torch.Tensor:
     basis in its own order times the Ramamoorthi-Hanrahan factors, i.e. the irradiance ``E`` of radiance
     coefficients ``c`` (not ``E / pi``). The reconstruction is ``albedo * shading``.
 
-    SfSNet's normal axes are **x down**, y right, z toward the camera: ``n' = (-Y, X, Z)`` for a SPEC normal
-    ``(X, Y, Z)``. Then every SfSNet function is a SPEC function up to sign (``x = -Y``, ``xz = -YZ``,
+    SfSNet's normal axes are **x down**, y right, z toward the camera: ``n' = (-Y, X, Z)`` for our normal
+    ``(X, Y, Z)``. Then every SfSNet function is one of ours up to sign (``x = -Y``, ``xz = -YZ``,
     ``x^2 - y^2 = -(X^2 - Y^2)``, ``xy = -XY``), and this function returns the signed permutation of
     ``L / pi``, for which SfSNet's shading is exactly ``E(n) / pi``, what a white Lambertian surface shows
-    under ``sh`` (SPEC.md, units).
+    under ``sh`` (docs/conventions.rst, "Units of lighting").
 
     Args:
-        sh: ``(B, 9, 3)`` SPEC SH lighting.
+        sh: ``(B, 9, 3)`` our SH lighting.
 
     Returns:
         ``(B, 27)`` SfSNet ``fc_light``: ``[R c_0..c_8, G c_0..c_8, B c_0..c_8]``.
@@ -418,9 +420,9 @@ def sh_to_sfsnet(sh: torch.Tensor) -> torch.Tensor:
 
 
 def sh_from_sfsnet(light: torch.Tensor) -> torch.Tensor:
-    r"""Convert SfSNet's 27 lighting values to SPEC SH lighting; the inverse of :func:`sh_to_sfsnet`.
+    r"""Convert SfSNet's 27 lighting values to our SH lighting; the inverse of :func:`sh_to_sfsnet`.
 
-    Returns the SPEC lighting under which a white Lambertian surface shows SfSNet's shading of ``light``
+    Returns our lighting under which a white Lambertian surface shows SfSNet's shading of ``light``
     (``L = pi *`` a signed permutation of each channel's 9 values; see :func:`sh_to_sfsnet` for the
     convention and its sources). Divide by ``pi`` to read ``light`` as environment-map radiance instead.
 
@@ -428,7 +430,7 @@ def sh_from_sfsnet(light: torch.Tensor) -> torch.Tensor:
         light: ``(B, 27)`` SfSNet ``fc_light`` (R, then G, then B).
 
     Returns:
-        ``(B, 9, 3)`` SPEC SH lighting.
+        ``(B, 9, 3)`` our SH lighting.
 
     Shape:
         - Input: :math:`(B, 27)`
@@ -439,7 +441,7 @@ def sh_from_sfsnet(light: torch.Tensor) -> torch.Tensor:
 
     Examples:
         >>> light = torch.zeros(1, 27)
-        >>> light[:, 1] = 1.0  # SfSNet's z of the red channel: light from the camera side (SPEC +Z)
+        >>> light[:, 1] = 1.0  # SfSNet's z of the red channel: light from the camera side (our +Z)
         >>> (sh_from_sfsnet(light)[0, :, 0] / math.pi).round(decimals=4) + 0.0  # the red channel
         tensor([0., 0., 1., 0., 0., 0., 0., 0., 0.])
     """

@@ -4,7 +4,7 @@ Used to composite portraits over a background that matches their lighting: the v
 that the portrait's camera would see behind the subject.
 
 Convention:
-    The camera is the one of SPEC.md: a pinhole at the origin looking along -Z, +X to the right of the
+    The camera is the one of docs/conventions.rst ("Frames"): a pinhole at the origin looking along -Z, +X to the right of the
     image, +Y up. ``yaw_deg``, ``pitch_deg`` and ``roll_deg`` turn it by
     ``R = R_y(yaw) R_x(pitch) R_z(roll)`` (right-handed rotations about the frame's axes, applied to the
     camera's rays: a ray ``r`` of the unrotated camera looks along ``R r``). So positive yaw turns the
@@ -28,11 +28,12 @@ from kornia_ilum.color import encode_srgb8
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import angles_to_latlong_pixel, direction_to_latlong
-from kornia_ilum.geometry.resample import _resample_bilinear
+from kornia_ilum.geometry.resample import resample_bilinear
 
 __all__ = [
     "LUMINANCE",
     "RenderBackground",
+    "axis_rotation",
     "camera_rays",
     "camera_rotation",
     "latlong_grid",
@@ -47,8 +48,23 @@ LUMINANCE: tuple[float, float, float] = (0.212671, 0.715160, 0.072169)
 _HALF = (torch.float16, torch.bfloat16)
 
 
-def _axis_rotation(axis: int, degrees: float) -> torch.Tensor:
-    """Right-handed rotation by ``degrees`` about the frame axis ``axis`` (0 = X, 1 = Y, 2 = Z), float64."""
+def axis_rotation(axis: int, degrees: float) -> torch.Tensor:
+    r"""Right-handed rotation ``(3, 3)`` float64 by ``degrees`` about the axis ``axis`` (0 = X, 1 = Y, 2 = Z).
+
+    The building block of :func:`camera_rotation` and of
+    :func:`~kornia_ilum.synth.environments.lighting_rotation`. ``degrees`` is not checked here
+    (:func:`camera_rotation` checks its angles).
+
+    Raises:
+        ValueCheckError: ``axis`` is not 0, 1 or 2.
+
+    Examples:
+        >>> forward = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)
+        >>> (axis_rotation(1, 90.0) @ forward).round(decimals=6) + 0.0  # +90 deg about +Y: ahead -> left
+        tensor([-1.,  0.,  0.], dtype=torch.float64)
+    """
+    if isinstance(axis, bool) or not isinstance(axis, int) or axis not in (0, 1, 2):
+        raise ValueCheckError(f"axis must be 0, 1 or 2, got {axis!r}")
     c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
     r = torch.eye(3, dtype=torch.float64)
@@ -66,7 +82,7 @@ def camera_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: floa
     """
     for name, value in (("yaw_deg", yaw_deg), ("pitch_deg", pitch_deg), ("roll_deg", roll_deg)):
         _check_finite_number(value, name)
-    return _axis_rotation(1, yaw_deg) @ _axis_rotation(0, pitch_deg) @ _axis_rotation(2, roll_deg)
+    return axis_rotation(1, yaw_deg) @ axis_rotation(0, pitch_deg) @ axis_rotation(2, roll_deg)
 
 
 def _check_finite_number(value: object, name: str) -> float:
@@ -89,7 +105,7 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
         the values ``(C, ...)`` (``(B, C, ...)`` for a batch) in the dtype and on the device of ``latlong``.
 
     Convention:
-        SPEC.md lat-long grid; interpolation as in :func:`kornia_ilum.geometry.latlong_to_mirror_ball`
+        Lat-long grid of docs/conventions.rst; interpolation as in :func:`kornia_ilum.geometry.latlong_to_mirror_ball`
         ``(mode="bilinear")``. Point sampling: it does not conserve energy (use it for pictures, not for
         lighting that is integrated).
 
@@ -146,7 +162,7 @@ def lookup_latlong(latlong: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
 
     Returns ``(B, C, h, w)``; no value checks (:func:`sample_latlong` is the checked entry point).
     """
-    return _resample_bilinear(latlong, ("latlong", latlong.shape[-2]), grid.to(latlong.dtype), None)
+    return resample_bilinear(latlong, ("latlong", latlong.shape[-2]), grid.to(latlong.dtype), None)
 
 
 def _check_size(size: object) -> tuple[int, int]:
@@ -235,7 +251,7 @@ def render_background(
         - Output: :math:`(3, h, w)`
 
     Convention:
-        SPEC.md camera (looks along -Z, +X right, +Y up) and lat-long grid; the rotation convention is in
+        Camera (looks along -Z, +X right, +Y up) and lat-long grid of docs/conventions.rst; the rotation convention is in
         the module docstring: with ``yaw_deg=90`` the centre pixel sees -X.
 
     Raises:

@@ -21,21 +21,20 @@ camera pipeline, and is what :class:`~kornia_ilum.synth.lightstage.PortraitDatas
    path: linear to 8-bit codes through one table per image (of the sRGB curve and the tone curve), as fast as
    :func:`~kornia_ilum.color.encode_srgb8`.
 5. :func:`jpeg_compress` (8-bit): an OpenCV JPEG round trip at a quality of 40 to 95 (4:2:0 chroma subsampling,
-   OpenCV's default), one image at a time (0.3 to 0.8 ms for 256 x 256, photo to noise-like content).
+   OpenCV's default), one image at a time (noise-like content costs more than photos).
 
 :meth:`CameraEffects.apply` runs the chain fused on CPU, one image at a time in a scratch image that stays in
 the cache (exposure and vignette as one multiplication, the noise in the units of the code table, each effect
 only on the images that draw it; :meth:`CameraEffects.apply_reference` is the unfused chain, equal up to float
-rounding). On one core of a loaded machine, per 256 x 256 image (``benchmarks/bench_portraits.py``): 0.3 to
-0.4 ms with every effect off (0.4 to 0.6 ms for :func:`~kornia_ilum.color.encode_srgb8` alone), 1.2 to 1.4 ms
-at the defaults on noise-like images (JPEG's 0.75 ms included; 1.9 to 2 ms unfused); in
-:class:`~kornia_ilum.synth.lightstage.PortraitDataset` the defaults cost about 0.6 ms a sample more than no
-effect (of 5 to 6 ms), where they cost 3.5 to 4 ms unfused.
+rounding). Fused, every effect off costs no more than :func:`~kornia_ilum.color.encode_srgb8` alone, and the
+defaults a fraction of the unfused chain, JPEG being the largest part (``benchmarks/bench_portraits.py``;
+timings in docs/environments.rst, "Measured").
 
 White-balance errors are left out on purpose: the ground-truth lighting of a portrait is in the units of its
-image (SPEC.md), so a colour cast would have to be applied to the truth as well, which is what the environments'
-white-balance augmentation (:class:`~kornia_ilum.synth.environments.Augment`) already does; a cast applied to the
-image alone would teach the estimator to ignore the lighting's colour.
+image (docs/conventions.rst, "Units of lighting"), so a colour cast would have to be applied to the truth as
+well, which is what the environments' white-balance augmentation
+(:class:`~kornia_ilum.synth.environments.Augment`) already does; a cast applied to the image alone would teach
+the estimator to ignore the lighting's colour.
 
 Convention:
     Images are ``(B, C, H, W)``; linear effects take non-negative linear values (HDR allowed), the tone curve
@@ -55,6 +54,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from kornia_ilum.color import SRGB8_TABLE_SIZE, encode_srgb8, linear_to_srgb, srgb8_table
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 
@@ -112,8 +112,8 @@ def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
     Returns:
         ``(B, C, H, W)``; separable, reflected at the borders, truncated at ``ceil(2 max(sigma))`` pixels and
         normalised (a kernel per image). CPU float32 images go through OpenCV's separable filter, plane by
-        plane (0.2 ms for 3 x 256 x 256 against 2.7 ms for grouped convolutions on one core); others through
-        one grouped convolution per axis (the same values up to float rounding).
+        plane (faster than grouped convolutions on one core); others through one grouped convolution per
+        axis (the same values up to float rounding).
 
     Examples:
         >>> x = torch.zeros(2, 1, 9, 9); x[:, :, 4, 4] = 1.0
@@ -156,8 +156,8 @@ def _blur_kernels(s: torch.Tensor, r: int) -> torch.Tensor:
 
 def _lens_blur_cv2(image: torch.Tensor, kern: torch.Tensor, sigmas: list[float]) -> torch.Tensor:
     """:func:`lens_blur` of CPU float32 images: OpenCV's separable filter on each plane (reflected borders:
-    ``BORDER_REFLECT_101`` is torch's ``"reflect"``), 10 times faster than grouped convolutions on one core."""
-    import cv2
+    ``BORDER_REFLECT_101`` is torch's ``"reflect"``), faster than grouped convolutions on one core."""
+    import cv2  # lazy: OpenCV loads on first use, not with the module
 
     src = image.contiguous()
     out = torch.empty_like(src)
@@ -305,8 +305,6 @@ _TONE_CELLS = 4096
 
 @functools.lru_cache(maxsize=1)
 def _srgb_cells() -> torch.Tensor:
-    from kornia_ilum.color import linear_to_srgb
-
     x = ((torch.arange(_TONE_CELLS, dtype=torch.float64) + 0.5) / _TONE_CELLS) ** 2
     return linear_to_srgb(x.reshape(1, 1, 1, -1).expand(1, 3, 1, -1))[0, 0, 0]
 
@@ -351,8 +349,6 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
 
 def _encode_tone8_reference(linear: torch.Tensor, c: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
     """:func:`encode_tone8` as first written (any device): ``encode_srgb8`` or a 4096-cell table per image."""
-    from kornia_ilum.color import encode_srgb8
-
     b = linear.shape[0]
     out = torch.empty(linear.shape, dtype=torch.uint8, device=linear.device)
     toned = ((c != 0) | (g != 1)).tolist()
@@ -376,11 +372,9 @@ def _code_tables(c: torch.Tensor, g: torch.Tensor) -> tuple[list[torch.Tensor], 
     cells: exactly its codes); the others a table of :data:`_TONE_CELLS` cells of the sRGB curve then their
     tone curve (computed for those images only).
     """
-    from kornia_ilum.color.transfer import _LUT_SIZE, _srgb8_table
-
-    srgb = _srgb8_table(torch.device("cpu"))
+    srgb = srgb8_table(torch.device("cpu"))
     toned = torch.nonzero((c != 0) | (g != 1)).flatten()
-    tables, cells = [srgb] * len(c), [_LUT_SIZE] * len(c)
+    tables, cells = [srgb] * len(c), [SRGB8_TABLE_SIZE] * len(c)
     if len(toned):
         cell = _srgb_cells()[None].expand(len(toned), -1)
         toned_tables = (_tone(cell, c[toned], g[toned]) * 255.0).round_().to(torch.uint8)
@@ -390,9 +384,9 @@ def _code_tables(c: torch.Tensor, g: torch.Tensor) -> tuple[list[torch.Tensor], 
 
 
 def _sqrt_(x: torch.Tensor) -> torch.Tensor:
-    """In-place square root of a contiguous CPU float32 tensor (OpenCV's: twice as fast as torch's here, and
+    """In-place square root of a contiguous CPU float32 tensor (OpenCV's: faster than torch's here, and
     correctly rounded as IEEE ``sqrt`` is, so the same values)."""
-    import cv2
+    import cv2  # lazy: OpenCV loads on first use, not with the module
 
     flat = x.numpy().reshape(-1, x.shape[-1])
     cv2.sqrt(flat, dst=flat)
@@ -447,10 +441,10 @@ def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> t
 def _jpeg_one(planes: torch.Tensor, quality: int) -> None:
     """JPEG round trip of one contiguous CPU ``(3, H, W)`` uint8 RGB image, in place (OpenCV, 4:2:0).
 
-    The planes go to OpenCV's interleaved BGR and back with ``cv2.merge`` / ``cv2.split`` (vectorised: 0.04 ms
-    against 0.8 ms for numpy's and torch's strided copies of ``flip(0).permute(1, 2, 0)`` and back).
+    The planes go to OpenCV's interleaved BGR and back with ``cv2.merge`` / ``cv2.split`` (vectorised, unlike
+    numpy's and torch's strided copies of ``flip(0).permute(1, 2, 0)`` and back).
     """
-    import cv2
+    import cv2  # lazy: OpenCV loads on first use, not with the module
 
     p = planes.numpy()
     ok, buf = cv2.imencode(".jpg", cv2.merge([p[2], p[1], p[0]]), [int(cv2.IMWRITE_JPEG_QUALITY), int(quality)])

@@ -1,11 +1,13 @@
 r"""``kornia-ilum synth``: lighting environments and the virtual light stage, with contact sheets.
 
-``synth environments`` samples ``N`` environments with :class:`~kornia_ilum.synth.environments.EnvironmentSampler`
-(procedural skies and rooms, plus the real maps of ``--folder``), with a progress bar (tqdm when it is
-installed, else a counter on stderr), and writes into ``--out``:
+``synth environments`` samples ``N`` environments with
+:class:`~kornia_ilum.synth.environments.EnvironmentSampler` (procedural skies and rooms, plus the real maps of
+``--folder``), with a progress bar (tqdm when it is installed, else a counter on stderr), and writes into
+``--out``:
 
 - ``contact_sheet.png``: for each environment its 32 x 32 mirror ball and the three reference spheres
-  rendered from it (diffuse, matte silver, mirror; :func:`kornia_ilum.render.render_spheres`), tone-mapped;
+  rendered from it (diffuse, matte silver, mirror; :func:`kornia_ilum.render.render_spheres`), tone-mapped
+  (:func:`~kornia_ilum.synth.sheets.write_contact_sheet`);
 - ``stats.txt`` and ``stats.csv``: the statistics of :mod:`kornia_ilum.synth.stats`, per group (median and
   10th / 90th percentiles) and per environment; with ``--folder`` the real maps, as captured, are a group;
 - ``stats.png``: the four histograms.
@@ -17,20 +19,25 @@ installed, else a counter on stderr), and writes into ``--out``:
 a cache folder (:func:`~kornia_ilum.synth.lightstage.build_cache`: random views, worker processes, resumable,
 sharded with ``--worker I/N``, a progress bar with an ETA), then writes ``contact_sheet.png``: training
 portraits composited from the cache with their ground-truth spheres
-(:func:`~kornia_ilum.synth.lightstage.preview.training_sheet`). :func:`add_synth_subjects_parser` and :func:`run_synth_subjects` as above.
+(:func:`~kornia_ilum.synth.lightstage.preview.training_sheet`). :func:`add_synth_subjects_parser` and
+:func:`run_synth_subjects` as above.
+
+Both contact sheets are drawn by :mod:`kornia_ilum.synth.sheets`; the small argument types come from
+:mod:`kornia_ilum.core.cli`.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import torch
-
-from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+from kornia_ilum.core.cli import nonnegative_int, positive_int
+from kornia_ilum.core.errors import IlumError, ValueCheckError
 from kornia_ilum.core.progress import progress
+from kornia_ilum.synth.sheets import require_matplotlib, write_contact_sheet
 
 __all__ = [
     "add_synth_environments_parser",
@@ -39,8 +46,6 @@ __all__ = [
     "run_synth_environments",
     "run_synth_subjects",
     "split_seeds",
-    "tone_map_tile",
-    "write_contact_sheet",
 ]
 
 
@@ -55,11 +60,6 @@ examples:
   kornia-ilum synth environments -n 48 --out envs/
   kornia-ilum synth environments --folder ../shared/data/hdri -n 200 --sheet 48 --out envs/
 """
-
-
-
-def _nonnegative_int(text: str) -> int:
-    return 0 if text.strip() == "0" else _positive_int(text)
 
 
 def _synth_subparsers(subparsers: argparse._SubParsersAction) -> argparse._SubParsersAction:
@@ -100,130 +100,20 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     env.add_argument("--folder", metavar="DIR", help="folder of lat-long .hdr/.exr maps to add")
-    env.add_argument("-n", type=_positive_int, default=48, metavar="N", help="environments to sample (48)")
+    env.add_argument("-n", type=positive_int, default=48, metavar="N", help="environments to sample (48)")
     env.add_argument("--seed", type=int, default=0, metavar="S", help="seed (0)")
     env.add_argument(
         "--out", default="synth_environments", metavar="DIR", help="output folder (./synth_environments)"
     )
     env.add_argument(
-        "--height", type=_positive_int, default=128, metavar="H", help="lat-long height H x 2H (128)"
+        "--height", type=positive_int, default=128, metavar="H", help="lat-long height H x 2H (128)"
     )
     env.add_argument(
-        "--sheet", type=_nonnegative_int, default=48, metavar="K", help="environments on the sheet (48)"
+        "--sheet", type=nonnegative_int, default=48, metavar="K", help="environments on the sheet (48)"
     )
     env.add_argument("--no-augment", action="store_true", help="no rotation, flip, exposure or white balance")
     env.set_defaults(func=run_synth_environments)
     return env
-
-
-def tone_map_tile(mirror_ball: torch.Tensor) -> torch.Tensor:
-    r"""One contact-sheet tile: the mirror ball and its three reference spheres, side by side, sRGB in [0, 1].
-
-    The exposure makes the brightest pixel of the diffuse sphere 0.8 (as one would expose a face); the
-    four images share it, so suns clip in the ball and the mirror. Then clip and the sRGB curve.
-
-    Args:
-        mirror_ball: linear lighting ``(3, 32, 32)``.
-
-    Returns:
-        ``(3, 32, 4 x 32 + 3 x 2)`` sRGB image (2-pixel white gaps), float in ``[0, 1]``.
-
-    Examples:
-        >>> tone_map_tile(torch.ones(3, 32, 32)).shape
-        torch.Size([3, 32, 134])
-    """
-    from kornia_ilum.color import linear_to_srgb
-    from kornia_ilum.render import BRDFS, render_spheres
-    from kornia_ilum.synth.background import LUMINANCE
-
-    ball = mirror_ball[None].float()
-    spheres = render_spheres(ball, size=32)
-    lum = (spheres["diffuse"][0] * torch.tensor(LUMINANCE)[:, None, None]).sum(0)
-    peak = float(lum.max())
-    gain = 0.8 / peak if peak > 0 else 1.0
-    gap = torch.ones(3, 32, 2)
-    parts = [ball[0]] + [spheres[b][0] for b in BRDFS]
-    images = [linear_to_srgb((p * gain).clamp(0.0, 1.0)) for p in parts]
-    return torch.cat([x for img in images for x in (img, gap)][:-1], dim=-1)
-
-
-def _caption(env) -> str:
-    aug = env.params.get("augment")
-    text = f"{env.source} ({env.label})"
-    if aug:
-        text += (
-            f"\nyaw {aug['yaw_deg']:.0f}, pitch {aug['pitch_deg']:+.0f}{', flip' if aug['flip'] else ''}, "
-            f"{aug['exposure_stops']:+.1f} EV, WB {aug['kelvin']:.0f} K"
-        )
-    return text
-
-
-def write_contact_sheet(
-    envs: Sequence, path: str | Path, columns: int = 4, dpi: int = 100, palette: bool = True
-) -> None:
-    """A PNG grid of :func:`tone_map_tile` tiles with captions (source, label, augmentation).
-
-    With ``palette`` the PNG is stored with a 256-colour adaptive palette (Pillow, which matplotlib
-    requires), dithered: about 410 KB for 48 tiles instead of 550 KB in true colour.
-    """
-    tiles = [tone_map_tile(env.mirror_ball) for env in envs]
-    title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
-    _write_grid(tiles, [_caption(env) for env in envs], title, path, columns, (2.9, 1.15), 6, dpi, palette)
-
-
-def _write_grid(tiles: Sequence[torch.Tensor], captions: Sequence[str], title: str, path: str | Path, columns: int,
-                cell: tuple[float, float], fontsize: float, dpi: int, palette: bool) -> None:
-    """A captioned grid of ``(3, H, W)`` images in ``[0, 1]``, ``cell`` inches per tile, saved as a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    rows = max(1, -(-len(tiles) // columns))
-    height = cell[1] * rows + 0.35
-    fig, axes = plt.subplots(rows, columns, figsize=(cell[0] * columns, height), squeeze=False)
-    for ax in axes.flat:
-        ax.axis("off")
-    for ax, tile, caption in zip(axes.flat, tiles, captions, strict=False):
-        ax.imshow(tile.clamp(0, 1).permute(1, 2, 0).numpy(), interpolation="nearest")
-        ax.set_title(caption, fontsize=fontsize, pad=1.5)
-    fig.suptitle(title, fontsize=8.5)
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / height), h_pad=0.3, w_pad=0.2)
-    _save_figure(fig, path, dpi, palette)
-
-
-def _save_figure(fig, path: str | Path, dpi: int, palette: bool) -> None:
-    """Save and close a matplotlib figure; with ``palette`` as a 256-colour adaptive-palette PNG (Pillow's
-    median cut, with Floyd-Steinberg dithering so that smooth shading does not band)."""
-    import io
-
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if palette:
-        from PIL import Image
-
-        buffer = io.BytesIO()
-        fig.savefig(buffer, dpi=dpi, format="png")
-        image = Image.open(buffer).convert("RGB")
-        palette_image = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
-        image.quantize(palette=palette_image, dither=Image.Dither.FLOYDSTEINBERG).save(path, optimize=True)
-    else:
-        fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-
-
-def _require_matplotlib(command: str) -> None:
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
-        from kornia_ilum.core.errors import IlumError
-
-        raise IlumError(
-            f"{command} draws its figures with matplotlib, which is not installed: "
-            "pip install matplotlib (or kornia_ilum[docs])"
-        ) from None
 
 
 def run_synth_environments(args: argparse.Namespace) -> int:
@@ -236,10 +126,13 @@ def run_synth_environments(args: argparse.Namespace) -> int:
         HDRIOError: ``folder`` does not exist or holds no map.
         IlumError: matplotlib (needed for the figures; in the ``docs`` extra) is not installed.
     """
-    from kornia_ilum.synth.environments import Augment, EnvironmentSampler, HDRFolderSource, default_sources
+    # lazy: the statistics import the environments, a heavy import that only this sub-command needs
     from kornia_ilum.synth.stats import format_table, plot_histograms, stats_rows, summarize, write_csv
 
-    _require_matplotlib("synth environments")
+    # lazy: as above
+    from kornia_ilum.synth.environments import Augment, EnvironmentSampler, HDRFolderSource, default_sources
+
+    require_matplotlib("synth environments")
     out = Path(args.out)
     sources = default_sources(args.folder, height=args.height)
     augment = None if getattr(args, "no_augment", False) else Augment()
@@ -345,6 +238,7 @@ def split_seeds(seeds: Sequence[int], split: str | None) -> list[int]:
         >>> split_seeds(range(6), "eval"), split_seeds([0, 1], "all")
         ([1, 3], [0, 1])
     """
+    # lazy: importing a light-stage module loads the whole (heavy) light-stage package
     from kornia_ilum.synth.lightstage.subjects.base import subject_split
 
     if split in (None, "all"):
@@ -357,7 +251,8 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
 
     Examples:
         >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
-        >>> args = add_synth_subjects_parser(parser.add_subparsers(dest="command")).parse_args(["--seeds", "0-2"])
+        >>> subjects = add_synth_subjects_parser(parser.add_subparsers(dest="command"))
+        >>> args = subjects.parse_args(["--seeds", "0-2"])
         >>> args.seeds, args.worker, args.size, args.views, args.workers, args.source, args.func.__name__
         ([0, 1, 2], (0, 1), 192, 4, 2, None, 'run_synth_subjects')
     """
@@ -374,38 +269,42 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     cmd.add_argument("--source", choices=("makehuman", "mannequin"), default=None,
                      help="subject source (makehuman when its assets are found, else mannequin)")
     cmd.add_argument("--assets", metavar="DIR", default=None, help="the MakeHuman assets folder")
-    cmd.add_argument("--views", type=_positive_int, default=4, metavar="N", help="random views per subject (4)")
-    cmd.add_argument("--size", type=_positive_int, default=192, metavar="PX", help="render side in pixels (192)")
-    cmd.add_argument("--spp", type=_positive_int, default=None, metavar="N",
+    cmd.add_argument("--views", type=positive_int, default=4, metavar="N",
+                     help="random views per subject (4)")
+    cmd.add_argument("--size", type=positive_int, default=192, metavar="PX",
+                     help="render side in pixels (192)")
+    cmd.add_argument("--spp", type=positive_int, default=None, metavar="N",
                      help="camera samples per pixel (default: the renderer's, 32 with 4 tracing the lights)")
-    cmd.add_argument("--lighting-size", type=_positive_int, default=32, metavar="S",
+    cmd.add_argument("--lighting-size", type=positive_int, default=32, metavar="S",
                      help="side of the mirror-ball lighting basis (32: 812 lights)")
-    cmd.add_argument("--workers", type=_positive_int, default=2, metavar="N",
+    cmd.add_argument("--workers", type=positive_int, default=2, metavar="N",
                      help="render processes, one thread each (2)")
-    cmd.add_argument("--worker", type=_worker, default=(0, 1), metavar="I/N", help="render share I of N (0/1)")
-    cmd.add_argument("--threads", type=_positive_int, default=None, metavar="N",
+    cmd.add_argument("--worker", type=_worker, default=(0, 1), metavar="I/N",
+                     help="render share I of N (0/1)")
+    cmd.add_argument("--threads", type=positive_int, default=None, metavar="N",
                      help="render threads with --workers 1 (default: Dr.Jit's, all cores)")
-    cmd.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_rgb, else scalar_rgb)")
+    cmd.add_argument("--variant", default=None,
+                     help="Mitsuba variant (default: llvm_ad_rgb, else scalar_rgb)")
     cmd.add_argument("--device", choices=("cpu", "cuda"), default=None,
-                     help="cuda: render with Mitsuba's cuda_ad_rgb variant on an NVIDIA GPU (same as --variant "
-                          "cuda_ad_rgb); cpu: the default variants")
-    cmd.add_argument("--sheet", type=_nonnegative_int, default=64, metavar="N",
+                     help="cuda: render with Mitsuba's cuda_ad_rgb variant on an NVIDIA GPU "
+                          "(same as --variant cuda_ad_rgb); cpu: the default variants")
+    cmd.add_argument("--sheet", type=nonnegative_int, default=64, metavar="N",
                      help="portraits in contact_sheet.png (64; 0: none)")
     cmd.add_argument("--split", choices=("train", "eval", "all"), default="train", action=_SplitAction,
                      help="render only the seeds of this split (subject_split) and show them in the sheet; "
                           "without it every seed is rendered and the sheet shows the train subjects. "
                           "--split eval --seeds 200-999 renders an eval-only cache of extra subjects")
-    cmd.add_argument("--folder", metavar="DIR", help="also light the sheet's portraits with these real HDR maps")
+    cmd.add_argument("--folder", metavar="DIR",
+                     help="also light the sheet's portraits with these real HDR maps")
     cmd.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sheet's portraits (0)")
     cmd.set_defaults(func=run_synth_subjects)
     return cmd
 
 
 def _subject_source(name: str | None, assets: str | None):
-    """The source of ``--source`` / ``--assets``; without ``--source``, makehuman when its assets are found."""
-    import sys
-
-    from kornia_ilum.core.errors import IlumError
+    """The source of ``--source`` / ``--assets``; without ``--source``, makehuman when its assets are
+    found."""
+    # lazy: importing a light-stage module loads the whole (heavy) light-stage package
     from kornia_ilum.synth.lightstage.subjects import MannequinSource, subject_source
 
     if name == "mannequin":
@@ -428,26 +327,28 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
         IlumError: matplotlib is not installed and a sheet is asked for; ``--source makehuman`` without its
             assets (exit status 1).
     """
-    from kornia_ilum.synth.lightstage.cache import build_cache, cache_summary
-    from kornia_ilum.synth.lightstage.preview import training_sheet
+    # lazy: the light-stage package is a heavy import that only this sub-command needs
+    from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache, cache_summary
+    from kornia_ilum.synth.lightstage.preview import training_sheet  # lazy: as above
+    from kornia_ilum.synth.lightstage.settings import Auto  # lazy: as above
 
     if args.sheet:
-        _require_matplotlib("synth subjects")
+        require_matplotlib("synth subjects")
     seeds = list(args.seeds)
     if getattr(args, "split_given", False) and args.split != "all":
         seeds = split_seeds(seeds, args.split)
         print(f"--split {args.split}: {len(seeds)} of {len(args.seeds)} seeds, "
               f"{len(args.seeds) - len(seeds)} of the other split skipped")
         if not seeds:
-            from kornia_ilum.core.errors import ValueCheckError
-
             raise ValueCheckError(f"no seed of split {args.split!r} in --seeds")
     source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None))
     out = Path(args.out)
-    manifest = build_cache(source, seeds, out, views_per_subject=args.views, size=args.size, spp=args.spp,
-                           lighting_size=args.lighting_size, workers=getattr(args, "workers", 2),
-                           worker_index=args.worker[0], worker_count=args.worker[1], variant="cuda_ad_rgb" if args.device == "cuda" else args.variant,
-                           threads=args.threads, progress=True)
+    variant = "cuda_ad_rgb" if args.device == "cuda" else args.variant
+    manifest = build_cache(source, seeds, out, renderer=Auto(spp=args.spp, lighting_size=args.lighting_size),
+                           views=SampledViews(args.views, size=args.size),
+                           workers=Workers(processes=getattr(args, "workers", 2), index=args.worker[0],
+                                           count=args.worker[1], threads=args.threads),
+                           variant=variant, progress=True)
     print(f"cache {out} (source {source.name}):")
     print(cache_summary(manifest))
     if not args.sheet:

@@ -75,12 +75,12 @@ Solvers (``method``) solve the same NNLS exactly (their solutions agree to 6e-11
   converged, warm-started at the variables whose gradient at 0 points inwards. A probe still infeasible after
   50 steps (slow Murty phases on large, ill-conditioned problems) is finished by SciPy.
 - ``"scipy"``: :func:`scipy.optimize.nnls` (Lawson-Hanson) per probe on the CPU, applied to the ``3K x 3K``
-  Cholesky square root of the normal equations (the same objective up to a constant, 12 to 16 times faster
-  than on the stacked rows).
+  Cholesky square root of the normal equations (the same objective up to a constant, and much faster than on
+  the stacked rows, about ``5 S^2`` of them).
 - ``"auto"``: ``"torch"``, except on the CPU for chunks with more than 240 unknowns (``K > 80``), where SciPy.
-  Probes are solved in chunks of 32, sorted by ``K``. Measured per probe on 2 CPU cores, whole call: ``K`` 7
-  in the median (15 at most) torch 0.65 ms, scipy 0.69 ms; ``K`` 17 (33) 2.1 and 2.0 ms; ``K`` 35 (70) 8.2 and
-  10 ms; ``K`` 51 (106, one chunk of 10) 23 and 17 ms; ``K`` 225 (317) 410 and 190 ms.
+  Probes are solved in chunks of 32, sorted by ``K``. The threshold is where the two cross in
+  ``benchmarks/bench_promotion.py`` (per probe, whole call): the batched solver keeps up with SciPy on small
+  problems and falls behind on large ones (timings in docs/environments.rst, "Measured").
 
 Not differentiable (an active-set solve with thresholds on 8-bit codes): gradcheck and ``torch.compile`` do
 not apply; :class:`PromoteSpheres`, the module twin, holds the two reflectance fields as buffers.
@@ -100,7 +100,7 @@ from kornia_ilum.color.transfer import gamma_decode
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import mirror_ball_valid
-from kornia_ilum.render.spheres import MIRROR_REFLECTIVITY, SPHERE_SIZES, _shared_field
+from kornia_ilum.render.spheres import MIRROR_REFLECTIVITY, SPHERE_SIZES, shared_sphere_field
 
 __all__ = ["CLIP_THRESHOLD", "PromoteSpheres", "PromotionResult", "promote_spheres"]
 
@@ -375,8 +375,8 @@ def _nnls_scipy(gram: torch.Tensor, rhs: torch.Tensor, free: torch.Tensor) -> to
     With ``G = R^T R`` (Cholesky of the column-scaled ``G``), ``|R x - R^{-T} c|^2`` equals the objective up
     to a constant; this is much smaller than the stacked rows (``n`` rows instead of about ``5 S^2``).
     """
-    from scipy.linalg import cholesky, solve_triangular
-    from scipy.optimize import nnls
+    from scipy.linalg import cholesky, solve_triangular  # lazy: SciPy is optional (the dev extra)
+    from scipy.optimize import nnls  # lazy: as above
 
     out = torch.zeros_like(rhs)
     for item in range(rhs.shape[0]):
@@ -469,7 +469,7 @@ def _promote(
 @functools.lru_cache(maxsize=8)
 def _fields(size: int, device: torch.device) -> torch.Tensor:
     """The solve's sphere fields ``(2, S^2, S^2)`` float64, stacked once per size and device (read-only)."""
-    return torch.stack([_shared_field(k, size, size, device, torch.float64) for k in _SOLVE_SPHERES])
+    return torch.stack([shared_sphere_field(k, size, size, device, torch.float64) for k in _SOLVE_SPHERES])
 
 
 def promote_spheres(
@@ -519,9 +519,10 @@ def promote_spheres(
         - lighting, residual: :math:`(B, 3, S, S)`; clipped: :math:`(B, S, S)`; solved: :math:`(B,)`
 
     Convention:
-        SPEC.md: the reference spheres (diffuse albedo 0.8, matte silver GGX 0.3, mirror 0.827) seen
-        orthographically along -Z in the mirror-ball grid, which is also the lighting's grid (mirror pixel
-        ``(i, j)`` reflects lighting direction ``(i, j)``); lighting in the units of the linear photograph.
+        docs/conventions.rst, "Reference spheres": the reference spheres (diffuse albedo 0.8, matte silver
+        GGX 0.3, mirror 0.827) seen orthographically along -Z in the mirror-ball grid, which is also the
+        lighting's grid (mirror pixel ``(i, j)`` reflects lighting direction ``(i, j)``); lighting in the
+        units of the linear photograph.
 
     Raises:
         TypeCheckError: an input is no tensor, not uint8/float, or dtypes differ; a parameter is no number.

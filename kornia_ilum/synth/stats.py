@@ -28,8 +28,9 @@ outdoor, procedural indoor, ...), :func:`format_table` prints them (as a reStruc
 :func:`plot_histograms` draws the four distributions (matplotlib).
 
 Convention:
-    Lighting in the layouts of SPEC.md (``"mirror_ball"``: invalid pixels are ignored; ``"latlong"``), linear
-    RGB, non-negative. The statistics are scale-invariant (exposure does not change them).
+    Lighting in the layouts of docs/conventions.rst (``"mirror_ball"``: invalid pixels are ignored;
+    ``"latlong"``), linear RGB, non-negative. The statistics are scale-invariant (exposure does not change
+    them).
 """
 
 from __future__ import annotations
@@ -39,17 +40,17 @@ import math
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import numpy as np
 import torch
 
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry import latlong_solid_angles, mirror_ball_solid_angles
 from kornia_ilum.synth.background import LUMINANCE
-
-if TYPE_CHECKING:
-    from kornia_ilum.synth.environments.base import Environment
+from kornia_ilum.synth.environments.augment import weighted_quantile
+from kornia_ilum.synth.environments.base import Environment
 
 __all__ = [
     "GROUP_ORDER",
@@ -83,30 +84,6 @@ RGB_TO_XYZ: tuple[tuple[float, float, float], ...] = (
     LUMINANCE,
     (0.019334, 0.119193, 0.950227),
 )
-
-
-def weighted_quantile(
-    values: torch.Tensor, weights: torch.Tensor, q: float | Sequence[float]
-) -> torch.Tensor:
-    r"""The ``q``-quantile(s) of ``values`` under non-negative ``weights``.
-
-    The smallest value whose cumulative weight reaches ``q`` times the total (``values`` and ``weights``
-    flat, same length; one sort for several ``q``).
-
-    Returns:
-        a scalar tensor for a float ``q``, else one value per ``q``.
-
-    Examples:
-        >>> weighted_quantile(torch.tensor([3.0, 1.0, 2.0]), torch.tensor([1.0, 1.0, 2.0]), 0.5)
-        tensor(2.)
-        >>> weighted_quantile(torch.tensor([3.0, 1.0, 2.0]), torch.ones(3), [0.0, 1.0])
-        tensor([1., 3.])
-    """
-    order = torch.argsort(values)
-    cum = torch.cumsum(weights[order], 0)
-    qs = torch.as_tensor(q, dtype=cum.dtype, device=cum.device)
-    k = torch.searchsorted(cum, qs.reshape(-1) * cum[-1]).clamp(max=values.numel() - 1)
-    return values[order][k].reshape(qs.shape)
 
 
 def cct_mccamy(rgb: torch.Tensor) -> float:
@@ -146,7 +123,8 @@ def lighting_stats(lighting: torch.Tensor, layout: str = "mirror_ball") -> dict[
         - lighting: :math:`(3, S, S)` or :math:`(3, H, 2H)`
 
     Convention:
-        SPEC.md layouts and exact solid angles; luminance and colour in linear sRGB (Rec. 709, D65).
+        Layouts of docs/conventions.rst and exact solid angles; luminance and colour in linear sRGB (Rec. 709,
+        D65).
 
     Raises:
         ShapeError: wrong shape for ``layout``.
@@ -319,11 +297,10 @@ def plot_histograms(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
     peak / mean and CCT on log axes, CCT clipped to 1500 to 30000 K (McCamy's formula gives nominal values
     far beyond for strongly hued light).
     """
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is optional, and heavy
 
     matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    import numpy as np
+    import matplotlib.pyplot as plt  # lazy, after the backend is chosen
 
     groups = _ordered_groups(rows)
     fig, axes = plt.subplots(2, 2, figsize=(9.0, 6.2), layout="constrained")

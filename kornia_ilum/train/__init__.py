@@ -1,26 +1,41 @@
 r"""Training of the lighting estimators on the virtual light stage (``kornia-ilum train``).
 
-- :class:`TrainConfig`, :func:`train`: the loop (:mod:`kornia_ilum.train.loop`), resumable, DDP-ready.
-- :class:`MultiScaleOurs`, :class:`MSGDiscriminator`: the training-only networks of ``ours``.
-- :func:`training_losses`, :func:`export_weights`.
+- :class:`TrainConfig`, :class:`RuntimeSettings` (:mod:`kornia_ilum.train.config`): a run's settings, and
+  what :func:`resolve_runtime` decides of them for the device;
+- :func:`train` (:mod:`kornia_ilum.train.loop`): the loop, resumable, DDP-ready; it calls the estimator's
+  recipe;
+- :class:`Recipe`, :func:`get_recipe`, :func:`list_recipes`, :func:`train_step`
+  (:mod:`kornia_ilum.train.recipes`): what is trained for each estimator, found through the entry-point group
+  ``kornia_ilum.recipes``, and the default optimisation step;
+- :func:`training_losses`, :data:`BRDF_WEIGHTS` (:mod:`kornia_ilum.train.losses`): the losses;
+- :class:`MultiScaleOurs`, :class:`MSGDiscriminator` (:mod:`kornia_ilum.train.models`): the training-only
+  networks of ``ours``;
+- :func:`export_weights`, :func:`read_log`.
 
-Importing this package is cheap; the data and the networks are built by :func:`train`.
+``import kornia_ilum`` never imports this package; importing it loads the light stage's data code
+(:mod:`kornia_ilum.synth`). The data and the networks are built by :func:`train`.
 """
 
-from kornia_ilum.train.loop import BRDF_WEIGHTS, TrainConfig, export_weights, read_log, train, training_losses
+from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
+from kornia_ilum.train.loop import export_weights, read_log, train
+from kornia_ilum.train.losses import BRDF_WEIGHTS, training_losses
 from kornia_ilum.train.models import SCALES, MSGDiscriminator, MultiScaleOurs
-from kornia_ilum.train.recipes import get_recipe, list_recipes
+from kornia_ilum.train.recipes import Recipe, get_recipe, list_recipes, train_step
 
 __all__ = [
     "BRDF_WEIGHTS",
     "SCALES",
     "MSGDiscriminator",
     "MultiScaleOurs",
+    "Recipe",
+    "RuntimeSettings",
     "TrainConfig",
     "export_weights",
     "get_recipe",
     "list_recipes",
     "read_log",
+    "resolve_runtime",
     "train",
+    "train_step",
     "training_losses",
 ]

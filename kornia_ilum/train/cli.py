@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import ast
 
-from kornia_ilum.cli import _positive_int  # one parser of positive ints for the whole CLI
+from kornia_ilum.core.cli import positive_int
+from kornia_ilum.train.config import TrainConfig
+from kornia_ilum.train.loop import train
+from kornia_ilum.train.losses import BRDF_WEIGHTS
 
 _HELP = """\
 Train a lighting estimator on the virtual light stage, as LeGendre et al. 2020 did: portraits relit on the
@@ -26,8 +30,6 @@ examples:
 
 
 def _setting(text: str) -> tuple[str, object]:
-    import ast
-
     key, sep, value = text.partition("=")
     if not sep or not key.isidentifier():
         raise argparse.ArgumentTypeError(f"must be KEY=VALUE, got {text!r}")
@@ -39,8 +41,6 @@ def _setting(text: str) -> tuple[str, object]:
 
 def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``train`` to the ``kornia-ilum`` subcommands."""
-    from kornia_ilum.train.loop import BRDF_WEIGHTS, TrainConfig
-
     d = TrainConfig(out="", cache=("-",))
     cmd = subparsers.add_parser("train", help="train an estimator on the light stage",
                                 description=_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -48,21 +48,21 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--cache", nargs="+", required=True, metavar="DIR", help="light-stage cache folders")
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="folders of real lat-long HDR maps")
     cmd.add_argument("--out", required=True, metavar="OUT", help="the run's folder (resumed if it has a checkpoint)")
-    cmd.add_argument("--steps", type=_positive_int, default=d.steps, help=f"generator steps (default: {d.steps})")
-    cmd.add_argument("--batch", type=_positive_int, default=d.batch, help=f"samples per step (default: {d.batch})")
+    cmd.add_argument("--steps", type=positive_int, default=d.steps, help=f"generator steps (default: {d.steps})")
+    cmd.add_argument("--batch", type=positive_int, default=d.batch, help=f"samples per step (default: {d.batch})")
     cmd.add_argument("--lr", type=float, default=d.lr, help=f"generator learning rate (default: {d.lr})")
     cmd.add_argument("--seed", type=int, default=d.seed, help="seed of the data and the initialisation")
     cmd.add_argument("--workers", type=int, default=None,
                      help="data workers per process (default: 1 on CPU, min(8, cores - 1) on CUDA)")
-    cmd.add_argument("--threads", type=_positive_int, default=None, help="torch threads of the training process")
+    cmd.add_argument("--threads", type=positive_int, default=None, help="torch threads of the training process")
     cmd.add_argument("--device", default=d.device, help="cpu, cuda or cuda:N (default: cpu)")
     cmd.add_argument("--bf16", action=argparse.BooleanOptionalAction, default=d.bf16,
                      help="bfloat16 autocast for the networks (default: on CUDA and on CPUs with native bf16; "
                      "see benchmarks/bench_train.py)")
     cmd.add_argument("--channels-last", action=argparse.BooleanOptionalAction, default=d.channels_last,
                      help="channels-last memory format (default: on)")
-    cmd.add_argument("--checkpoint-every", type=_positive_int, default=d.checkpoint_every, metavar="N")
-    cmd.add_argument("--log-every", type=_positive_int, default=d.log_every, metavar="N")
+    cmd.add_argument("--checkpoint-every", type=positive_int, default=d.checkpoint_every, metavar="N")
+    cmd.add_argument("--log-every", type=positive_int, default=d.log_every, metavar="N")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
@@ -73,8 +73,6 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 def run_train(args: argparse.Namespace) -> int:
     """Run ``kornia-ilum train``; prints the weight file and its SHA-256."""
-    from kornia_ilum.train.loop import TrainConfig, train
-
     config = TrainConfig(out=args.out, cache=tuple(args.cache), hdri=tuple(args.hdri), estimator=args.estimator,
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,

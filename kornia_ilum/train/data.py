@@ -1,4 +1,9 @@
-r"""Training batches from the light stage, addressable by step, so that a resumed run sees the same data.
+r"""Training data from the light stage: the dataset of a run, and its batches addressable by step, so that a
+resumed run sees the same data.
+
+:func:`training_dataset` builds the portraits of a :class:`~kornia_ilum.train.TrainConfig`: the ``"train"``
+subjects of its caches, relit under procedural skies and rooms plus the ``"train"`` maps of its ``hdri``
+folders (:func:`training_environments`), with :data:`TRAINING_PORTRAITS` and the run's ``data`` settings.
 
 Batch ``t`` of rank ``r`` with ``W`` loader workers is batch ``t // W`` of the stream
 ``r * W + t % W`` of a :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`: each stream is the
@@ -10,15 +15,53 @@ step ``t0`` falls in. The streams depend on ``W`` and the world size, which a ch
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from typing import Any
 
 import torch
 from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
-from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.synth.environments import EnvironmentSampler, HDRFolderSource, default_sources
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
+from kornia_ilum.train.config import TrainConfig
 
-__all__ = ["StepBatches", "batch_loader", "collate"]
+__all__ = ["TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset",
+           "training_environments"]
+
+#: What training changes in the :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` defaults
+#: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own).
+TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": ()}
+
+
+def training_environments(config: TrainConfig) -> EnvironmentSampler:
+    """The run's environments: the procedural sources plus the ``"train"`` maps of each folder of
+    ``config.hdri``, drawn with ``config.seed``."""
+    sources = default_sources() + [HDRFolderSource(folder, split="train") for folder in config.hdri]
+    return EnvironmentSampler(sources=sources, seed=config.seed)
+
+
+def training_dataset(config: TrainConfig) -> PortraitDataset:
+    """The run's portraits (module docstring), seeded with ``config.seed``.
+
+    Raises:
+        ValueCheckError: no ``"train"`` subject in the caches, or ``config.data`` names a setting that
+            :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` does not have.
+    """
+    fields = [f for folder in config.cache for f in load_fields(folder, split="train")]
+    allowed = {f.name for f in dataclasses.fields(PortraitConfig)} - {"split", "environments"}
+    unknown = sorted(set(config.data) - allowed)
+    if unknown:
+        known = ", ".join(sorted(allowed))
+        raise ValueCheckError(f"unknown data settings {unknown}; PortraitConfig has: {known}")
+    overrides = {k: tuple(v) if isinstance(v, list) else v for k, v in config.data.items()}
+    # No sphere targets: the losses render their own from each sample's mirror ball (train_step), and drawing
+    # them would take a good part of the data's time (docs/training.rst, "Measured"). The images and
+    # lightings are the same either way.
+    return PortraitDataset(fields, PortraitConfig(**{**TRAINING_PORTRAITS, **overrides, "split": "train",
+                                                     "environments": training_environments(config)}),
+                           seed=config.seed)
 
 
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:

@@ -1,15 +1,10 @@
-r"""The training loop of ``kornia-ilum train``: :class:`TrainConfig` and :func:`train`.
+r"""The training loop of ``kornia-ilum train``: :func:`train`, for the settings of a
+:class:`~kornia_ilum.train.TrainConfig`.
 
-One step (LeGendre et al. 2020, Sec. 3.4):
-
-1. the generator predicts lighting at 4, 8, 16 and 32 px (:class:`~kornia_ilum.train.models.MultiScaleOurs`);
-   the ground truth is brought to the same sizes by the energy-keeping pyramid of SPEC.md, "Multi-scale";
-2. the discriminator (:class:`~kornia_ilum.train.models.MSGDiscriminator`) takes one Adam step on the clipped
-   mirror balls of the truth (real) and of the prediction (fake, detached): the logistic loss
-   ``softplus(-D(real)) + softplus(D(fake))``;
-3. the generator takes one Adam step on
-   ``sum_s lambda_s sum_k lambda_k L_rec(k, s) + lambda_adv softplus(-D(fake))``, with the training form of
-   ``L_rec`` (:func:`~kornia_ilum.metrics.reconstruction_loss`, ``gamma="safe"``).
+The loop draws the batches, checkpoints, logs and runs under DDP; each step is the estimator's recipe's
+(:meth:`Recipe.step <kornia_ilum.train.recipes.Recipe.step>`; for ``ours`` the default
+:func:`~kornia_ilum.train.recipes.train_step`: one discriminator step, then one generator step on the
+multi-scale rendering loss, LeGendre et al. 2020, Sec. 3.4). The loop calls the recipe, never the other way.
 
 Everything that makes a run reproducible is in the checkpoint (``OUT/checkpoint.pt``, written atomically
 every ``checkpoint_every`` steps): both networks, both optimisers, the step, the wall time so far and the
@@ -28,206 +23,30 @@ import dataclasses
 import json
 import math
 import os
+import platform
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import safetensors.torch
 import torch
-import torch.nn.functional as F
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
 
 from kornia_ilum.core.errors import ValueCheckError
-from kornia_ilum.core.files import atomic_write
+from kornia_ilum.core.files import atomic_write, sha256_file
+from kornia_ilum.metrics import reconstruction_loss
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
+from kornia_ilum.train.data import training_dataset
+from kornia_ilum.train.losses import BRDF_WEIGHTS
+from kornia_ilum.train.recipes import Recipe, get_recipe
 
-__all__ = ["BRDF_WEIGHTS", "TRAINING_PORTRAITS", "TrainConfig", "export_weights", "read_log", "train", "train_step",
-           "training_losses"]
+__all__ = ["export_weights", "read_log", "train"]
 
-#: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
-BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
-#: What training changes in the :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` defaults
-#: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own).
-TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": ()}
 _LOG_FIELDS = ("step", "samples", "elapsed_s", "samples_per_s", "loss", "rec", "adv", "disc", "extra",
                "rec_diffuse", "rec_matte_silver", "rec_mirror")
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    r"""Everything a training run depends on (stored in its checkpoint and summary).
-
-    Args:
-        out: the run's folder (created; a checkpoint there is resumed).
-        cache: light-stage cache folders (:func:`~kornia_ilum.synth.lightstage.build_cache`); the ``"train"``
-            subjects of all of them are used.
-        hdri: folders of real lat-long maps; only each folder's ``"train"`` maps
-            (:class:`~kornia_ilum.synth.environments.HDRFolderSource` ``split="train"``) join the procedural
-            skies and rooms.
-        estimator: the registry name of the estimator to train (``"ours"``).
-        steps: generator steps in all.
-        batch: samples per step, over all processes (the paper's 32).
-        lr: the generator's Adam learning rate (1.5e-4); the discriminator's is ``lr * disc_lr_ratio`` (1/100).
-        betas: Adam's betas (0.9, 0.999).
-        lambda_scale, lambda_adv: the weights of each scale's ``L_rec`` (1) and of the adversarial term (0.004).
-        seed: the seed of the data and of the initialisation.
-        workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (the
-            data costs about a tenth of a step there), ``min(8, cores - 1)`` on CUDA, where one worker's 150 to
-            200 samples/s would starve the GPU.
-        threads: torch threads of the training process (``None``: torch's default).
-        device: ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (under ``torchrun`` each rank takes its local GPU).
-        bf16: run the networks under bfloat16 autocast (losses stay float32); ``None``: on CUDA, and on CPUs
-            with native bfloat16 (AVX-512 BF16 or AMX, oneDNN's check), where ``benchmarks/bench_train.py``
-            measured a step at 0.53x the float32 time together with ``channels_last`` (AMD EPYC Zen 4).
-        channels_last: the networks and crops in channels-last memory format; ``None``: on (0.65x alone).
-        checkpoint_every, log_every: in steps.
-        data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
-            example ``{"fields_per_chunk": 8}``), over :data:`TRAINING_PORTRAITS`; ``split`` and
-            ``environments`` are set by the trainer.
-    """
-
-    out: str
-    cache: tuple[str, ...]
-    hdri: tuple[str, ...] = ()
-    estimator: str = "ours"
-    steps: int = 3000
-    batch: int = 32
-    lr: float = 1.5e-4
-    disc_lr_ratio: float = 0.01
-    betas: tuple[float, float] = (0.9, 0.999)
-    lambda_scale: float = 1.0
-    lambda_adv: float = 0.004
-    seed: int = 0
-    workers: int | None = None
-    threads: int | None = None
-    device: str = "cpu"
-    bf16: bool | None = None
-    channels_last: bool | None = None
-    checkpoint_every: int = 100
-    log_every: int = 10
-    brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
-    data: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        for name in ("steps", "batch", "checkpoint_every", "log_every"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
-        if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
-                                         or self.workers < 0):
-            raise ValueCheckError(f"workers must be a non-negative integer, got {self.workers!r}")
-        if not self.cache:
-            raise ValueCheckError("cache must name at least one light-stage cache folder")
-        if not (self.lr > 0 and self.disc_lr_ratio > 0 and self.lambda_adv >= 0 and self.lambda_scale > 0):
-            raise ValueCheckError("lr, disc_lr_ratio and lambda_scale must be positive, lambda_adv non-negative")
-        object.__setattr__(self, "cache", tuple(str(c) for c in self.cache))
-        object.__setattr__(self, "hdri", tuple(str(h) for h in self.hdri))
-        object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
-
-    def data_key(self) -> dict[str, Any]:
-        """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree."""
-        skip = {"out", "steps", "threads", "checkpoint_every", "log_every"}
-        return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
-
-
-# ------------------------------------------------------------------------------------------------ losses
-def _pyramid(lighting: torch.Tensor, sizes) -> dict[int, torch.Tensor]:
-    from kornia_ilum.render import mirror_ball_pyramid
-
-    return mirror_ball_pyramid(lighting, sizes)
-
-
-def _mirror_images(lightings: dict[int, torch.Tensor]) -> dict[int, torch.Tensor]:
-    """The clipped, gamma-encoded mirror spheres that the discriminator sees, one per scale."""
-    from kornia_ilum.render import sphere_pyramid
-
-    return {s: sphere_pyramid(x, sizes=(s,), brdfs=("mirror",), gamma="safe")[f"mirror_{s}"]
-            for s, x in lightings.items()}
-
-
-def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_weights: dict[str, float],
-                    lambda_scale: float = 1.0, truth: dict[int, torch.Tensor] | None = None
-                    ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    r"""The multi-scale rendering loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` (training form).
-
-    Args:
-        pred: ``{size: (B, 3, size, size)}`` predicted linear lighting per scale.
-        target: ``(B, 3, 32, 32)`` ground-truth lighting; brought to each size by the energy-keeping pyramid.
-        brdf_weights: ``lambda_k`` per sphere.
-        lambda_scale: ``lambda_s``, the same for every scale.
-        truth: ``target``'s pyramid at the sizes of ``pred``, when the caller has it already.
-
-    Returns:
-        the loss and its parts: ``rec_<brdf>`` at 32 px (detached).
-    """
-    from kornia_ilum.metrics import reconstruction_loss
-
-    if truth is None:
-        truth = _pyramid(target, tuple(pred))
-    total = target.new_zeros(())
-    parts = {}
-    for s, x in pred.items():
-        for brdf, weight in brdf_weights.items():
-            term = reconstruction_loss(x, truth[s], brdf, size=s, gamma="safe")
-            total = total + lambda_scale * weight * term
-            if s == max(pred):
-                parts[f"rec_{brdf}"] = term.detach()
-    return total, parts
-
-
-def resolve_defaults(config: TrainConfig, device: torch.device) -> TrainConfig:
-    """``config`` with ``bf16``, ``channels_last`` and ``workers`` decided where they are ``None``
-    (:class:`TrainConfig`)."""
-    bf16 = config.bf16
-    if bf16 is None:
-        bf16 = device.type == "cuda" or (device.type == "cpu" and torch.ops.mkldnn._is_mkldnn_bf16_supported())
-    channels_last = True if config.channels_last is None else config.channels_last
-    workers = config.workers
-    if workers is None:
-        workers = 1 if device.type == "cpu" else min(8, max(1, (os.cpu_count() or 2) - 1))
-    return dataclasses.replace(config, bf16=bool(bf16), channels_last=bool(channels_last), workers=workers)
-
-
-def train_step(model: torch.nn.Module, disc: torch.nn.Module | None, opt_g: torch.optim.Optimizer,
-               opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
-               config: TrainConfig, recipe: Any = None) -> dict[str, torch.Tensor]:
-    r"""One discriminator step, then one generator step (module docstring); returns the detached losses.
-
-    Args:
-        model: the multi-scale generator (possibly DDP-wrapped): ``crops -> {size: lighting}``.
-        disc: the discriminator (possibly DDP-wrapped) or ``None``.
-        opt_g, opt_d: their optimisers.
-        crops: ``(B, 3, 256, 256)`` sRGB in ``[0, 1]``, in the networks' memory format.
-        target: ``(B, 3, 32, 32)`` linear ground-truth lighting.
-        config: ``bf16``, ``channels_last``, the loss weights.
-        recipe: its :meth:`~kornia_ilum.train.recipes.Recipe.extra_losses` join the generator's loss.
-    """
-    memory = torch.channels_last if config.channels_last else torch.contiguous_format
-    autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=config.bf16)
-    with autocast:
-        pred = model(crops)
-    truth = _pyramid(target, tuple(pred))  # the losses' targets, and the discriminator's real images
-    rec, parts = training_losses(pred, target, config.brdf_weights, config.lambda_scale, truth)
-    adv = disc_loss = rec.new_zeros(())
-    if disc is not None:
-        plain = getattr(disc, "module", disc)  # the generator's step needs no gradient sync of the discriminator
-        real, fake = _mirror_images(truth), _mirror_images(pred)
-        both = {s: torch.cat([real[s], fake[s].detach()]).contiguous(memory_format=memory) for s in real}
-        with autocast:
-            logits = disc(both).float()
-        n = len(target)
-        disc_loss = F.softplus(-logits[:n]).mean() + F.softplus(logits[n:]).mean()
-        opt_d.zero_grad(set_to_none=True)
-        disc_loss.backward()
-        opt_d.step()
-        with autocast:
-            adv = F.softplus(-plain({s: v.contiguous(memory_format=memory) for s, v in fake.items()}).float()).mean()
-    extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
-    loss = rec + config.lambda_adv * adv + extra
-    opt_g.zero_grad(set_to_none=True)
-    loss.backward()
-    opt_g.step()
-    return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
-            "extra": extra.detach(), **parts}
 
 
 # ----------------------------------------------------------------------------------------------- helpers
@@ -235,28 +54,6 @@ def _world() -> tuple[int, int, int]:
     """(rank, world size, local rank) from torchrun's environment."""
     return (int(os.environ.get("RANK", "0")), int(os.environ.get("WORLD_SIZE", "1")),
             int(os.environ.get("LOCAL_RANK", "0")))
-
-
-def _environments(config: TrainConfig):
-    from kornia_ilum.synth.environments import EnvironmentSampler, HDRFolderSource, default_sources
-
-    sources = default_sources() + [HDRFolderSource(folder, split="train") for folder in config.hdri]
-    return EnvironmentSampler(sources=sources, seed=config.seed)
-
-
-def _dataset(config: TrainConfig):
-    from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
-
-    fields = [f for folder in config.cache for f in load_fields(folder, split="train")]
-    allowed = {f.name for f in dataclasses.fields(PortraitConfig)} - {"split", "environments"}
-    unknown = sorted(set(config.data) - allowed)
-    if unknown:
-        raise ValueCheckError(f"unknown data settings {unknown}; PortraitConfig has: {', '.join(sorted(allowed))}")
-    overrides = {k: tuple(v) if isinstance(v, list) else v for k, v in config.data.items()}
-    # No sphere targets: the losses render their own from each sample's mirror ball (train_step), and drawing
-    # them would cost a fifth of the data's time. The images and lightings are the same either way.
-    return PortraitDataset(fields, PortraitConfig(**{**TRAINING_PORTRAITS, **overrides, "split": "train",
-                                                     "environments": _environments(config)}), seed=config.seed)
 
 
 def _checkpoint_path(out: Path) -> Path:
@@ -304,10 +101,10 @@ def _plot(out: Path, rows: list[dict[str, float]]) -> None:
     if not rows:
         return
     try:
-        import matplotlib
+        import matplotlib  # lazy: only for the curve, and optional
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # lazy: as matplotlib, after the backend is set
     except ImportError:  # the curve is optional; the CSV has the numbers
         return
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
@@ -334,12 +131,6 @@ def _status(step: int, steps: int, row: dict[str, float], remaining_s: float) ->
 
 
 # ------------------------------------------------------------------------------------------------- train
-def _recipe(name: str):
-    from kornia_ilum.train.recipes import get_recipe
-
-    return get_recipe(name)
-
-
 def train(config: TrainConfig) -> dict[str, Any]:
     r"""Train (or resume) the estimator ``config.estimator`` on the light stage; returns the run's summary.
 
@@ -356,8 +147,6 @@ def train(config: TrainConfig) -> dict[str, Any]:
     Raises:
         ValueCheckError: bad settings, or a checkpoint in ``out`` from a run with other settings.
     """
-    import torch.distributed as dist
-
     rank, world, local_rank = _world()
     if config.batch % world:
         raise ValueCheckError(f"batch ({config.batch}) must be a multiple of the number of processes ({world})")
@@ -370,9 +159,9 @@ def train(config: TrainConfig) -> dict[str, Any]:
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
     if config.threads is not None:
         torch.set_num_threads(config.threads)
-    precision = resolve_defaults(config, device)
-    recipe = _recipe(config.estimator)
-    dataset = recipe.dataset(_dataset(config))  # checks the caches, maps and data settings before any file
+    runtime = resolve_runtime(config, device)
+    recipe = get_recipe(config.estimator)
+    dataset = recipe.dataset(training_dataset(config))  # checks caches, maps and data settings before any file
     out = Path(config.out)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
@@ -385,7 +174,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
         if disc is not None:
             disc.load_state_dict(state["disc"])
         start, elapsed = int(state["step"]), float(state["elapsed_s"])
-    memory = torch.channels_last if precision.channels_last else torch.contiguous_format
+    memory = runtime.memory_format
     model = model.to(device, memory_format=memory)
     disc = disc.to(device, memory_format=memory) if disc is not None else None
     opt_g = torch.optim.Adam(model.parameters(), lr=config.lr, betas=config.betas)
@@ -397,21 +186,20 @@ def train(config: TrainConfig) -> dict[str, Any]:
             opt_d.load_state_dict(state["opt_d"])
     model_ddp, disc_ddp = model, disc
     if world > 1:
-        from torch.nn.parallel import DistributedDataParallel as DDP
-
         ids = [device.index] if device.type == "cuda" else None
-        model_ddp = DDP(model, device_ids=ids)
-        disc_ddp = DDP(disc, device_ids=ids) if disc is not None else None
+        model_ddp = DistributedDataParallel(model, device_ids=ids)
+        disc_ddp = DistributedDataParallel(disc, device_ids=ids) if disc is not None else None
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
     if start >= config.steps:
-        return _finish(config, precision, out, recipe, model, dataset, rows, elapsed, start, rank)
-    batches = recipe.batches(dataset, config.batch // world, start, rank, world, precision.workers)
+        return _finish(config, runtime, out, recipe, model, dataset, rows, elapsed, start, rank)
+    batches = recipe.batches(dataset, config.batch // world, start, rank, world, runtime.workers)
     window_t, window_n = time.perf_counter(), 0
     run_t0 = time.perf_counter()
     for step in range(start + 1, config.steps + 1):
         batch = next(batches)
-        losses = recipe.step(model_ddp, disc_ddp, opt_g, opt_d, batch, device, precision)
+        losses = recipe.step(model=model_ddp, disc=disc_ddp, opt_g=opt_g, opt_d=opt_d, batch=batch,
+                             device=device, config=config, runtime=runtime)
         if not torch.isfinite(losses["loss"]):
             raise FloatingPointError(f"the training loss became {losses['loss'].item()} at step {step}; lower --lr")
         window_n += len(batch["image"]) * world
@@ -436,17 +224,18 @@ def train(config: TrainConfig) -> dict[str, Any]:
             if world > 1:
                 dist.barrier()
     elapsed += time.perf_counter() - run_t0
-    return _finish(config, precision, out, recipe, model, dataset, rows, elapsed, config.steps, rank)
+    return _finish(config, runtime, out, recipe, model, dataset, rows, elapsed, config.steps, rank)
 
 
-def _finish(config: TrainConfig, resolved: TrainConfig, out: Path, recipe, model, dataset, rows, elapsed: float,
-            step: int, rank: int) -> dict[str, Any]:
-    """The summary and the exported weights; ``resolved`` is ``config`` with :func:`resolve_defaults` applied."""
+def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Recipe, model: torch.nn.Module,
+            dataset: PortraitDataset, rows: list[dict[str, float]], elapsed: float, step: int,
+            rank: int) -> dict[str, Any]:
+    """The summary and the exported weights."""
     summary: dict[str, Any] = {
         "estimator": config.estimator, "steps": step, "samples": step * config.batch, "wall_time_s": elapsed,
         "world_size": _world()[1], "device": config.device, "threads": torch.get_num_threads(),
         "cpu": _cpu_name(), "torch": torch.__version__, "config": dataclasses.asdict(config),
-        **{k: getattr(resolved, k) for k in ("bf16", "channels_last", "workers")},
+        **dataclasses.asdict(runtime),  # bf16, channels_last, workers
         "final": rows[-1] if rows else None,
     }
     if rank == 0:
@@ -464,8 +253,6 @@ def _cpu_name() -> str:
                 return line.split(":", 1)[1].strip()
     except OSError:
         pass
-    import platform
-
     return platform.processor() or platform.machine()
 
 
@@ -479,11 +266,6 @@ def export_weights(estimator: torch.nn.Module, path: str | os.PathLike, probe: d
     Returns:
         ``{"file", "sha256", "dtype", "l_rec_change"}``.
     """
-    import safetensors.torch
-
-    from kornia_ilum.core.files import sha256_file
-    from kornia_ilum.metrics import reconstruction_loss
-
     crops = probe["image"].float() / 255.0
     truth = probe["mirror_ball"].float()
 

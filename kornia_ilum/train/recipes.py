@@ -1,25 +1,57 @@
-r"""Training recipes: what :func:`~kornia_ilum.train.train` builds, feeds and exports for each estimator.
+r"""Training recipes: what :func:`~kornia_ilum.train.train` builds, feeds, steps and exports per estimator.
 
 A recipe names the trainable model (and its discriminator, if adversarial), how the light-stage dataset is
-configured for it, and how the trained model becomes a registered :class:`~kornia_ilum.estimators.LightingEstimator`.
-The loop itself (losses, checkpoints, logs, DDP) is the same for every recipe.
+configured for it, how one optimisation step runs (:meth:`Recipe.step`; by default :func:`train_step`), and
+how the trained model becomes a registered :class:`~kornia_ilum.estimators.LightingEstimator`. The loop
+(:mod:`kornia_ilum.train.loop`: data order, checkpoints, logs, DDP) is the same for every recipe; it calls
+the recipe, and the recipe never calls back into the loop. The losses live in :mod:`kornia_ilum.train.losses`.
 
-Plugins bring their own: an estimator class with a ``training_recipe`` class attribute (a :class:`Recipe`
-subclass) is trainable by its registry name, ``kornia-ilum train --estimator NAME``.
+Recipes are found by the estimator's registry name through their own entry-point group,
+:data:`RECIPE_ENTRY_POINT_GROUP` (``kornia_ilum.recipes``), apart from the estimators' group, so that creating
+an estimator for inference never imports the training code. The built-in ``ours`` registers from kornia_ilum's
+own ``pyproject.toml``; a plugin declares, in its ``pyproject.toml``::
+
+    [project.entry-points."kornia_ilum.recipes"]
+    sh = "kornia_ilum_sh.recipe:SHRecipe"
+
+and ``kornia-ilum train --estimator sh`` trains it. A recipe entry point that fails to load, or is not a
+:class:`Recipe` subclass, gives a :class:`RuntimeWarning` and is skipped; for one name declared twice, the
+first found on ``sys.path`` wins.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
+import warnings
 from collections.abc import Iterator
 from typing import Any
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.render import mirror_ball_pyramid
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.train.config import RuntimeSettings, TrainConfig
+from kornia_ilum.train.data import batch_loader, collate
+from kornia_ilum.train.losses import discriminator_images, training_losses
+from kornia_ilum.train.models import MSGDiscriminator, MultiScaleOurs
 
-__all__ = ["PROBE_SIZE", "PROBE_STREAM", "OursRecipe", "Recipe", "batch_images", "get_recipe", "list_recipes"]
+__all__ = [
+    "PROBE_SIZE",
+    "PROBE_STREAM",
+    "RECIPE_ENTRY_POINT_GROUP",
+    "OursRecipe",
+    "Recipe",
+    "batch_images",
+    "get_recipe",
+    "list_recipes",
+    "train_step",
+]
 
+#: The entry-point group that the built-in recipes and plugins declare their training recipes in.
+RECIPE_ENTRY_POINT_GROUP = "kornia_ilum.recipes"
 #: The data stream of the probe batch that checks float16 weights (never a training stream: those are
 #: ``rank * workers + k``).
 PROBE_STREAM = 1023
@@ -28,7 +60,7 @@ PROBE_SIZE = 32
 
 def batch_images(batch: dict[str, Any], key: str, device: torch.device,
                  memory: torch.memory_format = torch.contiguous_format) -> torch.Tensor:
-    """``batch[key]`` (uint8 codes) as float32 in ``[0, 1]`` on ``device``, in the memory format ``memory``."""
+    """``batch[key]`` (uint8 codes) as float32 in ``[0, 1]`` on ``device``, in memory format ``memory``."""
     return batch[key].to(device, non_blocking=True).float().div_(255.0).contiguous(memory_format=memory)
 
 
@@ -43,45 +75,43 @@ class Recipe:
         """The model to train (``forward(crops) -> {size: lighting}``) and the discriminator or ``None``."""
         raise NotImplementedError
 
-    def dataset(self, dataset: Any) -> Any:
+    def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
         """The light-stage dataset as this recipe needs it (default: as it is)."""
         return dataset
 
-    def batches(self, dataset: Any, batch: int, start: int, rank: int, world: int, workers: int) -> Iterator:
-        from kornia_ilum.train.data import batch_loader
-
+    def batches(self, dataset: PortraitDataset, batch: int, start: int, rank: int, world: int,
+                workers: int) -> Iterator[dict[str, Any]]:
+        """The batches of steps ``start, start + 1, ...`` of one rank
+        (:func:`~kornia_ilum.train.data.batch_loader`)."""
         return batch_loader(dataset, batch, start, rank, world, workers)
 
     def estimator(self, model: nn.Module) -> nn.Module:
         """The registered estimator inside the trained model (what is exported)."""
         raise NotImplementedError
 
-    def step(self, model: nn.Module, disc: nn.Module | None, opt_g: Any, opt_d: Any, batch: dict[str, Any],
-             device: torch.device, config: Any) -> dict[str, torch.Tensor]:
+    def step(self, *, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
+             opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
+             config: TrainConfig, runtime: RuntimeSettings) -> dict[str, torch.Tensor]:
         """One optimisation step on a collated ``batch`` (:func:`~kornia_ilum.train.data.collate`).
 
         Returns the detached losses: ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``rec_<brdf>`` and the
-        recipe's :attr:`log_fields`. The default is :func:`~kornia_ilum.train.train_step` on the crops and
-        their ground-truth lighting.
+        recipe's :attr:`log_fields`. The default is :func:`train_step` on the crops and their ground-truth
+        lighting.
         """
-        from kornia_ilum.train.loop import train_step
-
-        memory = torch.channels_last if config.channels_last else torch.contiguous_format
-        crops = batch_images(batch, "image", device, memory)
+        crops = batch_images(batch, "image", device, runtime.memory_format)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
-        return train_step(model, disc, opt_g, opt_d, crops, target, config, self)
+        return train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
+                          config=config, runtime=runtime, recipe=self)
 
-    def extra_losses(self, pred: dict[int, Any]) -> dict[str, Any]:
+    def extra_losses(self, pred: dict[int, torch.Tensor]) -> dict[str, torch.Tensor]:
         """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).
 
         Their sum is logged as ``extra``; ``ours`` has none.
         """
         return {}
 
-    def probe(self, dataset: Any) -> dict[str, Any]:
+    def probe(self, dataset: PortraitDataset) -> dict[str, Any]:
         """A fixed batch of the training distribution that checks the float16 export."""
-        from kornia_ilum.train.data import collate
-
         samples = dataset.samples(PROBE_STREAM)
         return collate([next(samples) for _ in range(PROBE_SIZE)])
 
@@ -92,39 +122,119 @@ class OursRecipe(Recipe):
     name = "ours"
 
     def build(self) -> tuple[nn.Module, nn.Module | None]:
-        from kornia_ilum.train.models import MSGDiscriminator, MultiScaleOurs
-
         return MultiScaleOurs(), MSGDiscriminator()
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
 
 
-_RECIPES: dict[str, type[Recipe]] = {"ours": OursRecipe}
+def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
+               opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
+               config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None
+               ) -> dict[str, torch.Tensor]:
+    r"""One discriminator step, then one generator step; returns the detached losses (the default
+    :meth:`Recipe.step`).
+
+    LeGendre et al. 2020, Sec. 3.4:
+
+    1. the generator predicts lighting at 4, 8, 16 and 32 px
+       (:class:`~kornia_ilum.train.models.MultiScaleOurs`); the ground truth is brought to the same sizes by
+       the energy-keeping pyramid of docs/conventions.rst, "Multi-scale";
+    2. the discriminator (:class:`~kornia_ilum.train.models.MSGDiscriminator`) takes one Adam step on the
+       clipped mirror balls of the truth (real) and of the prediction (fake, detached): the logistic loss
+       ``softplus(-D(real)) + softplus(D(fake))``;
+    3. the generator takes one Adam step on
+       ``sum_s lambda_s sum_k lambda_k L_rec(k, s) + lambda_adv softplus(-D(fake)) + extra``, with the
+       training form of ``L_rec`` (:func:`~kornia_ilum.train.losses.training_losses`) and ``extra`` the sum of
+       the recipe's :meth:`Recipe.extra_losses`.
+
+    Args:
+        model: the multi-scale generator (possibly DDP-wrapped): ``crops -> {size: lighting}``.
+        disc: the discriminator (possibly DDP-wrapped) or ``None`` (no adversarial term).
+        opt_g, opt_d: their optimisers (``opt_d`` is ``None`` with ``disc``).
+        crops: ``(B, 3, 256, 256)`` sRGB in ``[0, 1]``, in the networks' memory format.
+        target: ``(B, 3, 32, 32)`` linear ground-truth lighting.
+        config: the loss weights (``brdf_weights``, ``lambda_scale``, ``lambda_adv``).
+        runtime: ``bf16`` and the memory format.
+        recipe: its :meth:`Recipe.extra_losses` join the generator's loss (none for ``None``).
+
+    Returns:
+        the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra`` and ``rec_<brdf>`` (at 32 px).
+    """
+    memory = runtime.memory_format
+    autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=runtime.bf16)
+    with autocast:
+        pred = model(crops)
+    truth = mirror_ball_pyramid(target, tuple(pred))  # the losses' targets, the discriminator's real images
+    rec, parts = training_losses(pred, target, config.brdf_weights, config.lambda_scale, truth)
+    adv = disc_loss = rec.new_zeros(())
+    if disc is not None:
+        plain = getattr(disc, "module", disc)  # the generator's step syncs no gradient of the discriminator
+        real, fake = discriminator_images(truth), discriminator_images(pred)
+        both = {s: torch.cat([real[s], fake[s].detach()]).contiguous(memory_format=memory) for s in real}
+        with autocast:
+            logits = disc(both).float()
+        n = len(target)
+        disc_loss = F.softplus(-logits[:n]).mean() + F.softplus(logits[n:]).mean()
+        opt_d.zero_grad(set_to_none=True)
+        disc_loss.backward()
+        opt_d.step()
+        with autocast:
+            fake_logits = plain({s: v.contiguous(memory_format=memory) for s, v in fake.items()}).float()
+            adv = F.softplus(-fake_logits).mean()
+    extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
+    loss = rec + config.lambda_adv * adv + extra
+    opt_g.zero_grad(set_to_none=True)
+    loss.backward()
+    opt_g.step()
+    return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
+            "extra": extra.detach(), **parts}
 
 
-def _plugin_recipe(name: str) -> type[Recipe] | None:
-    from kornia_ilum.estimators import estimator_registry
-
-    cls = estimator_registry().get(name)
-    recipe = getattr(cls, "training_recipe", None)
-    return recipe if isinstance(recipe, type) and issubclass(recipe, Recipe) else None
+def _recipe_classes() -> dict[str, type[Recipe]]:
+    """Load every entry point of :data:`RECIPE_ENTRY_POINT_GROUP`; warn about and skip the broken ones."""
+    found: dict[str, type[Recipe]] = {}
+    for ep in importlib.metadata.entry_points(group=RECIPE_ENTRY_POINT_GROUP):
+        if ep.name in found:  # the first on sys.path wins, as for estimators
+            continue
+        try:
+            cls = ep.load()
+            if not (isinstance(cls, type) and issubclass(cls, Recipe)):
+                raise TypeError(f"{cls!r} is not a subclass of kornia_ilum.train.recipes.Recipe")
+        except Exception as e:  # a broken plugin must never break the other recipes
+            warnings.warn(
+                f"kornia_ilum: skipping training recipe entry point '{ep.name} = {ep.value}' "
+                f"(group {RECIPE_ENTRY_POINT_GROUP}): {type(e).__name__}: {e}",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            continue
+        found[ep.name] = cls
+    return found
 
 
 def list_recipes() -> list[str]:
-    """The estimators that ``kornia-ilum train`` can train (built-in recipes and plugins' ``training_recipe``)."""
-    from kornia_ilum.estimators import list_estimators
+    """The estimators that ``kornia-ilum train`` can train: the names of the recipe entry points, sorted.
 
-    return sorted(set(_RECIPES) | {n for n in list_estimators() if _plugin_recipe(n) is not None})
+    Examples:
+        >>> "ours" in list_recipes()
+        True
+    """
+    return sorted(_recipe_classes())
 
 
 def get_recipe(name: str) -> Recipe:
-    """The recipe of estimator ``name``.
+    """The recipe of estimator ``name``, from :data:`RECIPE_ENTRY_POINT_GROUP`.
 
     Raises:
         ValueCheckError: no recipe for ``name``.
+
+    Examples:
+        >>> type(get_recipe("ours")).__name__
+        'OursRecipe'
     """
-    recipe = _RECIPES.get(name) or _plugin_recipe(name)
-    if recipe is None:
-        raise ValueCheckError(f"no training recipe for estimator {name!r}; trainable: {', '.join(list_recipes())}")
-    return recipe()
+    recipes = _recipe_classes()
+    if name not in recipes:
+        trainable = ", ".join(sorted(recipes))
+        raise ValueCheckError(f"no training recipe for estimator {name!r}; trainable: {trainable}")
+    return recipes[name]()

@@ -250,6 +250,20 @@ class TestCropFaces:
         with pytest.raises(TypeCheckError, match="size must be an int, got float"):
             crop_faces(image[0], box, size=256.0)
 
+    def test_check_values(self, monkeypatch):
+        """check_values=False skips the scan of the image's values, not the checks of shapes and boxes."""
+        image, box = torch.full((3, 16, 16), float("nan")), torch.tensor([[2.0, 2.0, 10.0, 10.0]])
+        with pytest.raises(NonFiniteError, match="image must be finite"):
+            crop_faces(image, box, 4)
+        scans, real = [], torch.aminmax
+        monkeypatch.setattr(torch, "aminmax", lambda x, *a, **k: scans.append(x.shape) or real(x, *a, **k))
+        assert crop_faces(image, box, 4, check_values=False).shape == (1, 3, 4, 4)
+        assert scans == [box.shape]  # the boxes are still checked
+        with pytest.raises(ValueCheckError, match="x1 > x0"):
+            crop_faces(image, torch.tensor([[5.0, 2.0, 1.0, 10.0]]), 4, check_values=False)
+        with pytest.raises(ShapeError):
+            crop_faces(torch.rand(16, 16), box, 4, check_values=False)
+
     @pytest.mark.parametrize("size", [3, 9])  # downsampled (antialiased) and upsampled
     def test_gradcheck(self, size):
         image = torch.rand(1, 2, 6, 7, dtype=F64, requires_grad=True)

@@ -193,6 +193,20 @@ class TestFaceDetectors:
         with pytest.raises(TypeCheckError, match="image must be a torch.Tensor"):
             detector.detect(skimage.data.astronaut())
 
+    def test_check_values(self, detector, astronaut, monkeypatch):
+        """One scan of the values (NaN/Inf and range together); check_values=False skips only that scan."""
+        scans, real = [], torch.aminmax
+        monkeypatch.setattr(torch, "aminmax", lambda x, *a, **k: scans.append(x.shape) or real(x, *a, **k))
+        ref = detector.detect(astronaut)[0]
+        assert scans == [astronaut.shape]
+        torch.testing.assert_close(detector.detect(astronaut, check_values=False)[0], ref)
+        torch.testing.assert_close(detector(astronaut, check_values=False)[0], ref)
+        assert scans == [astronaut.shape]
+        with pytest.raises(ShapeError, match=r"image must have shape \(\*, 3, H, W\)"):
+            detector.detect(torch.rand(1, 4, 8, 8), check_values=False)
+        with pytest.raises(TypeCheckError, match="image must be a floating-point tensor"):
+            detector.detect((astronaut * 255).to(torch.uint8), check_values=False)
+
     def test_crop_pipeline(self, detector, astronaut):
         """Detection -> the paper's square (inside the image here) -> a 256 x 256 crop of it."""
         boxes = detector.detect(astronaut)[0][:, :4]

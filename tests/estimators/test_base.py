@@ -25,10 +25,13 @@ from kornia_ilum.estimators import (
     EstimatorInfo,
     LightingEstimate,
     LightingEstimator,
+    OursEstimator,
     WeightFile,
     check_crops,
     create_estimator,
+    read_weights,
 )
+import kornia_ilum.estimators.ours as ours
 from kornia_ilum.estimators import registry
 from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_valid
 from kornia_ilum.io import read_hdr, read_ldr, write_hdr
@@ -321,9 +324,6 @@ class TestFromPretrained:
 
     def test_default_weights_dir(self):
         assert Toy.default_weights_dir() == Path(__file__).resolve().parent / "weights"
-        from kornia_ilum.estimators import OursEstimator
-        import kornia_ilum.estimators.ours as ours
-
         assert OursEstimator.default_weights_dir() == Path(ours.__file__).resolve().parent / "weights"
 
     def test_no_weights_shipped(self):
@@ -347,6 +347,35 @@ class TestFromPretrained:
         cls = type("ToyPickle", (Toy,), {"info": info})
         with pytest.raises(Exception, match="(?i)header|safetensor|invalid"):
             cls.from_pretrained(tmp_path)
+
+
+class TestReadWeights:
+    """The one SHA-256-checked read that from_pretrained and the evaluation's checkpoints share."""
+
+    def test_returns_the_tensors_and_the_digest(self, tmp_path):
+        _, state = toy_with_file(tmp_path)
+        path = tmp_path / "toy.safetensors"
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        for expected in (None, digest):
+            tensors, got = read_weights(path, expected)
+            assert got == digest and tensors.keys() == state.keys()
+            assert all(torch.equal(tensors[k], state[k]) and tensors[k].device.type == "cpu" for k in state)
+
+    def test_mismatch_names_the_file_and_both_digests(self, tmp_path):
+        toy_with_file(tmp_path)
+        path = tmp_path / "toy.safetensors"
+        actual = hashlib.sha256(path.read_bytes()).hexdigest()
+        message = rf"SHA-256 is {actual}, but the caller expects {'1' * 64};"
+        with pytest.raises(WeightsChecksumError, match=message):
+            read_weights(path, "1" * 64)
+        with pytest.raises(WeightsChecksumError, match=r"but run 'x' expects"):
+            read_weights(path, "1" * 64, expected_by="run 'x'")
+
+    def test_pickle_is_never_loaded(self, tmp_path):
+        path = tmp_path / "w.safetensors"
+        torch.save({"w": torch.zeros(3)}, path)
+        with pytest.raises(Exception, match="(?i)header|safetensor|invalid"):
+            read_weights(path)
 
 
 class TestCheckCrops:

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 import torch
+from kornia_ilum_uniform import UniformEstimator
 
 from kornia_ilum.core.errors import MissingWeightsError
 from kornia_ilum.estimators import (
@@ -98,8 +99,6 @@ class TestInstalledEntryPoints:
     """Discovery with the real metadata: `ours` from kornia_ilum itself, `uniform` from the plugin."""
 
     def test_builtin_and_plugin_discovered(self):
-        from kornia_ilum_uniform import UniformEstimator
-
         eps = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
         assert eps["ours"].value == "kornia_ilum.estimators.ours:OursEstimator"
         assert eps["ours"].dist.name == "kornia_ilum"

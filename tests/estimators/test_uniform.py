@@ -62,7 +62,8 @@ class TestUniformEstimator:
         torch.testing.assert_close(out.sh, sh_project(out.mirror_ball), atol=1e-4, rtol=1e-4)
 
     def test_units(self):
-        """A white Lambertian surface (albedo 1) under the estimate shows mean / albedo (SPEC units)."""
+        """A white Lambertian surface (albedo 1) under the estimate shows mean / albedo (docs/conventions.rst,
+        "Units of lighting")."""
         crops = face_like(1)
         out = UniformEstimator(albedo=1.0)(crops)
         spheres = out.render_spheres(16)

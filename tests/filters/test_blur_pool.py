@@ -45,7 +45,8 @@ class TestBlurPool:
         assert module(3, stride=stride)(x).shape == out
 
     def test_exception(self):
-        with pytest.raises(TypeCheckError, match="input must be a floating-point tensor, got dtype torch.int64"):
+        message = "input must be a floating-point tensor, got dtype torch.int64"
+        with pytest.raises(TypeCheckError, match=message):
             blur_pool2d(torch.zeros(1, 3, 8, 8, dtype=torch.long), 3)
         with pytest.raises(ShapeError, match="expected 4 dimensions, got 3"):
             max_blur_pool2d(torch.rand(3, 8, 8), 3)

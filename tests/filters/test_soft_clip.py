@@ -1,4 +1,7 @@
-"""Tests of kornia_ilum.filters.soft_clip (SPEC.md, L_rec: a smooth, monotone, differentiable min(x, 1))."""
+"""Tests of kornia_ilum.filters.soft_clip.
+
+docs/conventions.rst, L_rec: a smooth, monotone, differentiable min(x, 1).
+"""
 
 from __future__ import annotations
 
@@ -118,7 +121,7 @@ class TestSoftClip:
 
 class TestSoftClipNegatives:
     def test_negatives_count_as_zero(self):
-        """SPEC: negative sphere values count as 0; monotone, f(0) = 0, finite gradients at the kink."""
+        """Negative sphere values count as 0 (docs/conventions.rst); monotone, f(0) = 0, finite gradients."""
         x = torch.tensor([-1e6, -1.0, -1e-9, 0.0, 1e-9, 0.5], dtype=F64, requires_grad=True)
         y = soft_clip(x)
         assert (y[:4] == 0).all() and (y.diff() >= 0).all()

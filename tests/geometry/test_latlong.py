@@ -1,4 +1,7 @@
-"""Tests of the lat-long grid (SPEC.md, "Lat-long"): angles, directions, solid angles, pixel coordinates."""
+"""Tests of the lat-long grid: angles, directions, solid angles, pixel coordinates.
+
+The grid is that of docs/conventions.rst, "Lat-long".
+"""
 
 from __future__ import annotations
 

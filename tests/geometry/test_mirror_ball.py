@@ -1,4 +1,7 @@
-"""Tests of the mirror-ball grid (SPEC.md, "Mirror ball"): coordinates, directions, solid angles, owners."""
+"""Tests of the mirror-ball grid: coordinates, directions, solid angles, owners.
+
+The grid is that of docs/conventions.rst, "Mirror ball".
+"""
 
 from __future__ import annotations
 
@@ -179,8 +182,8 @@ class TestMirrorBallSolidAngles:
     @settings(max_examples=10)
     @given(st.integers(1, 128))
     def test_fully_inside_pixels(self, size):
-        """SPEC: every pixel whose square lies fully inside the disk spans exactly 16 / S^2 sr (slivers
-        of invalid pixels go only to rim pixels, whose squares cross the circle)."""
+        """docs/conventions.rst: every pixel whose square lies fully inside the disk spans exactly 16 / S^2 sr
+        (slivers of invalid pixels go only to rim pixels, whose squares cross the circle)."""
         omega = mirror_ball_solid_angles(size, dtype=F64)
         edges = torch.linspace(-1, 1, size + 1, dtype=F64)
         far = torch.maximum(edges[:-1].abs(), edges[1:].abs())  # farthest |u| of each column

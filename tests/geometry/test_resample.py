@@ -1,4 +1,7 @@
-"""Tests of lat-long <-> mirror-ball resampling (SPEC.md: energy-conserving into the mirror-ball grid)."""
+"""Tests of lat-long <-> mirror-ball resampling.
+
+docs/conventions.rst: energy-conserving into the mirror-ball grid.
+"""
 
 from __future__ import annotations
 
@@ -169,7 +172,7 @@ class TestLatLongToMirrorBall:
 
     @pytest.mark.parametrize("pixel", [(10, 20), (16, 16), (3, 12), (29, 10)])
     def test_sun_keeps_its_energy_in_one_pixel(self, pixel):
-        """SPEC.md: a 0.5-degree sun (512 x 1024 map) keeps its full energy in the 32 x 32 pixel holding it.
+        """The 0.5-degree sun of docs/conventions.rst (512 x 1024 map) keeps its energy in its 32 x 32 pixel.
 
         (16, 16) lies next to +Z, where the sun straddles the azimuth seam of the lat-long map.
         """

@@ -1,4 +1,4 @@
-"""Tests of lighting rotation and horizontal flip (SPEC.md frame: light arriving *from* d)."""
+"""Tests of lighting rotation and horizontal flip (frame of docs/conventions.rst: light arriving *from* d)."""
 
 from __future__ import annotations
 

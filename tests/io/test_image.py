@@ -431,7 +431,8 @@ class TestTruncated:
         whole = astronaut_file(tmp_path, "astronaut.jpg")
         assert read_ldr(whole).shape == (3, 512, 512)
         path = cut(whole, keep, "half.jpg")
-        with pytest.raises(TruncatedImageError, match=r"cannot read .*half\.jpg: the file is truncated") as info:
+        message = r"cannot read .*half\.jpg: the file is truncated"
+        with pytest.raises(TruncatedImageError, match=message) as info:
             read_ldr(path)
         assert str(path) in str(info.value) and "\n" not in str(info.value)
         assert isinstance(info.value, HDRIOError) and isinstance(info.value, OSError)

@@ -26,7 +26,7 @@ F64 = torch.float64
 
 
 def _l_rec_reference(pred, target, brdf, size):
-    """SPEC's definition, written out from render_spheres and the two transfer functions."""
+    """The definition of docs/conventions.rst, written out from render_spheres and the transfer functions."""
     valid = mirror_ball_valid(size)
     a = gamma_encode(soft_clip(render_spheres(pred, size, (brdf,))[brdf]), 2.2)
     b = gamma_encode(soft_clip(render_spheres(target, size, (brdf,))[brdf]), 2.2)
@@ -35,7 +35,8 @@ def _l_rec_reference(pred, target, brdf, size):
 
 class TestReconstructionLoss:
     def test_smoke(self, device, dtype):
-        pred, target = hdr_lighting(seed=1, dtype=dtype).to(device), hdr_lighting(seed=2, dtype=dtype).to(device)
+        pred = hdr_lighting(seed=1, dtype=dtype).to(device)
+        target = hdr_lighting(seed=2, dtype=dtype).to(device)
         loss = reconstruction_loss(pred, target, "diffuse")
         assert loss.shape == () and loss.dtype == dtype and loss.device == pred.device
         assert loss.item() > 0

@@ -88,8 +88,8 @@ class TestThreeSphereMetrics:
             p, t = pred[i].numpy(), target[i].numpy()
             if tonemap:
                 p, t = stylelight_tonemap(p), stylelight_tonemap(t)
-            # the protocol renders as render_spheres does (SPEC multi-scale: lighting brought down to the
-            # sphere's size first when it is smaller)
+            # the protocol renders as render_spheres does (docs/conventions.rst, multi-scale: lighting brought
+            # down to the sphere's size first when it is smaller)
             renders_p, renders_t = _plain_renders(p, size), _plain_renders(t, size)
             for brdf in BRDFS:
                 rp = renders_p[brdf][0].permute(1, 2, 0).numpy()

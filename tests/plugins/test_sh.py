@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import doctest
+import importlib.metadata
 import math
 
 import kornia_ilum_sh
@@ -26,7 +27,7 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_project, sh_reconstruct
 from kornia_ilum.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
 from kornia_ilum.train.recipes import get_recipe, list_recipes
-from tests.train.test_train import SMALL
+from tests.train.helpers import SMALL
 
 VALID = mirror_ball_valid(32)
 
@@ -70,8 +71,18 @@ class TestRegistry:
             out = est(crops(1))
         assert torch.isfinite(out.sh).all() and (out.mirror_ball[:, :, VALID] > 0).any()
 
+    def test_training_names_load_on_first_use(self):
+        assert kornia_ilum_sh.SHRecipe is SHRecipe and kornia_ilum_sh.MultiScaleSH is MultiScaleSH
+        assert {"SHRecipe", "negative_penalty"} <= set(kornia_ilum_sh.__all__)
+        with pytest.raises(AttributeError, match="has no attribute 'nope'"):
+            kornia_ilum_sh.nope  # noqa: B018
+
     def test_training_recipe(self):
-        assert SHEstimator.training_recipe is SHRecipe and "sh" in list_recipes()
+        # the recipe is found through its own entry point; the estimator does not know it (inference never
+        # imports the training code)
+        (ep,) = [ep for ep in importlib.metadata.entry_points(group="kornia_ilum.recipes") if ep.name == "sh"]
+        assert ep.load() is SHRecipe and not hasattr(SHEstimator, "training_recipe")
+        assert "sh" in list_recipes() and type(get_recipe("sh")) is SHRecipe
         recipe = get_recipe("sh")
         model, disc = recipe.build()
         assert isinstance(model, MultiScaleSH) and disc is None
@@ -191,6 +202,7 @@ class TestMultiScaleSH:
 
 
 class TestTraining:
+    @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path):
         threads = torch.get_num_threads()
         data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import doctest
+import importlib.metadata
 import math
 
 import kornia_ilum_sipr
@@ -30,8 +31,9 @@ from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
 from kornia_ilum.train import TrainConfig, read_log, train
 from kornia_ilum.train.data import collate
+import kornia_ilum.train.recipes
 from kornia_ilum.train.recipes import get_recipe, list_recipes
-from tests.train.test_train import SMALL
+from tests.train.helpers import SMALL
 
 
 @pytest.fixture(scope="module")
@@ -56,8 +58,17 @@ class TestRegistry:
         with pytest.raises(MissingWeightsError, match="pretrained=False"):
             create_estimator("sipr")
 
+    def test_training_names_load_on_first_use(self):
+        assert kornia_ilum_sipr.SIPRRecipe is SIPRRecipe and kornia_ilum_sipr.masked_l1 is masked_l1
+        assert {"SIPRRecipe", "SIPRTrainer", "masked_l1"} <= set(kornia_ilum_sipr.__all__)
+        with pytest.raises(AttributeError, match="has no attribute 'nope'"):
+            kornia_ilum_sipr.nope  # noqa: B018
+
     def test_training_recipe(self):
-        assert SIPREstimator.training_recipe is SIPRRecipe
+        # the recipe is found through its own entry point; the estimator does not know it (inference never
+        # imports the training code)
+        (ep,) = [ep for ep in importlib.metadata.entry_points(group="kornia_ilum.recipes") if ep.name == "sipr"]
+        assert ep.load() is SIPRRecipe and not hasattr(SIPREstimator, "training_recipe")
         assert "sipr" in list_recipes() and isinstance(get_recipe("sipr"), SIPRRecipe)
         model, disc = get_recipe("sipr").build()
         assert isinstance(model, SIPRTrainer) and disc is None
@@ -163,6 +174,7 @@ class TestLosses:
         assert math.isclose(float(masked_l1(pred, target, alpha)), 0.5 * 3 / 24, rel_tol=1e-6)
 
 
+@pytest.mark.slow  # the tiny_cache fixture renders with Mitsuba
 class TestData:
     def test_pairs_give_the_matte_and_a_second_lighting(self, tiny_cache):
         fields = load_fields(tiny_cache, split=None)
@@ -193,9 +205,8 @@ class TestData:
 
 
 class TestTraining:
+    @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path, monkeypatch):
-        import kornia_ilum.train.recipes
-
         monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)  # the float16 probe: 4 crops, not 32
         threads = torch.get_num_threads()
         data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}

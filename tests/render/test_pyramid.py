@@ -1,4 +1,7 @@
-"""Tests of kornia_ilum.render.pyramid and of the multi-scale rule of SPEC.md in the renders and the loss."""
+"""Tests of kornia_ilum.render.pyramid, and of the multi-scale rule in the renders and the loss.
+
+The rule is that of docs/conventions.rst, "Multi-scale".
+"""
 
 from __future__ import annotations
 
@@ -7,7 +10,6 @@ import torch
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
-from kornia_ilum.geometry.mirror_ball import _rim_pixels
 from kornia_ilum.metrics import (
     MultiscaleReconstructionLoss,
     ReconstructionLoss,
@@ -30,6 +32,14 @@ from tests.conftest import hdr_lighting
 F64 = torch.float64
 
 
+def _rim_pixels(size: int) -> torch.Tensor:
+    """``(S, S)`` mask of the valid pixels whose square crosses the unit circle (the owners of slivers)."""
+    edges = torch.linspace(-1.0, 1.0, size + 1, dtype=F64)
+    far = torch.maximum(edges[:-1].abs(), edges[1:].abs())
+    fully_inside = far[None, :].square() + far.flip(0)[:, None].square() <= 1.0
+    return mirror_ball_valid(size) & ~fully_inside
+
+
 def _energy(x: torch.Tensor) -> torch.Tensor:
     return (x * mirror_ball_solid_angles(x.shape[-1], dtype=x.dtype)).sum((-2, -1))
 
@@ -47,7 +57,8 @@ class TestMirrorBallPyramid:
         for s in sizes:
             d = mirror_ball_downsample_matrix(size, s, dtype=F64)
             kept = mirror_ball_solid_angles(s, dtype=F64).flatten() @ d
-            torch.testing.assert_close(kept, mirror_ball_solid_angles(size, dtype=F64).flatten(), rtol=1e-12, atol=1e-15)
+            omega = mirror_ball_solid_angles(size, dtype=F64).flatten()
+            torch.testing.assert_close(kept, omega, rtol=1e-12, atol=1e-15)
 
     @pytest.mark.parametrize("size", [8, 16, 32])
     def test_block_mean_inside_the_rim(self, size):
@@ -151,18 +162,19 @@ class TestMultiscaleSpheres:
                 torch.testing.assert_close(module(pred, target), expected)
         linear = sphere_pyramid(pred, (8,), ("diffuse",), encode=False)["diffuse_8"]
         torch.testing.assert_close(linear, render_spheres(pred, 8, ("diffuse",))["diffuse"])
-        torch.testing.assert_close(
-            sphere_pyramid(pred, (8,), ("diffuse",))["diffuse_8"], encode_sphere(linear) * mirror_ball_valid(8)
-        )
+        encoded = sphere_pyramid(pred, (8,), ("diffuse",))["diffuse_8"]
+        torch.testing.assert_close(encoded, encode_sphere(linear) * mirror_ball_valid(8))
 
 
 class TestNegativesAndGamma:
     def test_negative_lighting_counts_as_zero(self):
-        """SPEC: L_rec(-0.1, 1, diffuse) = mean |0 - softclip(0.8)^(1/2.2)| = 0.90 (was 43.6)."""
+        """docs/conventions.rst: L_rec(-0.1, 1, diffuse) = mean |0 - softclip(0.8)^(1/2.2)| = 0.90
+        (was 43.6)."""
         gt = torch.ones(2, 3, 32, 32)
         loss = reconstruction_loss(-0.1 * gt, gt, "diffuse")
         assert loss.item() == pytest.approx(0.9031, abs=2e-4)
-        assert reconstruction_loss(-0.1 * gt, gt, "diffuse", gamma="safe").item() == pytest.approx(0.9031, abs=2e-4)
+        safe = reconstruction_loss(-0.1 * gt, gt, "diffuse", gamma="safe")
+        assert safe.item() == pytest.approx(0.9031, abs=2e-4)
         assert multiscale_reconstruction_loss(-0.1 * gt, 0 * gt, "mirror").item() == 0.0
 
     def test_exact_gamma_on_dark_scenes(self):
@@ -173,9 +185,8 @@ class TestNegativesAndGamma:
         torch.testing.assert_close(exact[small], x[small].pow(1 / 2.2), rtol=1e-7, atol=0)
         assert (encode_sphere(x, "safe") - exact).abs().max().item() < 6e-4
         dark = 1e-7 * hdr_lighting(2, seed=4, dtype=F64)
-        ref = (
-            render_spheres(dark, 32, ("diffuse",))["diffuse"].clamp(min=0).pow(1 / 2.2)[..., mirror_ball_valid(32)]
-        )
+        render = render_spheres(dark, 32, ("diffuse",))["diffuse"]
+        ref = render.clamp(min=0).pow(1 / 2.2)[..., mirror_ball_valid(32)]
         loss = reconstruction_loss(dark, 0 * dark, "diffuse", reduction="none")
         torch.testing.assert_close(loss, ref.mean((1, 2)), rtol=1e-6, atol=0)
 

@@ -1,4 +1,4 @@
-"""Tests of kornia_ilum.render.spheres: the reference spheres of SPEC.md as reflectance fields."""
+"""Tests of kornia_ilum.render.spheres: the reference spheres (docs/conventions.rst) as reflectance fields."""
 
 from __future__ import annotations
 
@@ -28,8 +28,9 @@ F64 = torch.float64
 
 
 def ggx_albedo(mu: np.ndarray, nodes: int = 240) -> np.ndarray:
-    """Directional albedo of SPEC's matte silver at ``n . v = mu``, by Gauss-Legendre quadrature over the
-    hemisphere in the surface's own frame: independent of the mirror-ball grid and of the library code."""
+    """Directional albedo of the matte silver of docs/conventions.rst at ``n . v = mu``, by Gauss-Legendre
+    quadrature over the hemisphere in the surface's own frame: independent of the mirror-ball grid and of the
+    library code."""
     a2 = SILVER_ALPHA**2
     xt, wt = np.polynomial.legendre.leggauss(nodes)
     theta, wt = (xt + 1) * np.pi / 4, wt * np.pi / 4
@@ -95,8 +96,8 @@ class TestSphereReflectanceField:
         pick = mu.argsort()[torch.linspace(0, mu.numel() - 1, min(24, mu.numel())).round().long()]
         expected = torch.from_numpy(ggx_albedo(mu[pick].numpy()))
         torch.testing.assert_close(silver[pick], expected, rtol=5e-3, atol=0)  # measured: 0.2% at worst
-        # SPEC quotes 0.68 to 0.73; the BRDF it defines gives 0.674 (at n.v = 0.36) to 0.726 (centre), and
-        # 0.737 at the outermost pixels of the 64 x 64 sphere (n.v = 0.04, where Fresnel rises)
+        # docs/conventions.rst quotes 0.68 to 0.73; the BRDF it defines gives 0.674 (at n.v = 0.36) to 0.726
+        # (centre), and 0.737 at the outermost pixels of the 64 x 64 sphere (n.v = 0.04, where Fresnel rises)
         assert silver.min().item() >= 0.67
         assert silver.max().item() <= (0.74 if size == 64 else 0.73)
 

@@ -95,7 +95,7 @@ class TestShBasis:
         )
 
     def test_frame(self):
-        """Each axis lands on the SPEC coefficient with a positive sign (no Condon-Shortley phase)."""
+        """Each axis lands on our coefficient with a positive sign (no Condon-Shortley phase)."""
         c = SH_CONSTANTS
         y = sh_basis(torch.eye(3, dtype=F64))  # rows: +X, +Y, +Z
         assert (

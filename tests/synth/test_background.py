@@ -1,4 +1,5 @@
-"""Tests of background rendering: SPEC camera geometry, rotation convention, tone mapping."""
+"""Tests of background rendering: camera geometry of docs/conventions.rst, rotation convention, tone
+mapping."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from kornia_ilum.core.errors import NonFiniteError, ShapeError, TypeCheckError, 
 from kornia_ilum.geometry import latlong_directions
 from kornia_ilum.synth.background import (
     RenderBackground,
+    axis_rotation,
     camera_rays,
     camera_rotation,
     render_background,
@@ -62,6 +64,27 @@ class TestCameraGeometry:
         assert (camera_rotation(roll_deg=30.0) @ right)[1] > 0.49
         centre = camera_rays((3, 3), 60.0, camera_rotation(yaw_deg=90.0))[1, 1]
         torch.testing.assert_close(centre, torch.tensor([-1.0, 0.0, 0.0], dtype=F64))
+
+    @pytest.mark.parametrize("axis", [0, 1, 2])
+    def test_axis_rotation(self, axis):
+        """Right-handed: +90 deg about an axis takes the next axis to the one after it (X -> Y -> Z -> X)."""
+        r = axis_rotation(axis, 90.0)
+        assert r.dtype == F64
+        torch.testing.assert_close(r @ r.T, torch.eye(3, dtype=F64))
+        torch.testing.assert_close(torch.linalg.det(r), torch.tensor(1.0, dtype=F64))
+        e = torch.eye(3, dtype=F64)
+        torch.testing.assert_close(r @ e[axis], e[axis])
+        torch.testing.assert_close(r @ e[(axis + 1) % 3], e[(axis + 2) % 3])
+        torch.testing.assert_close(axis_rotation(axis, 0.0), e)
+
+    def test_camera_rotation_is_product_of_axis_rotations(self):
+        expected = axis_rotation(1, 20.0) @ axis_rotation(0, -10.0) @ axis_rotation(2, 5.0)
+        assert torch.equal(camera_rotation(yaw_deg=20.0, pitch_deg=-10.0, roll_deg=5.0), expected)
+
+    @pytest.mark.parametrize("axis", [3, -1, 1.0, True, "y"])
+    def test_axis_rotation_rejects_bad_axis(self, axis):
+        with pytest.raises(ValueCheckError, match="axis must be 0, 1 or 2"):
+            axis_rotation(axis, 10.0)
 
 
 class TestSampleLatLong:

@@ -176,6 +176,7 @@ class TestPromoteSpheres:
         naive = (out.lighting - out.residual).to(F64)
         assert relative_radiance(naive, truth).min() > 0.7
 
+    @pytest.mark.slow  # resamples a 1k map in float64 and builds the float64 sphere fields
     def test_real_map_energy(self, shared_data):
         """city.exr exposed as in benchmarks/bench_promotion.py (98th percentile of the mirror sphere at 0.5):
         its sun clips; total energy within 0.5 % (measured 0.04 %, per channel), against 17 to 26 % missing

@@ -1,4 +1,7 @@
-"""Tests of ``kornia-ilum synth environments``: parser, files written, progress output."""
+"""Tests of ``kornia-ilum synth environments`` and ``synth subjects``: parser, files written, progress output.
+
+The contact sheets' drawing is tested in ``tests/synth/test_sheets.py``.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +10,6 @@ import csv
 import sys
 
 import pytest
-import torch
 
 from kornia_ilum.core.errors import HDRIOError
 from kornia_ilum.synth.cli import (
@@ -16,7 +18,6 @@ from kornia_ilum.synth.cli import (
     parse_seeds,
     run_synth_environments,
     run_synth_subjects,
-    tone_map_tile,
 )
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -104,11 +105,6 @@ def test_missing_folder(tmp_path):
         run_synth_environments(args)
 
 
-def test_tone_map_tile():
-    tile = tone_map_tile(torch.ones(3, 32, 32))
-    assert tile.shape == (3, 32, 134) and 0.0 <= float(tile.min()) and float(tile.max()) <= 1.0
-
-
 def test_missing_matplotlib(tmp_path, monkeypatch):
     from kornia_ilum.core.errors import IlumError
 
@@ -162,6 +158,7 @@ class TestSubjects:
     def test_parse_seeds(self):
         assert parse_seeds("7") == [7] and parse_seeds("0-2, 5") == [0, 1, 2, 5]
 
+    @pytest.mark.slow  # Mitsuba renders
     def test_renders_resumes_and_writes_the_sheet(self, tmp_path, capsys):
         argv = ["synth", "subjects", "--source", "mannequin", "--seeds", "0-1", "--views", "2", "--size", "16",
                 "--spp", "1", "--lighting-size", "4", "--workers", "1", "--threads", "1", "--sheet", "3",

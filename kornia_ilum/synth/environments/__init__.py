@@ -10,7 +10,14 @@ from kornia_ilum.synth.environments.augment import (
 )
 from kornia_ilum.synth.environments.real import HDRFolderSource, ResizeLatLong, guess_label, resize_latlong
 from kornia_ilum.synth.environments.sampler import EnvironmentSampler, default_sources, default_weights
-from kornia_ilum.synth.environments.sky import CctToRgb, SkyRadiance, SkySource, cct_to_rgb, render_outdoor, sky_radiance
+from kornia_ilum.synth.environments.sky import (
+    CctToRgb,
+    SkyRadiance,
+    SkySource,
+    cct_to_rgb,
+    render_outdoor,
+    sky_radiance,
+)
 from kornia_ilum.synth.environments.indoor import IndoorSource, render_room
 
 __all__ = ["Environment", "EnvironmentSource", "Label"]

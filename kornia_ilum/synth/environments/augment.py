@@ -8,8 +8,9 @@ Illumination from Diverse Portraits", Sec. 7: unnatural colour balance).
 
 Rotation:
     :func:`kornia_ilum.geometry.rotate_lighting` (``layout="latlong"``) is exact but builds its tables per
-    call: 1.9 to 2.1 s for a 128 x 256 map (0.4 to 0.5 s at 64 x 128; measured on one CPU core), too slow
-    for a sampler. So the lat-long map is rotated by :func:`rotate_latlong`, which splits it in two:
+    call (the area method with its source sub-cells rotated by ``R``), too slow for a sampler
+    (docs/environments.rst, "Measured"). So the lat-long map is rotated by :func:`rotate_latlong`, which
+    splits it in two:
 
     - the *smooth part*, the map with every pixel's luminance capped at a threshold ``tau``, is resampled
       by bilinear lookup (:func:`~kornia_ilum.synth.background.sample_latlong` at ``R^T d``), then scaled
@@ -22,10 +23,11 @@ Rotation:
     ``sum(L * Omega)`` per channel is conserved to float precision, a constant map stays exactly constant,
     nothing becomes negative, and a sun's energy lands within a pixel of ``R d``: it is neither missed nor
     multiplied as point sampling would (the energy centroid of a one-pixel sun lands within 0.01 degrees of
-    ``R d``). Measured at 128 x 256 on one CPU core: 5.6 ms per rotation, 370 times faster than
-    :func:`~kornia_ilum.geometry.rotate_lighting` (2.1 s); the 32 x 32 mirror balls of the two differ by
-    0.2 to 5 % (relative L1, three shared maps rotated by yaw 37, pitch 21 degrees; the differences sit
-    around the sun, which both spread over neighbouring pixels in their own way).
+    ``R d``). It needs no tables, only one lookup per pixel and one splat per peak sub-cell, so it costs a
+    small fraction of :func:`~kornia_ilum.geometry.rotate_lighting` (docs/environments.rst, "Measured"); the
+    32 x 32 mirror balls of the two differ by 0.2 to 5 % (relative L1, three shared maps rotated by yaw 37,
+    pitch 21 degrees; the differences sit around the sun, which both spread over neighbouring pixels in
+    their own way).
 
     The mirror ball is then recomputed from the augmented lat-long map
     (:func:`~kornia_ilum.geometry.latlong_to_mirror_ball`, ``mode="area"``, energy-conserving), so the two
@@ -50,7 +52,7 @@ White balance:
     green or magenta casts: strongly hued light.
 
 Convention:
-    SPEC.md frame and lat-long grid; ``R`` acts on directions light arrives from, as in
+    Frame and lat-long grid of docs/conventions.rst; ``R`` acts on directions light arrives from, as in
     :func:`~kornia_ilum.geometry.rotate_lighting` (yaw +90 deg moves a light from straight ahead, -Z, to the
     left, -X; pitch +90 deg moves it up, +Y).
 """
@@ -59,6 +61,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,10 +80,9 @@ from kornia_ilum.geometry import (
     latlong_to_direction,
     latlong_to_mirror_ball,
 )
-from kornia_ilum.synth.background import LUMINANCE, _axis_rotation, sample_latlong
+from kornia_ilum.synth.background import LUMINANCE, axis_rotation, sample_latlong
 from kornia_ilum.synth.environments.base import Environment
 from kornia_ilum.synth.environments.sky import cct_to_rgb
-from kornia_ilum.synth.stats import weighted_quantile
 
 __all__ = [
     "REFERENCE_KELVIN",
@@ -88,6 +90,7 @@ __all__ = [
     "RotateLatLong",
     "lighting_rotation",
     "rotate_latlong",
+    "weighted_quantile",
     "white_balance_gains",
 ]
 
@@ -130,7 +133,31 @@ def lighting_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0) -> torch.Ten
         >>> lighting_rotation(yaw_deg=90.0).round(decimals=6) @ forward  # light from ahead now from the left
         tensor([-1.,  0.,  0.], dtype=torch.float64)
     """
-    return _axis_rotation(0, pitch_deg) @ _axis_rotation(1, yaw_deg)
+    return axis_rotation(0, pitch_deg) @ axis_rotation(1, yaw_deg)
+
+
+def weighted_quantile(
+    values: torch.Tensor, weights: torch.Tensor, q: float | Sequence[float]
+) -> torch.Tensor:
+    r"""The ``q``-quantile(s) of ``values`` under non-negative ``weights``.
+
+    The smallest value whose cumulative weight reaches ``q`` times the total (``values`` and ``weights``
+    flat, same length; one sort for several ``q``).
+
+    Returns:
+        a scalar tensor for a float ``q``, else one value per ``q``.
+
+    Examples:
+        >>> weighted_quantile(torch.tensor([3.0, 1.0, 2.0]), torch.tensor([1.0, 1.0, 2.0]), 0.5)
+        tensor(2.)
+        >>> weighted_quantile(torch.tensor([3.0, 1.0, 2.0]), torch.ones(3), [0.0, 1.0])
+        tensor([1., 3.])
+    """
+    order = torch.argsort(values)
+    cum = torch.cumsum(weights[order], 0)
+    qs = torch.as_tensor(q, dtype=cum.dtype, device=cum.device)
+    k = torch.searchsorted(cum, qs.reshape(-1) * cum[-1]).clamp(max=values.numel() - 1)
+    return values[order][k].reshape(qs.shape)
 
 
 @compiler_disable
@@ -150,7 +177,8 @@ def rotate_latlong(latlong: torch.Tensor, rotation: torch.Tensor) -> torch.Tenso
         - Output: :math:`(C, H, 2H)`
 
     Convention:
-        SPEC.md frame and lat-long grid; ``R`` as in :func:`kornia_ilum.geometry.rotate_lighting`.
+        Frame and lat-long grid of docs/conventions.rst; ``R`` as in
+        :func:`kornia_ilum.geometry.rotate_lighting`.
         ``sum(L * Omega)`` per channel is conserved to float precision; half precision runs in float32.
         Its control flow depends on the data (which pixels are peaks), so it runs outside
         :func:`torch.compile` graphs (:func:`torch.compiler.disable`). Differentiable in ``latlong``.

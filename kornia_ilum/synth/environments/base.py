@@ -1,10 +1,11 @@
 """The lighting environment record and the protocol every environment source follows.
 
 Convention:
-    Everything is in the camera frame of SPEC.md (+X right, +Y up, +Z toward the camera; a direction is
-    where light arrives *from*), linear HDR radiance, never negative. ``latlong`` is an ``H x 2H``
-    equirectangular map (SPEC lat-long), ``mirror_ball`` the 32 x 32 equal-area mirror ball obtained from
-    it by energy-conserving resampling (:func:`kornia_ilum.geometry.latlong_to_mirror_ball`).
+    Everything is in the camera frame of docs/conventions.rst (+X right, +Y up, +Z toward the camera; a
+    direction is where light arrives *from*), linear HDR radiance, never negative. ``latlong`` is an
+    ``H x 2H`` equirectangular map (docs/conventions.rst, "Lat-long"), ``mirror_ball`` the 32 x 32 equal-area
+    mirror ball obtained from it by energy-conserving resampling
+    (:func:`kornia_ilum.geometry.latlong_to_mirror_ball`).
 """
 
 from __future__ import annotations

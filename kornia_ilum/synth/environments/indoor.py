@@ -49,8 +49,8 @@ least one emitter), and the outdoor conditions clear 35 %, hazy 15 %, overcast 3
 rooms or four different walls in 13 %.
 
 Convention:
-    SPEC.md camera frame and lat-long grid; float32 maps on the CPU; ``sample(generator)`` depends only on
-    the generator.
+    Camera frame and lat-long grid of docs/conventions.rst; float32 maps on the CPU; ``sample(generator)``
+    depends only on the generator.
 """
 
 from __future__ import annotations
@@ -66,15 +66,8 @@ from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum.synth.environments.base import Environment
-from kornia_ilum.synth.environments.sky import (
-    CONDITIONS,
-    SkySource,
-    _Draw,
-    _grid,
-    cct_to_rgb,
-    outdoor_scene,
-    splat_disk,
-)
+from kornia_ilum.synth.environments.procedural import Draw, latlong_pixels
+from kornia_ilum.synth.environments.sky import CONDITIONS, SkySource, cct_to_rgb, outdoor_scene, splat_disk
 
 __all__ = ["IndoorSource", "render_room"]
 
@@ -353,7 +346,8 @@ def render_room(params: dict[str, Any], height: int = 128) -> torch.Tensor:
         height: the map's height ``H``.
 
     Returns:
-        the SPEC lat-long map, edges supersampled and small emitters splatted (module docstring).
+        the lat-long map of docs/conventions.rst, edges supersampled and small emitters splatted (module
+        docstring).
 
     Examples:
         >>> params = IndoorSource().sample_params(torch.Generator().manual_seed(0))
@@ -363,7 +357,7 @@ def render_room(params: dict[str, Any], height: int = 128) -> torch.Tensor:
     """
     check_positive_int(height, "height")
     room = _Room(params)
-    d, _ = _grid(height)
+    d, _ = latlong_pixels(height)
     rgb, ident, (face, e_dir) = room.shade(d)
     w = 2 * height
     grid = ident.reshape(height, w)
@@ -392,7 +386,7 @@ def render_room(params: dict[str, Any], height: int = 128) -> torch.Tensor:
 
 
 def _color(
-    draw: _Draw, hue: tuple[float, float], sat: tuple[float, float], lum: tuple[float, float]
+    draw: Draw, hue: tuple[float, float], sat: tuple[float, float], lum: tuple[float, float]
 ) -> list[float]:
     """A linear RGB albedo: hue (degrees) and saturation drawn, scaled to a drawn luminance, at most 0.9."""
     hsv = torch.tensor([math.radians(draw.uniform(*hue) % 360.0), draw.uniform(*sat), 1.0]).reshape(3, 1, 1)
@@ -402,7 +396,7 @@ def _color(
     return [float(v) for v in rgb]
 
 
-def _wall_color(draw: _Draw) -> list[float]:
+def _wall_color(draw: Draw) -> list[float]:
     style = draw.choice(["neutral", "pastel", "saturated"], [0.55, 0.25, 0.2])
     if style == "neutral":
         return _color(draw, (0.0, 360.0), (0.0, 0.12), (0.35, 0.85))
@@ -411,7 +405,7 @@ def _wall_color(draw: _Draw) -> list[float]:
     return _color(draw, (0.0, 360.0), (0.45, 0.85), (0.1, 0.45))
 
 
-def _floor_color(draw: _Draw) -> list[float]:
+def _floor_color(draw: Draw) -> list[float]:
     kind = draw.choice(["wood", "carpet", "tile", "concrete"], [0.4, 0.25, 0.2, 0.15])
     if kind == "wood":
         return _color(draw, (18.0, 40.0), (0.4, 0.75), (0.08, 0.35))
@@ -435,8 +429,9 @@ class IndoorSource:
         height: lat-long height ``H`` of the rendered maps (width ``2H``).
 
     Convention:
-        ``sample(generator)`` depends only on the generator's state. Maps are in SPEC's camera frame,
-        float32 on the CPU, 1 = 1 kcd/m^2 (as :class:`~kornia_ilum.synth.environments.sky.SkySource`).
+        ``sample(generator)`` depends only on the generator's state. Maps are in the camera frame of
+        docs/conventions.rst, float32 on the CPU, 1 = 1 kcd/m^2 (as
+        :class:`~kornia_ilum.synth.environments.sky.SkySource`).
 
     Examples:
         >>> env = IndoorSource(height=32).sample(torch.Generator().manual_seed(0))
@@ -458,7 +453,7 @@ class IndoorSource:
         """Draw a JSON-serialisable room: size, camera, materials, panels, windows, door, lamps, outdoors."""
         if not isinstance(generator, torch.Generator):
             raise TypeCheckError(f"generator must be a torch.Generator, got {type(generator).__name__}")
-        draw = _Draw(generator)
+        draw = Draw(generator)
         w, h, d = draw.uniform(3.0, 9.0), draw.uniform(2.4, 3.6), draw.uniform(3.0, 12.0)
         size = (w, h, d)
         cam = [draw.uniform(0.6, w - 0.6), draw.uniform(1.1, min(1.8, h - 0.4)), draw.uniform(0.6, d - 0.6)]

@@ -18,8 +18,8 @@ splits. On the shared folders the eval maps are, in ``hdri/`` (10 maps): ``fores
 
 Convention:
     The files use the common lat-long orientation: the centre column looks forward, the left half of the
-    image is to the left, the top row is up. That is exactly the lat-long grid of SPEC.md (the camera frame
-    +X right, +Y up, +Z toward the camera; centre column = -Z, left half = -X, top row = +Y, see
+    image is to the left, the top row is up. That is exactly the lat-long grid of docs/conventions.rst (the
+    camera frame +X right, +Y up, +Z toward the camera; centre column = -Z, left half = -X, top row = +Y, see
     :mod:`kornia_ilum.geometry.latlong`), so a file's pixels are used as they are, with no rotation or flip
     (tested with a synthetic map written to disk). Lighting is linear HDR radiance in the units of the file.
     Both ``latlong`` and ``mirror_ball`` keep ``sum(L * Omega)`` per channel of the file: measured within
@@ -240,7 +240,7 @@ def resize_latlong(latlong: torch.Tensor, height: int) -> torch.Tensor:
         - Output: :math:`(*, C, H', 2H')`
 
     Convention:
-        SPEC.md lat-long grid; the edges of row ``i`` are at ``el = pi/2 - pi i / H``.
+        Lat-long grid of docs/conventions.rst; the edges of row ``i`` are at ``el = pi/2 - pi i / H``.
 
     Examples:
         >>> from kornia_ilum.geometry import latlong_solid_angles
@@ -333,8 +333,8 @@ class HDRFolderSource:
             ``split``.
 
     Convention:
-        The files' orientation (centre column = forward) is SPEC.md's lat-long: no rotation is applied
-        (module docstring). ``Environment.params`` holds ``{"map": name, "index": i}``; ``source`` is
+        The files' orientation (centre column = forward) is the lat-long of docs/conventions.rst: no
+        rotation is applied (module docstring). ``Environment.params`` holds ``{"map": name, "index": i}``; ``source`` is
         ``"real:<name>"``.
 
     Examples:

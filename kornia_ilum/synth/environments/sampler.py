@@ -18,6 +18,9 @@ from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.core.seeding import hashed_generator
 from kornia_ilum.synth.environments.augment import Augment
 from kornia_ilum.synth.environments.base import Environment, EnvironmentSource
+from kornia_ilum.synth.environments.indoor import IndoorSource
+from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.environments.sky import SkySource
 
 __all__ = ["EnvironmentSampler", "default_sources", "default_weights", "generator_for"]
 
@@ -39,10 +42,6 @@ def default_sources(
         >>> [type(s).__name__ for s in default_sources()]
         ['SkySource', 'IndoorSource']
     """
-    from kornia_ilum.synth.environments.indoor import IndoorSource
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.environments.sky import SkySource
-
     sources: list[EnvironmentSource] = [SkySource(height=height), IndoorSource(height=height)]
     if folder is not None:
         sources.append(HDRFolderSource(folder, height=height))
@@ -108,7 +107,8 @@ class EnvironmentSampler:
 
     Convention:
         ``Environment.params["sampler"]`` holds ``{"seed", "index", "source"}`` (the source's position in
-        ``sources``). Lighting as in :mod:`kornia_ilum.synth.environments.base` (SPEC.md frame).
+        ``sources``). Lighting as in :mod:`kornia_ilum.synth.environments.base` (frame of
+        docs/conventions.rst).
 
     Examples:
         >>> sampler = EnvironmentSampler(seed=3)

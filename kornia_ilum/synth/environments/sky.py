@@ -27,7 +27,7 @@ Units:
     ``sum(L cos Omega)`` come out in klux. A clear noon sky gives about 100 klux on the ground and a white
     Lambertian surface reads about 30; the median night pixel is 4 to 6 decades darker than by day. The
     relative levels of the conditions are physical; exposure is left to the consumer (the environment
-    sampler normalises it, and SPEC's "units of the input image" fixes it per photo).
+    sampler normalises it, and the "units of the input image" of docs/conventions.rst fix it per photo).
 
 Sun:
     A uniform disk of angular diameter 0.53 degrees. Its irradiance at normal incidence is the luminous
@@ -75,8 +75,9 @@ Ground and horizon:
     would hide the sun or the moon are dropped when sampling.
 
 Convention:
-    SPEC.md camera frame (+X right, +Y up, +Z toward the camera; a direction is where light comes *from*)
-    and lat-long grid; maps are float32 on the CPU. The sun's azimuth is uniform over the full circle.
+    Camera frame of docs/conventions.rst (+X right, +Y up, +Z toward the camera; a direction is where light
+    comes *from*) and lat-long grid; maps are float32 on the CPU. The sun's azimuth is uniform over the full
+    circle.
 """
 
 from __future__ import annotations
@@ -96,12 +97,12 @@ from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import (
     angles_to_latlong_pixel,
     direction_to_latlong,
-    latlong_directions,
     latlong_solid_angles,
     latlong_to_direction,
     latlong_to_mirror_ball,
 )
 from kornia_ilum.synth.environments.base import Environment
+from kornia_ilum.synth.environments.procedural import Draw, latlong_pixels
 
 __all__ = [
     "CONDITIONS",
@@ -217,7 +218,7 @@ def cct_to_rgb(kelvin: torch.Tensor, locus: str = "planckian") -> torch.Tensor:
         - Output: :math:`(*, 3)`
 
     Convention:
-        Linear Rec. 709 / sRGB primaries, D65 white (SPEC.md: HDR data is linear).
+        Linear Rec. 709 / sRGB primaries, D65 white (docs/conventions.rst, "Images": HDR data is linear).
 
     Examples:
         >>> cct_to_rgb(torch.tensor(6504.0), "daylight").round(decimals=2)  # D65: the sRGB white
@@ -346,8 +347,8 @@ def sky_radiance(
         - Output: :math:`(*, 3)`
 
     Convention:
-        SPEC.md frame: +Y is the zenith. Units: 1 = 1 kcd/m^2 (module docstring). Half-precision inputs are
-        computed in float32 and cast back.
+        Frame of docs/conventions.rst: +Y is the zenith. Units: 1 = 1 kcd/m^2 (module docstring).
+        Half-precision inputs are computed in float32 and cast back.
 
     Examples:
         >>> sun = torch.tensor([0.0, 0.5, -math.sqrt(0.75)])  # 30 degrees high, ahead
@@ -474,14 +475,6 @@ def sun_irradiance(
 # grids and splatting
 
 
-@lru_cache(maxsize=8)
-def _grid(height: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Cached float32 pixel directions ``(H W, 3)`` and exact solid angles ``(H W,)`` of the lat-long grid."""
-    d = latlong_directions(height, dtype=torch.float32).reshape(-1, 3)
-    om = latlong_solid_angles(height, dtype=torch.float32).reshape(-1)
-    return d, om
-
-
 @lru_cache(maxsize=16)
 def _disk_pattern(k: int) -> torch.Tensor:
     """Centres ``(M, 2)`` of the cells of a ``k x k`` grid over ``[-1, 1]^2`` that lie in the unit disk."""
@@ -569,7 +562,7 @@ def _dir(azimuth_deg: float, elevation_deg: float) -> torch.Tensor:
 @lru_cache(maxsize=1)
 def _hemisphere_grid() -> tuple[torch.Tensor, torch.Tensor]:
     """A 32 x 64 lat-long grid (float32 directions and solid angles) for irradiance integrals."""
-    return _grid(32)
+    return latlong_pixels(32)
 
 
 @dataclass
@@ -742,8 +735,8 @@ def render_outdoor(params: dict[str, Any], height: int = 128) -> torch.Tensor:
         height: the map's height ``H``.
 
     Returns:
-        the SPEC lat-long map: radiance at the pixel centres, plus the disks (sun or moon, street lamps)
-        splatted energy-conservingly (:func:`splat_disk`).
+        the lat-long map of docs/conventions.rst: radiance at the pixel centres, plus the disks (sun or moon,
+        street lamps) splatted energy-conservingly (:func:`splat_disk`).
 
     Examples:
         >>> params = SkySource(("overcast",)).sample_params(torch.Generator().manual_seed(0))
@@ -752,7 +745,7 @@ def render_outdoor(params: dict[str, Any], height: int = 128) -> torch.Tensor:
     """
     check_positive_int(height, "height")
     scene = outdoor_scene(params)
-    d, _ = _grid(height)
+    d, _ = latlong_pixels(height)
     env = scene.radiance(d).T.reshape(3, height, 2 * height).contiguous()
     for direction, radius, irradiance in scene.disks:
         splat_disk(env, direction, radius, irradiance)
@@ -774,35 +767,7 @@ _GROUNDS = {
 _GROUND_WEIGHTS = {"grass": 3.0, "asphalt": 3.0, "soil": 1.5, "concrete": 2.0, "sand": 1.0, "snow": 0.7}
 
 
-class _Draw:
-    """Scalar draws from a torch generator (the only source of randomness)."""
-
-    def __init__(self, generator: torch.Generator) -> None:
-        self.g = generator
-
-    def uniform(self, lo: float, hi: float) -> float:
-        return lo + (hi - lo) * float(torch.rand((), generator=self.g, dtype=torch.float64))
-
-    def log_uniform(self, lo: float, hi: float) -> float:
-        return math.exp(self.uniform(math.log(lo), math.log(hi)))
-
-    def integer(self, lo: int, hi: int) -> int:
-        """Uniform in ``[lo, hi]`` inclusive."""
-        return int(torch.randint(lo, hi + 1, (), generator=self.g))
-
-    def choice(self, options: Sequence[Any], weights: Sequence[float] | None = None) -> Any:
-        w = (
-            torch.ones(len(options), dtype=torch.float64)
-            if weights is None
-            else torch.tensor(weights, dtype=torch.float64)
-        )
-        return options[int(torch.multinomial(w, 1, generator=self.g))]
-
-    def bernoulli(self, p: float) -> bool:
-        return self.uniform(0.0, 1.0) < p
-
-
-def _sample_ground(draw: _Draw) -> dict[str, Any]:
+def _sample_ground(draw: Draw) -> dict[str, Any]:
     kind = draw.choice(list(_GROUNDS), list(_GROUND_WEIGHTS.values()))
     base, (lo, hi) = _GROUNDS[kind]
     scale = draw.uniform(lo, hi)
@@ -810,7 +775,7 @@ def _sample_ground(draw: _Draw) -> dict[str, Any]:
     return {"type": kind, "albedo": [min(0.95, b * scale * t) for b, t in zip(base, tint, strict=True)]}
 
 
-def _sample_occluders(draw: _Draw) -> list[dict[str, Any]]:
+def _sample_occluders(draw: Draw) -> list[dict[str, Any]]:
     if draw.bernoulli(0.35):
         return []
     out = []
@@ -855,7 +820,7 @@ class SkySource:
 
     Convention:
         ``sample(generator)`` depends only on the generator's state: same state, identical tensors. Maps are
-        in SPEC's camera frame, float32 on the CPU, 1 = 1 kcd/m^2.
+        in the camera frame of docs/conventions.rst, float32 on the CPU, 1 = 1 kcd/m^2.
 
     Examples:
         >>> source = SkySource(height=32)
@@ -905,7 +870,7 @@ class SkySource:
         """
         if not isinstance(generator, torch.Generator):
             raise TypeCheckError(f"generator must be a torch.Generator, got {type(generator).__name__}")
-        draw = _Draw(generator)
+        draw = Draw(generator)
         cond = condition if condition is not None else draw.choice(self.conditions, self.weights)
         if cond not in CONDITIONS:
             raise ValueCheckError(f"unknown condition {cond!r}; valid ones are {CONDITIONS}")

@@ -2,17 +2,22 @@
 
 from kornia_ilum.synth.lightstage.cache import (
     DEFAULT_VIEWS,
+    FixedViews,
+    SampledViews,
+    Workers,
     build_cache,
     cache_summary,
     read_field,
     read_manifest,
     write_field,
 )
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
-from kornia_ilum.synth.lightstage.olat import ReflectanceField, render_olat
+from kornia_ilum.synth.lightstage.olat import render_olat
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields, relight_portraits
 from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import Camera, sample_views
+from kornia_ilum.synth.lightstage.settings import Auto, OnePass, Reference
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -28,12 +33,18 @@ __all__ = [
     "DEFAULT_VIEWS",
     "LANDMARK_NAMES",
     "SKIN_ALBEDO",
+    "Auto",
     "Camera",
+    "FixedViews",
     "Material",
     "MeshPart",
+    "OnePass",
     "PortraitDataset",
+    "Reference",
     "ReflectanceField",
+    "SampledViews",
     "Subject",
+    "Workers",
     "build_cache",
     "cache_summary",
     "load_fields",

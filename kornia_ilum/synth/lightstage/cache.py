@@ -7,7 +7,7 @@ Layout of a cache folder::
         manifest.json                    every entry (merged from the workers' manifests)
         manifest.w000of004.json          what worker 0 of 4 wrote (one per worker)
 
-A field file (:func:`write_field`) holds the *compact* layout of :class:`~.olat.ReflectanceField`, which is
+A field file (:func:`write_field`) holds the *compact* layout of :class:`~.field.ReflectanceField`, which is
 lossless: ``field`` bfloat16 ``(3, P', N')``, channel-major, with only the ``P'`` pixels that the subject
 covers or lights (``pixel_index`` int32) and only the ``N'`` valid lights (``light_index`` int32; 812 of 1024 at
 ``S = 32``); ``alpha`` float16 ``(1, size, size)``; ``face_box`` float32 ``(4,)``; and, as the file's JSON
@@ -20,7 +20,9 @@ subject and view (0.42 to 0.45 of dense), 11 to 12 MB at 64 x 64.
 ``manifest.json`` is ``{"format": ..., "entries": [...]}``; each entry (format v2) has ``subject_seed``,
 ``view_index``, ``camera``, ``path`` (relative to the folder), ``sha256``, ``shape``, ``dtype``, ``bytes``, the
 settings (``source``, ``spp_requested``, ``spp``, ``lighting_size``, ``size``, ``views``: ``"fixed"`` or
-``"sample_views(n=4)"``, ``variant``), the costs (``render_seconds`` of the view, ``subject_seconds`` to build
+``"sample_views(n=4)"``, ``variant``, and ``renderer``: the renderer's settings, e.g. :meth:`OnePass.to_dict
+<kornia_ilum.synth.lightstage.settings.OnePass.to_dict>`, unless they are ``Auto`` with seed 0, which the
+other keys describe), the costs (``render_seconds`` of the view, ``subject_seconds`` to build
 the subject, counted on its first view, ``peak_rss_mb`` of the worker process so far), and the subject's
 ``split``, ``skin_tone``, ``face_albedo`` and ``params`` (its scalar parameters). v2 field files equal v1's
 plus ``meta["source"]``; :func:`read_field` reads both. :func:`read_manifest` returns the union of ``manifest.json`` and
@@ -35,24 +37,39 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import multiprocessing as mp
 import os
+import queue as queue_module
+import statistics
+import sys
 import time
+import traceback
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import safetensors.torch
 import torch
+from safetensors import safe_open
 
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.errors import HDRIOError, IlumError, TypeCheckError, ValueCheckError
 from kornia_ilum.core.files import atomic_write, sha256_file
-from kornia_ilum.synth.lightstage.olat import ReflectanceField, render_olat
-from kornia_ilum.synth.lightstage.scene import Camera
+from kornia_ilum.synth.lightstage.field import ReflectanceField
+from kornia_ilum.synth.lightstage.olat import render_olat
+from kornia_ilum.synth.lightstage.scene import Camera, sample_views
+from kornia_ilum.synth.lightstage.settings import Auto, OnePass, Reference
+from kornia_ilum.synth.lightstage.subjects import subject_source
 
 __all__ = [
     "DEFAULT_VIEWS",
     "FORMAT",
     "READABLE_FORMATS",
+    "FixedViews",
+    "SampledViews",
+    "Workers",
     "build_cache",
     "cache_summary",
     "field_path",
@@ -78,6 +95,116 @@ DEFAULT_VIEWS: tuple[Camera, ...] = (
     Camera(fov_deg=25.0, distance=0.68, yaw_deg=25.0, pitch_deg=5.0),
     Camera(fov_deg=35.0, distance=0.47, yaw_deg=-25.0, pitch_deg=-5.0),
 )
+
+
+@dataclass(frozen=True)
+class FixedViews:
+    r"""The same cameras for every subject of a cache (view index = position), each at ``size`` pixels.
+
+    Args:
+        cameras: the cameras; their own ``size`` is replaced by ``size``.
+        size: the image side.
+
+    Raises:
+        TypeCheckError: ``cameras`` is not a non-empty sequence of :class:`Camera`.
+        ValueCheckError: ``size`` is not positive.
+
+    Examples:
+        >>> FixedViews().count, FixedViews(size=64).cameras[0].size
+        (3, 64)
+    """
+
+    cameras: tuple[Camera, ...] = DEFAULT_VIEWS
+    size: int = 192
+
+    def __post_init__(self) -> None:
+        if isinstance(self.cameras, (str, bytes)) or not isinstance(self.cameras, Sequence):
+            raise TypeCheckError("views must be a non-empty sequence of Camera")
+        cameras = tuple(self.cameras)
+        if not cameras or not all(isinstance(v, Camera) for v in cameras):
+            raise TypeCheckError("views must be a non-empty sequence of Camera")
+        check_positive_int(self.size, "size")
+        object.__setattr__(self, "cameras", tuple(dataclasses.replace(v, size=self.size) for v in cameras))
+
+    @property
+    def count(self) -> int:
+        """Views per subject."""
+        return len(self.cameras)
+
+    @property
+    def label(self) -> str:
+        """The manifest's ``views`` setting."""
+        return "fixed"
+
+
+@dataclass(frozen=True)
+class SampledViews:
+    r"""``per_subject`` random views of each subject (:func:`~.scene.sample_views`, framed for its landmarks).
+
+    Args:
+        per_subject: views per subject.
+        size: the image side.
+
+    Raises:
+        ValueCheckError: a count or size that is not positive.
+
+    Examples:
+        >>> SampledViews(2, size=64).label
+        'sample_views(n=2)'
+    """
+
+    per_subject: int = 4
+    size: int = 192
+
+    def __post_init__(self) -> None:
+        check_positive_int(self.per_subject, "views_per_subject")
+        check_positive_int(self.size, "size")
+
+    @property
+    def count(self) -> int:
+        """Views per subject."""
+        return self.per_subject
+
+    @property
+    def label(self) -> str:
+        """The manifest's ``views`` setting."""
+        return f"sample_views(n={self.per_subject})"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Workers:
+    r"""Who renders a cache: processes on this machine, this machine's share, threads.
+
+    Args:
+        processes: render processes on this machine. More than one spawns them (``multiprocessing`` spawn),
+            each with one torch thread and one Dr.Jit thread (faster than one process with as many threads:
+            docs/lightstage.rst, "Measured"); one renders in the calling process with ``threads`` threads.
+        index: this machine's share of the seeds, in ``[0, count)``: every ``count``-th seed from ``index``
+            (:func:`shard`), for machines that share one cache folder.
+        count: machines sharing the work.
+        threads: with one process, torch and Dr.Jit threads (``None``: leave them); processes use 1.
+
+    Raises:
+        ValueCheckError: a count out of its range.
+
+    Examples:
+        >>> Workers(processes=1, index=1, count=2).index
+        1
+    """
+
+    processes: int = 2
+    index: int = 0
+    count: int = 1
+    threads: int | None = 1
+
+    def __post_init__(self) -> None:
+        check_positive_int(self.processes, "processes")
+        check_positive_int(self.count, "count")
+        index = self.index
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < self.count:
+            raise ValueCheckError(f"index must be an int in [0, {self.count}), got {self.index!r}")
+        if self.threads is not None:
+            check_positive_int(self.threads, "threads")
 
 
 def field_path(seed: int, view_index: int) -> str:
@@ -115,8 +242,6 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
         >>> info["shape"], back.field.shape, back.subject_seed
         ([3, 4, 4], torch.Size([3, 4, 4]), 7)
     """
-    from safetensors.torch import save_file
-
     if not isinstance(field, ReflectanceField):
         raise TypeCheckError(f"field must be a ReflectanceField, got {type(field).__name__}")
     compact = field.to_compact()
@@ -136,7 +261,7 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
     }
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda tmp: save_file(tensors, str(tmp), metadata=metadata))
+    atomic_write(path, lambda tmp: safetensors.torch.save_file(tensors, str(tmp), metadata=metadata))
     return {
         "sha256": sha256_file(path),
         "bytes": path.stat().st_size,
@@ -161,8 +286,6 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
     Raises:
         HDRIOError: the file is missing, unreadable or not a field of this format (the message names it).
     """
-    from safetensors import safe_open
-
     path = Path(path)
     try:
         with safe_open(str(path), framework="pt") as fh:
@@ -194,8 +317,6 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
 
 def _mapped_bfloat16(path: Path, name: str) -> torch.Tensor:
     """Tensor ``name`` of a safetensors file, mapped (copy-on-write) rather than read; bfloat16 only."""
-    import numpy as np
-
     with open(path, "rb") as fh:
         length = int.from_bytes(fh.read(8), "little")
         info = json.loads(fh.read(length))[name]
@@ -263,6 +384,8 @@ def _entry_ok(entry: dict[str, Any] | None, out_dir: Path, settings: dict[str, A
     file is intact. Sampled views are checked by their sampler settings (the camera needs the subject)."""
     if entry is None or any(entry.get(k) != v for k, v in settings.items()):
         return False
+    if entry.get("renderer") != settings.get("renderer"):  # explicit renderer settings, or none
+        return False
     if camera is not None and entry.get("camera") != camera.to_dict():
         return False
     return _file_ok(entry, out_dir)
@@ -271,24 +394,11 @@ def _entry_ok(entry: dict[str, Any] | None, out_dir: Path, settings: dict[str, A
 def _resolve_source(source: Any, assets: str | os.PathLike | None = None) -> Any:
     """A subject source from an object with ``name`` and ``sample``, or from its name."""
     if isinstance(source, str):
-        from kornia_ilum.synth.lightstage.subjects import subject_source
-
         return subject_source(source, assets=assets)
     if not (hasattr(source, "sample") and hasattr(source, "name")):
         raise TypeCheckError(f"source must be a SubjectSource (name and sample(seed)) or its name, got "
                              f"{type(source).__name__}")
     return source
-
-
-class _LegacyMannequins:
-    """:func:`~kornia_ilum.synth.lightstage.subjects.make_subject`, looked up at each call (tests replace it)."""
-
-    name = "mannequin"
-
-    def sample(self, seed: int) -> Any:
-        from kornia_ilum.synth.lightstage import subjects
-
-        return subjects.make_subject(seed)
 
 
 def _params_summary(params: dict[str, Any]) -> dict[str, Any]:
@@ -304,8 +414,7 @@ def _params_summary(params: dict[str, Any]) -> dict[str, Any]:
 
 def _peak_rss_mb() -> float:
     """This process's peak resident set size, MB (Linux and macOS)."""
-    import resource
-    import sys
+    import resource  # lazy: a Unix-only module, needed for the manifest's memory figure only
 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return round(peak / (1e6 if sys.platform == "darwin" else 1e3), 1)
@@ -317,10 +426,6 @@ def _render_subjects(job: dict[str, Any], report: Any) -> None:
     Each subject is built once and all its views rendered in this process; ``report(kind, payload)`` is told
     of every finished view (``"view"``, the entry).
     """
-    import dataclasses as dc
-
-    from kornia_ilum.synth.lightstage.scene import sample_views
-
     out_dir = Path(job["out_dir"])
     if job["threads"] is not None:
         torch.set_num_threads(job["threads"])
@@ -331,13 +436,14 @@ def _render_subjects(job: dict[str, Any], report: Any) -> None:
         t0 = time.perf_counter()
         subject = source.sample(seed)
         subject_seconds = time.perf_counter() - t0
-        if job["views"] is None:
-            cameras = sample_views(seed, job["views_per_subject"], job["size"], landmarks=subject.face_landmarks)
+        views = job["views"]
+        if isinstance(views, SampledViews):
+            cameras = sample_views(seed, views.per_subject, views.size, landmarks=subject.face_landmarks)
         else:
-            cameras = [dc.replace(v, size=job["size"]) for v in job["views"]]
+            cameras = list(views.cameras)
         for view in view_indices:
-            rf = render_olat(subject, cameras[view], lighting_size=job["lighting_size"], spp=job["spp"],
-                             variant=job["variant"], threads=job["threads"])
+            rf = render_olat(subject, cameras[view], settings=job["renderer"], variant=job["variant"],
+                             threads=job["threads"])
             rf.meta["source"] = getattr(source, "name", None)
             rel = field_path(seed, view)
             info = write_field(out_dir / rel, rf)
@@ -369,8 +475,6 @@ def _render_subjects(job: dict[str, Any], report: Any) -> None:
 
 def _worker_process(job: dict[str, Any], queue: Any) -> None:
     """A spawned worker: one torch and one Dr.Jit thread, reporting to the parent through ``queue``."""
-    import traceback
-
     torch.set_num_threads(1)
     try:
         _render_subjects(job, lambda kind, payload: queue.put((kind, payload)))
@@ -397,8 +501,6 @@ class _ViewProgress:
             self._show()
 
     def _show(self) -> None:
-        import sys
-
         elapsed = time.perf_counter() - self.t0
         text = f"\rsubject-views: {self.done}/{self.total} ({100 * self.done // self.total} %)"
         if self.done:
@@ -416,63 +518,51 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def _is_legacy_call(source: Any, out_dir: Any) -> bool:
-    """``build_cache(out_dir, seeds[, views])``, the v1 call: a folder first, the cameras (or nothing) third."""
-    if not isinstance(source, (str, os.PathLike)):
-        return False
-    if out_dir is None:
-        return not (isinstance(source, str) and source in ("mannequin", "makehuman"))
-    return not isinstance(out_dir, (str, os.PathLike))
+def _cache_settings(source: Any, renderer: OnePass | Reference | Auto, views: FixedViews | SampledViews
+                    ) -> dict[str, Any]:
+    """The settings that a manifest entry must match to be reused (module docstring)."""
+    settings = {"source": getattr(source, "name", None), "spp_requested": renderer.spp,
+                "lighting_size": renderer.lighting_size, "views": views.label, "size": views.size}
+    if not (isinstance(renderer, Auto) and renderer.seed == 0):  # what the keys above do not pin down
+        settings["renderer"] = renderer.to_dict()
+    return settings
 
 
 def build_cache(
-    source: Any = "mannequin",
-    seeds: Iterable[int] = (),
-    out_dir: str | os.PathLike | Sequence[Camera] | None = None,
+    source: Any,
+    seeds: Iterable[int],
+    out_dir: str | os.PathLike,
     *,
-    views: Sequence[Camera] | None = None,
-    views_per_subject: int = 4,
-    size: int = 192,
-    spp: int | None = None,
-    lighting_size: int = 32,
-    workers: int = 2,
-    worker_index: int = 0,
-    worker_count: int = 1,
+    renderer: OnePass | Reference | Auto | None = None,
+    views: FixedViews | SampledViews | None = None,
+    workers: Workers | None = None,
     variant: str | None = None,
-    threads: int | None = 1,
     progress: bool = True,
     summary: bool = False,
 ) -> dict[str, Any]:
     r"""Render and cache the reflectance fields of subjects x views; resumable, sharded, in worker processes.
 
     Every subject is built once (``source.sample(seed)``) and all its views are rendered in the same process.
-    Views: ``views_per_subject`` random views per subject (:func:`~.scene.sample_views`, framed for the
-    subject's own landmarks), or the fixed cameras ``views``. The subjects that this machine renders (every
-    ``worker_count``-th seed from ``worker_index``, :func:`shard`) and that still lack a view (not in the
-    manifest, intact, with the same settings) are dealt round robin to ``workers`` processes; process ``j``
-    writes each field (:func:`write_field`) and records it in its manifest
-    ``manifest.w<worker_index * workers + j>of<worker_count * workers>.json`` right away, and finally all the
-    manifests are merged into ``manifest.json``. So rerunning resumes, and machines can share one folder.
-
-    ``workers > 1`` spawns that many processes (``multiprocessing`` spawn), each with one torch thread and one
-    Dr.Jit thread: two one-thread processes render 1.15 to 1.7 times as fast as one two-thread process.
-    ``workers = 1`` renders in this process with ``threads`` threads.
+    The subjects that this machine renders (its share of the seeds, :class:`Workers`) and that still lack a
+    view (not in the manifest, intact, with the same settings) are dealt round robin to the worker
+    processes; process ``j`` writes each field (:func:`write_field`) and records it in its manifest
+    ``manifest.w<index * processes + j>of<count * processes>.json`` right away, and finally all the manifests
+    are merged into ``manifest.json``. So rerunning resumes, and machines can share one folder.
 
     Args:
         source: a :class:`~kornia_ilum.synth.lightstage.subjects.SubjectSource` or its name (``"mannequin"``,
             ``"makehuman"``); it is pickled to the worker processes.
         seeds: subject seeds.
         out_dir: the cache folder (created).
-        views: fixed cameras (view index = position); ``None``: random views.
-        views_per_subject: random views per subject.
-        size: image side; replaces each view's ``size``.
-        spp: camera samples per pixel (:func:`~.olat.render_olat`); ``None``: the renderer's default.
-        lighting_size: the mirror-ball side ``S`` of the lighting basis.
-        workers: render processes on this machine.
-        worker_index: this machine's share, in ``[0, worker_count)``.
-        worker_count: machines sharing the work.
+        renderer: the renderer's settings (:mod:`~kornia_ilum.synth.lightstage.settings`, as for
+            :func:`~.olat.render_olat`); ``None``: ``Auto()``, the one-pass renderer at its defaults where the
+            Mitsuba variant is vectorised.
+        views: :class:`SampledViews` (random views per subject, framed for its own landmarks) or
+            :class:`FixedViews` (the same cameras for every subject), with the image side; ``None``:
+            ``SampledViews()``, 4 views at 192 x 192.
+        workers: processes, this machine's share and threads (:class:`Workers`); ``None``: ``Workers()``, two
+            one-thread processes rendering every seed.
         variant: the Mitsuba variant (:func:`~.materials.select_mitsuba_variant`).
-        threads: with ``workers = 1``, torch and Dr.Jit threads (``None``: leave them); processes use 1.
         progress: a progress bar of subject-views with an ETA on stderr.
         summary: print a summary at the end (entries, wall time, disk bytes, render seconds, peak memory).
 
@@ -483,58 +573,47 @@ def build_cache(
     Raises:
         TypeCheckError, ValueCheckError: bad arguments. IlumError: a worker process failed (with its error).
 
-    Note:
-        The call ``build_cache(out_dir, seeds, views, ...)`` of format v1 still works: a path first and the
-        cameras third means the mannequins, those views, and ``workers = 1``.
-
     Examples:
         >>> shard([1, 2, 3, 4, 5], 0, 2)  # the subjects that machine 0 of 2 renders
         [1, 3, 5]
     """
-    if _is_legacy_call(source, out_dir):
-        source, out_dir, views = _LegacyMannequins(), source, DEFAULT_VIEWS if out_dir is None else out_dir
-        workers = 1
-    if out_dir is None:
-        raise ValueCheckError("out_dir is required")
+    renderer = Auto() if renderer is None else renderer
+    views = SampledViews() if views is None else views
+    workers = Workers() if workers is None else workers
+    if not isinstance(renderer, (OnePass, Reference, Auto)):
+        raise TypeCheckError(f"renderer must be OnePass, Reference or Auto, got {type(renderer).__name__}")
+    if not isinstance(views, (FixedViews, SampledViews)):
+        raise TypeCheckError(f"views must be FixedViews or SampledViews, got {type(views).__name__}")
+    if not isinstance(workers, Workers):
+        raise TypeCheckError(f"workers must be Workers, got {type(workers).__name__}")
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise TypeCheckError(f"out_dir must be a folder path, got {type(out_dir).__name__}")
     source = _resolve_source(source)
     out_dir = Path(out_dir)
-    if views is not None:
-        views = tuple(views)
-        if not views or not all(isinstance(v, Camera) for v in views):
-            raise TypeCheckError("views must be a non-empty sequence of Camera")
-    check_positive_int(size, "size")
-    if spp is not None:
-        check_positive_int(spp, "spp")
-    check_positive_int(lighting_size, "lighting_size")
-    check_positive_int(views_per_subject, "views_per_subject")
-    check_positive_int(workers, "workers")
     seeds = list(dict.fromkeys(int(s) for s in seeds))
-    mine = shard(seeds, worker_index, worker_count)
-    n_views = len(views) if views is not None else views_per_subject
-    cameras = None if views is None else [dataclasses.replace(v, size=size) for v in views]
-    sampler = "fixed" if views is not None else f"sample_views(n={views_per_subject})"
-    settings = {"source": getattr(source, "name", None), "spp_requested": spp, "lighting_size": lighting_size,
-                "views": sampler, "size": size}
+    mine = shard(seeds, workers.index, workers.count)
+    cameras = views.cameras if isinstance(views, FixedViews) else None
+    settings = _cache_settings(source, renderer, views)
 
     t0 = time.perf_counter()
     known = {(e["subject_seed"], e["view_index"]): e for e in read_manifest(out_dir)["entries"]}
     todo = []
     for seed in mine:
-        left = [v for v in range(n_views)
+        left = [v for v in range(views.count)
                 if not _entry_ok(known.get((seed, v)), out_dir, settings, None if cameras is None else cameras[v])]
         if left:
             todo.append((seed, left))
     total = sum(len(v) for _, v in todo)
     bar = _ViewProgress(total, progress)
-    procs = min(workers, len(todo)) if todo else 0
+    procs = min(workers.processes, len(todo)) if todo else 0
     jobs = [{
-        "source": source, "out_dir": str(out_dir), "todo": todo[j::max(procs, 1)], "views": cameras,
-        "views_per_subject": views_per_subject, "size": size, "spp": spp, "lighting_size": lighting_size,
-        "variant": variant, "threads": threads if procs <= 1 else 1, "settings": settings,
-        "manifest": _manifest_name(worker_index * max(workers, 1) + j, worker_count * max(workers, 1)),
+        "source": source, "out_dir": str(out_dir), "todo": todo[j::max(procs, 1)], "views": views,
+        "renderer": renderer, "variant": variant, "threads": workers.threads if procs <= 1 else 1,
+        "settings": settings,
+        "manifest": _manifest_name(workers.index * workers.processes + j, workers.count * workers.processes),
     } for j in range(procs)]
     out_dir.mkdir(parents=True, exist_ok=True)
-    if procs == 1 and workers == 1:
+    if procs == 1 and workers.processes == 1:
         _render_subjects(jobs[0], lambda kind, payload: bar.update())
     elif procs:
         _run_processes(jobs, bar)
@@ -550,11 +629,6 @@ def build_cache(
 
 def _run_processes(jobs: list[dict[str, Any]], bar: _ViewProgress) -> None:
     """Run each job in a spawned process; forward their progress; raise the first failure."""
-    import multiprocessing as mp
-    import queue as queue_module
-
-    from kornia_ilum.core.errors import IlumError
-
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     procs = [ctx.Process(target=_worker_process, args=(job, queue), daemon=True) for job in jobs]
@@ -591,8 +665,6 @@ def _run_processes(jobs: list[dict[str, Any]], bar: _ViewProgress) -> None:
 
 def cache_summary(manifest: dict[str, Any]) -> str:
     """One paragraph about a cache: entries, subjects, eval share, disk bytes, render seconds, peak memory."""
-    import statistics
-
     entries = manifest["entries"]
     subjects = {e["subject_seed"] for e in entries}
     evals = {e["subject_seed"] for e in entries if e.get("split") == "eval"}

@@ -17,7 +17,7 @@ the tap offset in taps, ``a`` the albedo, ``n`` the renormalised normal and ``z`
 pixels (``alpha > 0``) take part, and the weights of each output pixel are normalised to sum to 1 (gather
 normalisation), so a constant stays constant.
 
-**Demodulation.** The field is premultiplied by ``alpha`` (as :class:`~kornia_ilum.synth.lightstage.olat.
+**Demodulation.** The field is premultiplied by ``alpha`` (as :class:`~kornia_ilum.synth.lightstage.field.
 ReflectanceField`) and the albedo is the mean over the pixel's hits: each value is divided by
 ``m = max(albedo * alpha, eps)`` before filtering and multiplied by the output pixel's ``m`` after, so the
 filter averages irradiance and the albedo texture (and the matte's edge) stay sharp. The specular part of a

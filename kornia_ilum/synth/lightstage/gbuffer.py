@@ -21,8 +21,8 @@ class GBuffer:
 
     Attributes:
         albedo: ``(3, H, W)`` float32 linear diffuse albedo (0 where nothing is hit).
-        normal: ``(3, H, W)`` float32 shading normal in the camera frame of SPEC.md (+Z toward the camera),
-            the mean over the pixel's hits (not renormalised; 0 where nothing is hit).
+        normal: ``(3, H, W)`` float32 shading normal in the camera frame of docs/conventions.rst ("Frames":
+            +Z toward the camera), the mean over the pixel's hits (not renormalised; 0 where nothing is hit).
         depth: ``(1, H, W)`` float32 mean distance along the camera's -Z axis in metres (0 where nothing is hit).
         alpha: ``(1, H, W)`` float32 coverage in ``[0, 1]``.
         subsurface: ``(1, H, W)`` float32 fraction of the pixel's samples that hit a part whose material has

@@ -7,8 +7,8 @@ the previews shade a :class:`~kornia_ilum.synth.lightstage.subjects.Material` wi
 Variants: Mitsuba 3 is an optional extra (``pip install kornia_ilum[lightstage]``); :func:`select_mitsuba_variant`
 takes ``llvm_ad_rgb`` (vectorised, JIT-compiled; needed by the one-pass renderer) when it works on this machine,
 else ``scalar_rgb``. ``constraints.txt`` pins Mitsuba 3.9.0 with Dr.Jit 1.4.0: Dr.Jit 1.5 emits LLVM
-intrinsics that the system LLVM 15 of Debian 12 cannot compile, and the probe would then fall back to the 7 x
-slower scalar variant.
+intrinsics that the system LLVM 15 of Debian 12 cannot compile, and the probe would then fall back to the
+much slower scalar variant (docs/lightstage.rst, "Measured").
 
 Materials (:func:`material_bsdf`): ``diffuse`` is Lambertian; ``skin``, ``glossy`` and ``hair`` are Mitsuba's
 ``principled`` BSDF (Disney, Burley 2012) with a GGX specular lobe of ``alpha = roughness`` and the material's
@@ -45,8 +45,19 @@ from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 if TYPE_CHECKING:  # the subjects module is only needed for the annotation
     from kornia_ilum.synth.lightstage.subjects import Material
 
-__all__ = ["MATERIAL_KINDS", "MITSUBA_VARIANTS", "VARIANT_ENV", "diffuse_twin_bsdf", "material_bsdf",
-           "select_mitsuba_variant"]
+__all__ = [
+    "MATERIAL_KINDS",
+    "MITSUBA_VARIANTS",
+    "VARIANT_ENV",
+    "bitmap_texture",
+    "check_subject",
+    "diffuse_twin_bsdf",
+    "fresnel_ior",
+    "import_mitsuba",
+    "material_bsdf",
+    "mitsuba_mesh",
+    "select_mitsuba_variant",
+]
 
 #: Mitsuba variants tried in order by :func:`select_mitsuba_variant` when none is named.
 MITSUBA_VARIANTS: tuple[str, ...] = ("llvm_ad_rgb", "scalar_rgb")
@@ -60,9 +71,14 @@ _CORNEA_MIRROR_PROBABILITY = 0.3  # how often a camera path picks the cornea's m
 
 
 
-def _import_mitsuba() -> Any:
+def import_mitsuba() -> Any:
+    """The ``mitsuba`` module, or an :class:`ImportError` that names the optional extra to install.
+
+    Raises:
+        ImportError: Mitsuba 3 is not installed.
+    """
     try:
-        import mitsuba as mi
+        import mitsuba as mi  # lazy: keeps import kornia_ilum.synth.lightstage free of Mitsuba
     except ImportError as exc:  # pragma: no cover - depends on the optional extra
         raise ImportError(
             "render_olat needs Mitsuba 3: pip install 'kornia_ilum[lightstage]' (or pip install 'mitsuba>=3.5')"
@@ -89,7 +105,7 @@ def _variant_works(variant: str) -> bool:
     A child, because a JIT variant can abort the whole process (not raise) when its LLVM is unusable: Debian
     12's LLVM 15 cannot compile Dr.Jit 1.x's kernels (``LLVM ERROR: Cannot select: fminimum``).
     """
-    mi = _import_mitsuba()
+    mi = import_mitsuba()
     if variant not in mi.variants():
         return False
     if variant.startswith("scalar"):
@@ -124,7 +140,7 @@ def select_mitsuba_variant(variant: str | None = None) -> str:
         >>> select_mitsuba_variant("scalar_rgb")
         'scalar_rgb'
     """
-    mi = _import_mitsuba()
+    mi = import_mitsuba()
     if variant is None:
         variant = os.environ.get(VARIANT_ENV) or None
     if variant is None:
@@ -144,8 +160,13 @@ def _rgb(value: tuple[float, float, float], name: str) -> dict[str, Any]:
     return {"type": "rgb", "value": rgb}
 
 
-def _fresnel_ior(f0: float) -> float:
-    """The IOR whose normal-incidence Fresnel reflectance is ``f0``."""
+def fresnel_ior(f0: float) -> float:
+    """The IOR whose normal-incidence Fresnel reflectance is ``f0``.
+
+    Examples:
+        >>> round(fresnel_ior(0.04), 3)
+        1.5
+    """
     return (1.0 + math.sqrt(f0)) / (1.0 - math.sqrt(f0))
 
 
@@ -179,7 +200,7 @@ def material_bsdf(material: Material) -> dict[str, Any]:
                 # straight through with 1 - F(theta) (a null interface for shadow rays); its own reflection is
                 # zeroed, the mirror lobe below carries it
                 "type": "thindielectric",
-                "int_ior": _fresnel_ior(r_slab),
+                "int_ior": fresnel_ior(r_slab),
                 "ext_ior": 1.0,
                 "specular_reflectance": {"type": "uniform", "value": 0.0},
                 "specular_transmittance": {"type": "uniform", "value": 1.0 / (1.0 - w)},
@@ -188,7 +209,7 @@ def material_bsdf(material: Material) -> dict[str, Any]:
                 # k = 0: the Fresnel reflectance F(theta) of a dielectric of IOR eta. One-sided: it reflects only
                 # on the outer side, so the back of a closed lens (seen from inside it) adds no second glint
                 "type": "conductor",
-                "eta": _fresnel_ior(f0),
+                "eta": fresnel_ior(f0),
                 "k": 0.0,
                 "specular_reflectance": {"type": "uniform", "value": 1.0 / w},
             },
@@ -196,10 +217,11 @@ def material_bsdf(material: Material) -> dict[str, Any]:
     albedo = _rgb(getattr(material, "albedo", None), "material.albedo")
     tex = getattr(material, "albedo_texture", None)
     if tex is not None:
-        albedo = _bitmap(np.clip(np.asarray(tex, dtype=np.float32), 0.0, 1.0))
+        albedo = bitmap_texture(np.clip(np.asarray(tex, dtype=np.float32), 0.0, 1.0))
     rough_tex = getattr(material, "roughness_texture", None)
     if rough_tex is not None:
-        roughness: Any = _bitmap(np.sqrt(np.clip(alpha * np.asarray(rough_tex, dtype=np.float32), 1e-4, 1.0)))
+        rough = np.sqrt(np.clip(alpha * np.asarray(rough_tex, dtype=np.float32), 1e-4, 1.0))
+        roughness: Any = bitmap_texture(rough)
     else:
         roughness = math.sqrt(max(alpha, 1e-4))
     if kind == "diffuse":
@@ -215,9 +237,13 @@ def material_bsdf(material: Material) -> dict[str, Any]:
     return {"type": "twosided", "bsdf": inner}
 
 
-def _bitmap(data: np.ndarray) -> dict[str, Any]:
-    """A linear (raw) bitmap texture, nearest texel; row 0 of ``data`` is the top of the image."""
-    mi = _import_mitsuba()
+def bitmap_texture(data: np.ndarray) -> dict[str, Any]:
+    """A linear (raw) Mitsuba bitmap texture dict, nearest texel; row 0 of ``data`` is the top of the image.
+
+    Args:
+        data: ``(H, W)`` or ``(H, W, C)`` texel values.
+    """
+    mi = import_mitsuba()
     arr = np.ascontiguousarray(data if data.ndim == 3 else data[..., None], dtype=np.float32)
     return {"type": "bitmap", "bitmap": mi.Bitmap(arr), "raw": True, "filter_type": "nearest"}
 
@@ -239,9 +265,13 @@ def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
     return bsdf
 
 
-def _mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
+def mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
                   bsdf: dict[str, Any], uvs: np.ndarray | None = None) -> Any:
-    """A Mitsuba mesh; ``uvs`` (OBJ convention, ``v`` up) are stored as ``(u, 1 - v)``: image row 0 at ``v = 1``."""
+    """A Mitsuba mesh with the BSDF dict ``bsdf``, for the renderers and the previews.
+
+    ``uvs`` (OBJ convention, ``v`` up) are stored as ``(u, 1 - v)``: image row 0 at ``v = 1``. Without
+    ``normals``, Mitsuba computes smooth (area-weighted) vertex normals.
+    """
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     mesh = mi.Mesh(name, vertex_count=len(vertices), face_count=len(faces), has_vertex_normals=True,
@@ -259,7 +289,12 @@ def _mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, n
     return mesh
 
 
-def _check_subject(subject: Any) -> None:
+def check_subject(subject: Any) -> None:
+    """Check a subject's ``parts`` (meshes) and ``face_landmarks`` before any rendering.
+
+    Raises:
+        ShapeError, TypeCheckError, ValueCheckError: a malformed part (vertices, faces, normals) or landmarks.
+    """
     parts = getattr(subject, "parts", None)
     if not isinstance(parts, (list, tuple)) or not parts:
         raise ValueCheckError("subject.parts must be a non-empty list of MeshPart")

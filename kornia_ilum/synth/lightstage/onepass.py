@@ -1,8 +1,8 @@
 r"""The one-pass OLAT renderer: every light of the mirror-ball basis traced in one vectorised pass.
 
 :func:`render_olat_onepass` computes the same reflectance field as the per-light reference of
-:mod:`~kornia_ilum.synth.lightstage.olat` (direct light, the same Mitsuba BSDFs), but instead of one
-``mitsuba.render`` per light (812 renders at ``S = 32``, each with 40-70 ms of fixed overhead) it traces, with
+:mod:`~kornia_ilum.synth.lightstage.reference` (direct light, the same Mitsuba BSDFs), but instead of one
+``mitsuba.render`` per light (812 renders at ``S = 32``, each with its fixed overhead) it traces, with
 Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
 
 1. **Camera rays** (pinhole at the origin looking along -Z, horizontal ``fov_deg``), ``C = spp`` per pixel on a
@@ -26,12 +26,12 @@ Dr.Jit's vectorised ``llvm_ad_rgb`` variant:
    equal-area: ``dOmega = 4 du dv``) inside the region that light ``n`` owns, stratified over the ``T_g``
    traced hits of the group. The region is tabulated once per ``S`` as ``8 x 8`` sub-cells per pixel, each
    owned through :func:`~kornia_ilum.geometry.mirror_ball_pixel_index` of its centre (so the rim slivers
-   belong to their nearest valid pixel, SPEC.md); samples with ``r > 1`` count 0. A shadow ray (opaque parts;
-   the cornea is transparent to it; alpha-tested parts are tested texel by texel, :data:`MAX_LAYERS` times)
-   and the part's Mitsuba BSDF (``bsdf.eval``, which includes the cosine) give the sample ``f cos V * 4 A_n``
-   with ``A_n`` the ``(u, v)`` area of the light's region. The diffuse part is the same BSDF with
-   ``specular = 0`` (Mitsuba's ``principled`` is linear in ``specular``; a ``diffuse`` part is all diffuse),
-   the specular part the rest.
+   belong to their nearest valid pixel, docs/conventions.rst "Mirror ball"); samples with ``r > 1`` count 0. A
+   shadow ray (opaque parts; the cornea is transparent to it; alpha-tested parts are tested texel by texel,
+   :data:`MAX_LAYERS` times) and the part's Mitsuba BSDF (``bsdf.eval``, which includes the cosine) give the
+   sample ``f cos V * 4 A_n`` with ``A_n`` the ``(u, v)`` area of the light's region. The diffuse part is the
+   same BSDF with ``specular = 0`` (Mitsuba's ``principled`` is linear in ``specular``; a ``diffuse`` part is
+   all diffuse), the specular part the rest.
 4. **Demodulation** (a ratio estimator per pixel and group): the traced hits measure the group's
    *irradiance factor* ``sum_i f_diffuse,i / sum_i albedo_i`` (albedo-free), the ``C`` samples its
    throughput-weighted albedo ``A_g`` and coverage ``alpha_g``: diffuse ``= A_g sum_i f_d,i / sum_i a_i``,
@@ -48,9 +48,10 @@ the loaded 2-core machine; PSNR of relit 8-bit sRGB portraits against the mean o
 samples that all trace every light, which agree with each other to 41.3 dB (sun) / 40.1 dB (overcast) and
 with a 256-spp ``render_lighting`` Mitsuba render to 38.9 / 38.2 dB, that render's own noise):
 ``C:T:edge`` = 4:4 (the old default) 30.8 / 30.7 dB; 16:4:4 33.5 / 34.5; 16:4:16 35.4 / 36.6; 32:4:8
-36.6 / 37.3; 32:4:16 (the default) 37.5 / 38.7 dB (seed 2 view 1: 4:4 30.1 / 31.1, 32:4:16 39.0 / 40.9) at about 13 s per subject-view including the
-subject build and the subsurface pass (lights 8.2 s, camera 1.1 s). The remaining error sits on silhouettes
-(partly covered pixels: 4 % of the pixels, about 30 dB there) and hair.
+36.6 / 37.3; 32:4:16 (the default) 37.5 / 38.7 dB (seed 2 view 1: 4:4 30.1 / 31.1, 32:4:16 39.0 / 40.9). The
+light stage dominates the cost, the camera rays are a small part of it (times in docs/lightstage.rst,
+"Measured"). The remaining error sits on silhouettes (partly covered pixels: 4 % of the pixels, about 30 dB
+there) and hair.
 
 Cost. All ``C x P`` camera rays are traced as one batch (one kernel per layer). The light stage is chunked
 over traced hits (``chunk_lanes`` light-hit pairs; same IR every chunk): a first kernel draws the directions and
@@ -59,8 +60,12 @@ for the shadow rays; shadow rays that passed a transparent texel of an alpha-tes
 (compacted again), and only the visible lanes pay for the BSDF evaluations, scatter-added into the
 ``(pixel, light)`` accumulators. Every numpy array handed to Dr.Jit is copied to 64-byte aligned memory
 first: Dr.Jit maps numpy memory and bakes the load alignment into the kernel, so randomly aligned inputs made
-kernels differ between calls and recompile (0.5 to 5 s per render). The first render of a process compiles
-the kernels (about 10 s, less when Dr.Jit's disk cache has them).
+kernels differ between calls and recompile at every render. The first render of a process compiles the
+kernels (less when Dr.Jit's disk cache has them).
+
+The stages of :func:`render_olat_onepass`: the scenes and the light table, the camera rays (step 1,
+``_trace_camera``), the trace plan (steps 2 and 4, ``_trace_plan``), the lights (step 3, ``_trace_lights``:
+per chunk ``_draw_directions``, then ``_accumulate_visible``), then the glints and the G-buffer.
 """
 
 from __future__ import annotations
@@ -74,10 +79,18 @@ from typing import Any
 import numpy as np
 import torch
 
-from kornia_ilum.core.errors import ValueCheckError
-from kornia_ilum.geometry import mirror_ball_pixel_index, mirror_ball_valid
+from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
+from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_pixel_index, mirror_ball_valid
 from kornia_ilum.synth.lightstage.gbuffer import GBuffer
+from kornia_ilum.synth.lightstage.materials import (
+    diffuse_twin_bsdf,
+    fresnel_ior,
+    import_mitsuba,
+    material_bsdf,
+    mitsuba_mesh,
+)
 from kornia_ilum.synth.lightstage.scene import Camera
+from kornia_ilum.synth.lightstage.settings import OnePass, is_vectorised
 
 __all__ = ["EDGE_NORMAL_SPREAD", "MAX_LAYERS", "OnePassResult", "light_cells", "render_olat_onepass"]
 
@@ -89,7 +102,6 @@ MAX_LAYERS = 6
 EDGE_NORMAL_SPREAD = 0.01
 
 _CELLS = 8  # sub-cells per mirror-ball pixel axis for the light regions
-_DEFAULT_LANES = 1 << 21  # light-hit pairs per kernel launch (about 100 MB of outputs)
 
 
 @dataclass
@@ -218,8 +230,6 @@ class _Scenes:
     """The camera scene (all parts, their BSDFs), the opaque shadow scene and the alpha-tested one."""
 
     def __init__(self, mi: Any, dr: Any, subject: Any, transform: np.ndarray) -> None:
-        from kornia_ilum.synth.lightstage.materials import _mitsuba_mesh, diffuse_twin_bsdf, material_bsdf
-
         self.mi, self.dr = mi, dr
         cam_objs: dict[str, Any] = {}
         shadow_objs: dict[str, Any] = {}
@@ -242,16 +252,16 @@ class _Scenes:
             alpha_tested = otex is not None and uvs is not None
             name = f"part{i:03d}"
             bsdf = material_bsdf(mat) if kind != "cornea" else dummy
-            mesh = _mitsuba_mesh(mi, name, v, f, normals, bsdf, uvs=uvs)
+            mesh = mitsuba_mesh(mi, name, v, f, normals, bsdf, uvs=uvs)
             cam_objs[name] = mesh
             cam_ids.append(mesh)
             if alpha_tested:
-                amesh = _mitsuba_mesh(mi, name, v, f, None, dummy, uvs=uvs)
+                amesh = mitsuba_mesh(mi, name, v, f, None, dummy, uvs=uvs)
                 alpha_objs[name] = amesh
                 alpha_ids.append((i, amesh))
                 opacity[i] = _opacity_texture(mi, dr, otex)
             elif kind != "cornea":
-                shadow_objs[name] = _mitsuba_mesh(mi, name, v, f, None, dummy)
+                shadow_objs[name] = mitsuba_mesh(mi, name, v, f, None, dummy)
             full.append(mesh.bsdf())
             twin.append(mi.load_dict(diffuse_twin_bsdf(mat)) if kind != "cornea" else mesh.bsdf())
             self.parts.append(_Part(i, kind, alpha_tested, bool(getattr(mat, "subsurface", False))))
@@ -281,10 +291,8 @@ class _Scenes:
         self.cornea_params = {}
         for i, part in enumerate(subject.parts):
             if part.material.kind == "cornea":
-                from kornia_ilum.synth.lightstage.materials import _fresnel_ior
-
                 f0 = 0.08 * max(float(getattr(part.material, "specular", 0.5)), 1e-3)
-                self.cornea_params[i] = (_fresnel_ior(f0), _fresnel_ior(f0 / (2.0 - f0)))
+                self.cornea_params[i] = (fresnel_ior(f0), fresnel_ior(f0 / (2.0 - f0)))
         eta_m = np.ones(len(self.parts), np.float32)
         eta_s = np.ones(len(self.parts), np.float32)
         for i, (m, s) in self.cornea_params.items():
@@ -391,8 +399,6 @@ def _strata_rank(spp: int) -> np.ndarray:
 
 
 def _dir_to_light(dirs: np.ndarray, lighting_size: int) -> np.ndarray:
-    from kornia_ilum.geometry import direction_to_mirror_ball
-
     uv = direction_to_mirror_ball(torch.from_numpy(dirs.astype(np.float64)))
     return mirror_ball_pixel_index(uv, lighting_size).numpy()
 
@@ -401,14 +407,8 @@ def render_olat_onepass(
     subject: Any,
     camera: Camera,
     transform: np.ndarray,
+    settings: OnePass,
     *,
-    lighting_size: int = 32,
-    spp: int = 4,
-    shade_spp: int | None = None,
-    edge_spp: int | None = None,
-    demodulate: bool | None = None,
-    seed: int = 0,
-    chunk_lanes: int = _DEFAULT_LANES,
     callback: Any = None,
 ) -> OnePassResult:
     r"""Trace every light of the basis at once (module docstring). Mitsuba's ``llvm_ad_rgb`` must be active.
@@ -417,63 +417,113 @@ def render_olat_onepass(
         subject: the subject (validated by the caller).
         camera: the camera.
         transform: subject-to-camera transform (:func:`~kornia_ilum.synth.lightstage.scene.camera_transform`).
-        lighting_size: the mirror-ball side ``S``.
-        spp: camera samples per pixel ``C`` (coverage, albedo, G-buffer, glints).
-        shade_spp: ``T``, the camera samples per pixel that trace every light in plain pixels (module
-            docstring, step 2); default ``spp`` (all of them).
-        edge_spp: with demodulation, the traced samples of mixed pixels (partly covered, more than one part, or
-            normals spread by more than :data:`EDGE_NORMAL_SPREAD`); default ``shade_spp``.
-        demodulate: re-modulate the traced samples' shading by the ``C`` samples' coverage and albedo (module
-            docstring, step 4); default ``shade_spp < spp``. Without it every hit is traced (``shade_spp`` must
-            be ``spp``).
-        seed: the random seed (camera jitter and light samples).
-        chunk_lanes: light-hit pairs per kernel.
+        settings: the :class:`~kornia_ilum.synth.lightstage.settings.OnePass` settings: the mirror-ball side
+            ``S``, the camera samples ``C = spp`` (coverage, albedo, G-buffer, glints), ``T = shade_spp`` that
+            trace every light in plain pixels (module docstring, step 2), ``edge_spp`` in mixed pixels (partly
+            covered, more than one part, or normals spread by more than :data:`EDGE_NORMAL_SPREAD`),
+            ``demodulate`` (module docstring, step 4), the seed (camera jitter and light samples) and
+            ``chunk_lanes`` (light-hit pairs per kernel). Its post-processing settings are the caller's.
         callback: called with a fraction of the work done (floats summing to 1), for progress bars.
 
     Returns:
         the :class:`OnePassResult`.
-    """
-    import drjit as dr
-    import mitsuba as mi
 
-    if not mi.variant() or not mi.variant().startswith(("llvm", "cuda")):
+    Raises:
+        TypeCheckError: ``settings`` is not :class:`~kornia_ilum.synth.lightstage.settings.OnePass`.
+        ValueCheckError: the active Mitsuba variant is not vectorised.
+    """
+    import drjit as dr  # lazy: Dr.Jit comes with Mitsuba, an optional extra
+
+    mi = import_mitsuba()
+    if not isinstance(settings, OnePass):
+        raise TypeCheckError(f"settings must be OnePass settings, got {type(settings).__name__}")
+    if not mi.variant() or not is_vectorised(mi.variant()):
         raise ValueCheckError(f"the one-pass renderer needs a vectorised Mitsuba variant, got {mi.variant()}")
-    shade_spp = spp if shade_spp is None else int(shade_spp)
-    if not 1 <= shade_spp <= spp:
-        raise ValueCheckError(f"shade_spp must be in [1, spp = {spp}], got {shade_spp}")
-    demodulate = shade_spp < spp if demodulate is None else bool(demodulate)
-    edge_spp = shade_spp if edge_spp is None else int(edge_spp)
-    if not 1 <= edge_spp <= spp:
-        raise ValueCheckError(f"edge_spp must be in [1, spp = {spp}], got {edge_spp}")
-    if not demodulate and shade_spp != spp:
-        raise ValueCheckError("without demodulation every camera sample traces the lights (shade_spp = spp)")
+    spp = settings.spp
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     sc = _Scenes(mi, dr, subject, transform)
+    table = _light_table(mi, settings.lighting_size)
+    timings["scene"] = time.perf_counter() - t0
+
+    rng = np.random.default_rng(settings.seed)
+    dirs = _camera_dirs(camera, spp, rng)
+    t1 = time.perf_counter()
+    cam = _trace_camera(mi, dr, sc, dirs, camera.size * camera.size)
+    plan = _trace_plan(cam.layers, cam.row_of, cam.n_rows, cam.p_count, spp, settings.shade_spp,
+                       settings.edge_spp, settings.demodulate, len(sc.parts), rng)
+    timings["camera"] = time.perf_counter() - t1
+    traced = len(plan[0]) / max(cam.n_rows, 1)
+
+    t2 = time.perf_counter()
+    diffuse, specular = _trace_lights(mi, dr, sc, table, plan, cam.n_rows, settings, callback)
+    timings["lights"] = time.perf_counter() - t2
+
+    rows_all, diffuse, specular = _add_glints(cam, table.valid, diffuse, specular, settings.lighting_size,
+                                              spp)
+    gbuf = _gbuffer(cam, camera, spp)
+    timings["total"] = time.perf_counter() - t0
+    return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(table.valid), gbuf,
+                         {k: round(v, 3) for k, v in timings.items()}, spp, settings.shade_spp,
+                         settings.demodulate, round(traced, 3))
+
+
+@dataclass
+class _LightTable:
+    """The light regions of :func:`light_cells` as Dr.Jit arrays (:func:`_light_table`)."""
+
+    valid: np.ndarray  # (N_v,) valid light indices
+    cell: float  # sub-cell side in (u, v)
+    start: Any  # UInt32 (N_v,): each light's first sub-cell
+    count: Any  # UInt32 (N_v,): its number of sub-cells
+    weight: Any  # Float (N_v,): 4 x the (u, v) area of its region
+    c_u: Any  # Float (K,): each sub-cell's lower-left corner
+    c_v: Any
+
+    @property
+    def nv(self) -> int:
+        return len(self.valid)
+
+
+def _light_table(mi: Any, lighting_size: int) -> _LightTable:
     valid, start, count, corner = light_cells(lighting_size)
-    nv = len(valid)
     cell = 2.0 / (lighting_size * _CELLS)
     l_start, l_count = _jit(mi.UInt32, start, dtype=np.uint32), _jit(mi.UInt32, count, dtype=np.uint32)
     l_weight = _jit(mi.Float, 4.0 * count * cell * cell)  # 4 x (u, v) area of the region
     c_u, c_v = _jit(mi.Float, corner[:, 0]), _jit(mi.Float, corner[:, 1])
-    timings["scene"] = time.perf_counter() - t0
+    return _LightTable(valid, cell, l_start, l_count, l_weight, c_u, c_v)
 
-    size = camera.size
-    p_count = size * size
-    rng = np.random.default_rng(seed)
-    dirs = _camera_dirs(camera, spp, rng)
 
-    # ---- camera rays, through transparent texels and the cornea
-    t1 = time.perf_counter()
+@dataclass
+class _CameraPass:
+    """What the camera rays found (:func:`_trace_camera`): G-buffer sums, glints and terminal hits."""
+
+    p_count: int  # pixels P
+    glints: list  # (pixel, reflected dir, weight) per layer with glints
+    albedo: np.ndarray  # (3, P) float64 sums over the samples
+    normal: np.ndarray  # (3, P)
+    depth: np.ndarray  # (P,)
+    alpha: np.ndarray  # (P,) samples that hit
+    sss: np.ndarray  # (P,)
+    layers: list  # per layer: stopping lanes, ray origins, directions, throughput, albedo, sss, part, normal
+    rows_all: np.ndarray  # the covered pixels
+    row_of: np.ndarray  # (P,) row of each covered pixel, -1 elsewhere
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.rows_all)
+
+
+def _trace_camera(mi: Any, dr: Any, sc: _Scenes, dirs: np.ndarray, p_count: int) -> _CameraPass:
+    """Step 1: all camera samples of all pixels in one batch (lane = sample * P + pixel), through transparent
+    texels and the cornea, at most :data:`MAX_LAYERS` surfaces."""
     glints = []  # (pixel, reflected dir, weight)
     g_albedo = np.zeros((3, p_count), np.float64)
     g_normal = np.zeros((3, p_count), np.float64)
     g_depth = np.zeros(p_count, np.float64)
     g_alpha = np.zeros(p_count, np.float64)
     g_sss = np.zeros(p_count, np.float64)
-    ctx = mi.BSDFContext()
-    # all samples of all pixels in one batch: lane = sample * P + pixel
-    n_cam = spp * p_count
+    n_cam = dirs.shape[0] * p_count
     d = dirs.reshape(n_cam, 3)
     ray = mi.Ray3f(dr.zeros(mi.Point3f, n_cam), _jit(mi.Vector3f, d[:, 0], d[:, 1], d[:, 2]))
     active = dr.full(mi.Bool, True, n_cam)
@@ -534,20 +584,37 @@ def render_olat_onepass(
     rows_all = np.flatnonzero(g_alpha > 0)
     row_of = np.full(p_count, -1, np.int64)
     row_of[rows_all] = np.arange(len(rows_all))
-    n_rows = len(rows_all)
-    tr = _trace_plan(layers, row_of, n_rows, p_count, spp, shade_spp, edge_spp, demodulate, len(sc.parts), rng)
-    timings["camera"] = time.perf_counter() - t1
-    traced = len(tr[0]) / max(n_rows, 1)
+    return _CameraPass(p_count, glints, g_albedo, g_normal, g_depth, g_alpha, g_sss, layers, rows_all, row_of)
 
-    # ---- all lights at every traced hit
-    t2 = time.perf_counter()
+
+@dataclass
+class _Chunk:
+    """One chunk of traced hits of the light stage, as Dr.Jit arrays (:func:`_trace_lights`)."""
+
+    start: int  # index of its first traced hit
+    n_h: int  # its traced hits
+    si: Any  # their surface interactions
+    strat: Any  # Float: stratum of each hit among its group's traced hits
+    n_strat: Any  # Float: strata of its group
+    row: Any  # UInt32: its pixel row
+    w_diffuse: Any  # Color3f
+    w_specular: Any  # Float
+    sss: Any  # Bool: on a subsurface part
+
+
+def _trace_lights(mi: Any, dr: Any, sc: _Scenes, table: _LightTable, plan: tuple, n_rows: int,
+                  settings: OnePass, callback: Any) -> tuple[torch.Tensor, torch.Tensor]:
+    """Step 3: every light at every traced hit, in chunks of ``chunk_lanes`` light-hit pairs; returns the
+    ``(3, n_rows, N_v)`` diffuse (subsurface hits) and specular (the rest) parts."""
+    nv = table.nv
+    ctx = mi.BSDFContext()
     # accumulated by Dr.Jit's scatter-add: (row, light) -> row * N_v + light
     acc_d = dr.zeros(mi.Color3f, max(n_rows * nv, 1))  # the diffuse part of subsurface hits
     acc_s = dr.zeros(mi.Color3f, max(n_rows * nv, 1))  # the rest
-    tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_wd, tr_ws, tr_sss = tr
+    tr_row, tr_rank, tr_cnt, tr_o, tr_d, tr_wd, tr_ws, tr_sss = plan
     total = len(tr_row)
-    hc = max(1, chunk_lanes // nv)
-    twin_at = sc.needs_twin if demodulate else sc.is_sss
+    hc = max(1, settings.chunk_lanes // nv)
+    twin_at = sc.needs_twin if settings.demodulate else sc.is_sss
     for a in range(0, total, hc):
         b = min(total, a + hc)
         n_h = b - a
@@ -555,75 +622,96 @@ def render_olat_onepass(
         si = sc.cam.ray_intersect(ray)
         strat = _jit(mi.Float, tr_rank[a:b])
         n_strat = _jit(mi.Float, tr_cnt[a:b])
-        h_row = _jit(mi.UInt32, tr_row[a:b], dtype=np.uint32)
-        h_wd = _jit(mi.Color3f, *tr_wd[a:b].T)
-        h_ws = _jit(mi.Float, tr_ws[a:b])
-        h_sss = _jit(mi.Bool, tr_sss[a:b], dtype=bool)
+        chunk = _Chunk(a, n_h, si, strat, n_strat, _jit(mi.UInt32, tr_row[a:b], dtype=np.uint32),
+                       _jit(mi.Color3f, *tr_wd[a:b].T), _jit(mi.Float, tr_ws[a:b]),
+                       _jit(mi.Bool, tr_sss[a:b], dtype=bool))
         dr.eval(si, strat, n_strat)
-        # kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon
-        lane = dr.arange(mi.UInt32, n_h * nv)
-        h = lane // nv
-        light = lane - h * nv
-        sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-        key = dr.opaque(mi.UInt32, (seed * 7919 + a * 31) & 0x7FFFFFFF)
-        rng_d = mi.PCG32(dr.width(lane), lane + key * 2654435761)
-        cnt = dr.gather(mi.UInt32, l_count, light)
-        s_frac = (dr.gather(mi.Float, strat, h) + rng_d.next_float32()) / dr.gather(mi.Float, n_strat, h)
-        k = dr.minimum(mi.UInt32(s_frac * mi.Float(cnt)), cnt - 1)
-        cidx = dr.gather(mi.UInt32, l_start, light) + k
-        u = dr.gather(mi.Float, c_u, cidx) + cell * rng_d.next_float32()
-        v = dr.gather(mi.Float, c_v, cidx) + cell * rng_d.next_float32()
-        r2 = u * u + v * v
-        sq = 2.0 * dr.safe_sqrt(1.0 - r2)
-        wo = mi.Vector3f(u * sq, v * sq, 1.0 - 2.0 * r2)
-        ng = sih.n
-        up = (r2 <= 1.0) & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
-        dr.eval(wo, up)
+        wo, up = _draw_directions(mi, dr, chunk, table, settings.seed)
         # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
         idx = dr.compress(up)
-        n_up = dr.width(idx)
-        if n_up:
-            h = idx // nv
-            light = idx - h * nv
-            wo = dr.gather(mi.Vector3f, wo, idx)
-            sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-            vis = sc.visible(sih, wo, mi.Bool(True), compact=True)
-            # kernel 3: the BSDFs of the visible lanes only, added into the accumulators
-            j = dr.compress(vis)
-            if dr.width(j):
-                idx = dr.gather(mi.UInt32, idx, j)
-                wo = dr.gather(mi.Vector3f, wo, j)
-                h = idx // nv
-                light = idx - h * nv
-                sih = dr.gather(mi.SurfaceInteraction3f, si, h)
-                part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
-                wo_l = sih.to_local(wo)
-                weight = dr.gather(mi.Float, l_weight, light)
-                bs_full = dr.gather(mi.BSDFPtr, sc.full, part)
-                f_full = bs_full.eval(ctx, sih, wo_l) * weight
-                # the diffuse part: the twin (specular = 0) of principled parts where it is needed (subsurface
-                # hits; with demodulation every principled hit), the whole response of diffuse parts
-                twin = dr.gather(mi.Float, twin_at, part) > 0
-                bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, twin)
-                f_diff = dr.select(twin, bs_twin.eval(ctx, sih, wo_l, twin) * weight, 0.0)
-                if demodulate:
-                    f_diff = dr.select(dr.gather(mi.Float, sc.is_lambert, part) > 0, f_full, f_diff)
-                wd = dr.gather(mi.Color3f, h_wd, h) * f_diff
-                ws = dr.gather(mi.Float, h_ws, h) * (f_full - f_diff)
-                target = dr.gather(mi.UInt32, h_row, h) * nv + light
-                sss = dr.gather(mi.Bool, h_sss, h)
-                dr.scatter_reduce(dr.ReduceOp.Add, acc_d, wd, target, sss)
-                dr.scatter_reduce(dr.ReduceOp.Add, acc_s, dr.select(sss, ws, ws + wd), target)
-                dr.eval(acc_d, acc_s)
+        if dr.width(idx):
+            _accumulate_visible(mi, dr, sc, chunk, table, idx, wo, ctx, twin_at, settings.demodulate, acc_d,
+                                acc_s)
         if callback is not None:
             callback(n_h / max(total, 1))
-    timings["lights"] = time.perf_counter() - t2
-
     diffuse = torch.from_numpy(np.array(acc_d, dtype=np.float32)[:, :n_rows * nv]).reshape(3, n_rows, nv)
     specular = torch.from_numpy(np.array(acc_s, dtype=np.float32)[:, :n_rows * nv]).reshape(3, n_rows, nv)
-    del acc_d, acc_s
-    # ---- glints, a mean over the C samples
-    for gsel, refl, w in glints:
+    return diffuse, specular
+
+
+def _draw_directions(mi: Any, dr: Any, chunk: _Chunk, table: _LightTable, seed: int) -> tuple[Any, Any]:
+    """Kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon."""
+    nv = table.nv
+    lane = dr.arange(mi.UInt32, chunk.n_h * nv)
+    h = lane // nv
+    light = lane - h * nv
+    sih = dr.gather(mi.SurfaceInteraction3f, chunk.si, h)
+    key = dr.opaque(mi.UInt32, (seed * 7919 + chunk.start * 31) & 0x7FFFFFFF)
+    rng_d = mi.PCG32(dr.width(lane), lane + key * 2654435761)
+    cnt = dr.gather(mi.UInt32, table.count, light)
+    s_frac = ((dr.gather(mi.Float, chunk.strat, h) + rng_d.next_float32())
+              / dr.gather(mi.Float, chunk.n_strat, h))
+    k = dr.minimum(mi.UInt32(s_frac * mi.Float(cnt)), cnt - 1)
+    cidx = dr.gather(mi.UInt32, table.start, light) + k
+    u = dr.gather(mi.Float, table.c_u, cidx) + table.cell * rng_d.next_float32()
+    v = dr.gather(mi.Float, table.c_v, cidx) + table.cell * rng_d.next_float32()
+    r2 = u * u + v * v
+    sq = 2.0 * dr.safe_sqrt(1.0 - r2)
+    wo = mi.Vector3f(u * sq, v * sq, 1.0 - 2.0 * r2)
+    ng = sih.n
+    up = (r2 <= 1.0) & (dr.dot(ng, wo) * dr.dot(ng, sih.to_world(sih.wi)) > 0)
+    dr.eval(wo, up)
+    return wo, up
+
+
+def _accumulate_visible(mi: Any, dr: Any, sc: _Scenes, chunk: _Chunk, table: _LightTable, idx: Any, wo: Any,
+                        ctx: Any, twin_at: Any, demodulate: bool, acc_d: Any, acc_s: Any) -> None:
+    """Kernels 2 and 3 on the lanes ``idx`` above the horizon: shadow rays, then the BSDFs of the visible
+    lanes only, scatter-added into the accumulators ``acc_d`` (diffuse of subsurface hits) and ``acc_s``
+    (the rest)."""
+    nv = table.nv
+    h = idx // nv
+    light = idx - h * nv
+    wo = dr.gather(mi.Vector3f, wo, idx)
+    sih = dr.gather(mi.SurfaceInteraction3f, chunk.si, h)
+    vis = sc.visible(sih, wo, mi.Bool(True), compact=True)
+    # kernel 3: the BSDFs of the visible lanes only, added into the accumulators
+    j = dr.compress(vis)
+    if not dr.width(j):
+        return
+    idx = dr.gather(mi.UInt32, idx, j)
+    wo = dr.gather(mi.Vector3f, wo, j)
+    h = idx // nv
+    light = idx - h * nv
+    sih = dr.gather(mi.SurfaceInteraction3f, chunk.si, h)
+    part = dr.maximum(sc.part_of(sih, sc.cam_lut), 0)
+    wo_l = sih.to_local(wo)
+    weight = dr.gather(mi.Float, table.weight, light)
+    bs_full = dr.gather(mi.BSDFPtr, sc.full, part)
+    f_full = bs_full.eval(ctx, sih, wo_l) * weight
+    # the diffuse part: the twin (specular = 0) of principled parts where it is needed (subsurface
+    # hits; with demodulation every principled hit), the whole response of diffuse parts
+    twin = dr.gather(mi.Float, twin_at, part) > 0
+    bs_twin = dr.gather(mi.BSDFPtr, sc.twin, part, twin)
+    f_diff = dr.select(twin, bs_twin.eval(ctx, sih, wo_l, twin) * weight, 0.0)
+    if demodulate:
+        f_diff = dr.select(dr.gather(mi.Float, sc.is_lambert, part) > 0, f_full, f_diff)
+    wd = dr.gather(mi.Color3f, chunk.w_diffuse, h) * f_diff
+    ws = dr.gather(mi.Float, chunk.w_specular, h) * (f_full - f_diff)
+    target = dr.gather(mi.UInt32, chunk.row, h) * nv + light
+    sss = dr.gather(mi.Bool, chunk.sss, h)
+    dr.scatter_reduce(dr.ReduceOp.Add, acc_d, wd, target, sss)
+    dr.scatter_reduce(dr.ReduceOp.Add, acc_s, dr.select(sss, ws, ws + wd), target)
+    dr.eval(acc_d, acc_s)
+
+
+def _add_glints(cam: _CameraPass, valid: np.ndarray, diffuse: torch.Tensor, specular: torch.Tensor,
+                lighting_size: int, spp: int) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
+    """The cornea's glints, a mean over the ``C`` samples, added to ``specular``; a glint over nothing opaque
+    behind it adds its pixel as a new row. Returns the rows and both parts."""
+    rows_all, row_of = cam.rows_all, cam.row_of
+    nv = len(valid)
+    for gsel, refl, w in cam.glints:
         li = _dir_to_light(refl, lighting_size)
         col = np.searchsorted(valid, li)
         r = row_of[gsel]
@@ -637,19 +725,21 @@ def render_olat_onepass(
             r = row_of[gsel]
         np_spec = specular.numpy()
         np.add.at(np_spec, (slice(None), r, col), (w / spp)[None].astype(np.float32))
-    cover = np.maximum(g_alpha, 1.0)
-    gbuf = GBuffer(
-        albedo=torch.from_numpy((g_albedo / cover).reshape(3, size, size)).float(),
-        normal=torch.from_numpy((g_normal / cover).reshape(3, size, size)).float(),
-        depth=torch.from_numpy((g_depth / cover).reshape(1, size, size)).float(),
-        alpha=torch.from_numpy((g_alpha / spp).reshape(1, size, size)).float(),
-        subsurface=torch.from_numpy((g_sss / spp).reshape(1, size, size)).float(),
+    return rows_all, diffuse, specular
+
+
+def _gbuffer(cam: _CameraPass, camera: Camera, spp: int) -> GBuffer:
+    """The :class:`GBuffer`: means over the covering samples, coverage and subsurface over all ``C``."""
+    size = camera.size
+    cover = np.maximum(cam.alpha, 1.0)
+    return GBuffer(
+        albedo=torch.from_numpy((cam.albedo / cover).reshape(3, size, size)).float(),
+        normal=torch.from_numpy((cam.normal / cover).reshape(3, size, size)).float(),
+        depth=torch.from_numpy((cam.depth / cover).reshape(1, size, size)).float(),
+        alpha=torch.from_numpy((cam.alpha / spp).reshape(1, size, size)).float(),
+        subsurface=torch.from_numpy((cam.sss / spp).reshape(1, size, size)).float(),
         focal_px=0.5 * size / math.tan(math.radians(camera.fov_deg) / 2),
     )
-    timings["total"] = time.perf_counter() - t0
-    return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(valid), gbuf,
-                         {k: round(v, 3) for k, v in timings.items()}, spp, shade_spp, demodulate,
-                         round(traced, 3))
 
 
 def _trace_plan(layers: list, row_of: np.ndarray, n_rows: int, p_count: int, spp: int, shade_spp: int,

@@ -3,40 +3,53 @@ r"""Quick looks at synthetic subjects and at the training portraits of a cache.
 :func:`render_preview` and :func:`contact_sheet`: a Mitsuba 3 render of subjects (any source: textured
 MakeHuman heads or mannequins) under a studio light, for eyeballing, not for training data (the light-stage
 renderer is :mod:`kornia_ilum.synth.lightstage.olat`). Textures: the material's ``albedo_texture`` and
-``roughness_texture`` through :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf`, looked up with the
-part's ``uvs``; its ``opacity_texture`` (hair cards, brows, lashes) as a Mitsuba ``mask`` BSDF around it.
+``roughness_texture`` through :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf`, looked up with
+the part's ``uvs``; its ``opacity_texture`` (hair cards, brows, lashes) as a Mitsuba ``mask`` BSDF around it.
 
 :func:`compose_portrait` and :func:`training_sheet`: training portraits from cached reflectance fields, made
 as the training data is (relit by an environment, composited over the environment seen through the view's
-camera, auto-exposed, 8-bit sRGB, cropped to the face box expanded 1.25 x), with their ground-truth spheres.
+camera, auto-exposed, 8-bit sRGB, cropped to the face box expanded 1.25 x), with their ground-truth spheres;
+the sheet's grid is drawn by :func:`kornia_ilum.synth.sheets.write_grid`.
 
 Convention:
-    A pinhole camera on the +Z axis looks at the face (SPEC frame); ``yaw_deg`` turns it about +Y around the
-    head (positive moves the camera toward +X). Materials are those of the light stage
-    (:func:`kornia_ilum.synth.lightstage.materials.material_bsdf`). Lighting: a dim constant sky, a warm key light
-    from the camera's upper left and a cool fill from the right. Output: linear RGB, exposure 1.
+    A pinhole camera on the +Z axis looks at the face (docs/conventions.rst, "Frames"); ``yaw_deg`` turns it
+    about +Y around the head (positive moves the camera toward +X). Materials are those of the light stage
+    (:func:`kornia_ilum.synth.lightstage.materials.material_bsdf`). Lighting: a dim constant sky, a warm key
+    light from the camera's upper left and a cool fill from the right. Output: linear RGB, exposure 1.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-
 import torch
+import torch.nn.functional as F
 
-from kornia_ilum.synth.lightstage.materials import _import_mitsuba, material_bsdf, select_mitsuba_variant
-from kornia_ilum.synth.lightstage.scene import Camera, _pivot, camera_transform
+from kornia_ilum.color import encode_srgb8, gamma_encode
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
+from kornia_ilum.filters import soft_clip
+from kornia_ilum.geometry import latlong_to_mirror_ball
+from kornia_ilum.render import BRDFS, render_spheres
+from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
+from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.lightstage.cache import read_field, read_manifest
+from kornia_ilum.synth.lightstage.materials import import_mitsuba, material_bsdf, select_mitsuba_variant
+from kornia_ilum.synth.lightstage.portraits import auto_exposure, frame_background, relight_portraits
+from kornia_ilum.synth.lightstage.scene import Camera, camera_transform, subject_pivot
 from kornia_ilum.synth.lightstage.subjects import Subject
+from kornia_ilum.synth.sheets import write_grid
 
 __all__ = ["compose_portrait", "contact_sheet", "preview_bsdf", "render_preview", "training_sheet"]
 
 
 def _bitmap(data: np.ndarray) -> dict:
     """A raw (linear) bilinear bitmap texture; row 0 of ``data`` is the top of the image (``v = 1``)."""
-    mi = _import_mitsuba()
+    mi = import_mitsuba()
     arr = np.ascontiguousarray(data if data.ndim == 3 else data[..., None], dtype=np.float32)
     return {"type": "bitmap", "bitmap": mi.Bitmap(arr), "raw": True}
 
@@ -56,7 +69,8 @@ def preview_bsdf(material, textured: bool = True) -> dict:
 
     Examples:
         >>> from types import SimpleNamespace
-        >>> mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), opacity_texture=np.ones((2, 2), np.float32))
+        >>> mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5),
+        ...                       opacity_texture=np.ones((2, 2), np.float32))
         >>> preview_bsdf(mat)["type"]
         'mask'
     """
@@ -77,15 +91,15 @@ def preview_bsdf(material, textured: bool = True) -> dict:
 
 
 def _untextured(material):
-    import dataclasses
-
     if dataclasses.is_dataclass(material):
-        return dataclasses.replace(material, albedo_texture=None, opacity_texture=None, roughness_texture=None)
+        return dataclasses.replace(material, albedo_texture=None, opacity_texture=None,
+                                   roughness_texture=None)
     return material
 
 
 def _preview_mesh(mi, part) -> object:
-    """A Mitsuba mesh of a :class:`~.subjects.MeshPart`, with its texture coordinates (stored ``(u, 1 - v)``)."""
+    """A Mitsuba mesh of a :class:`~.subjects.MeshPart`, with its texture coordinates (stored
+    ``(u, 1 - v)``)."""
     uvs = getattr(part, "uvs", None)
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(preview_bsdf(part.material, textured=uvs is not None))
@@ -158,7 +172,7 @@ def render_preview(
         ((32, 32, 3), True)
     """
     select_mitsuba_variant(variant)
-    mi = _import_mitsuba()
+    mi = import_mitsuba()
     scene: dict = {
         "type": "scene",
         "integrator": {"type": "volpath", "max_depth": 8},
@@ -167,7 +181,7 @@ def render_preview(
     for i, part in enumerate(subject.parts):
         scene[f"part{i}"] = _preview_mesh(mi, part)
     if camera is not None:
-        t = camera_transform(camera, _pivot(subject))
+        t = camera_transform(camera, subject_pivot(subject))
         inv = np.linalg.inv(t)  # camera -> subject: the camera sits at the origin looking along -Z
         to_world = mi.ScalarTransform4f(inv.tolist()) @ mi.ScalarTransform4f().scale([-1.0, 1.0, -1.0])
         scene["sensor"] = {
@@ -222,10 +236,7 @@ def contact_sheet(
         >>> contact_sheet([make_subject(3)], size=16, columns=2, spp=1).shape
         (16, 32, 3)
     """
-    import torch
-    from PIL import Image
-
-    from kornia_ilum.color import encode_srgb8
+    from PIL import Image  # lazy: Pillow (an optional dependency) is needed only to save a sheet
 
     rows = math.ceil(len(subjects) / columns)
     sheet = np.zeros((rows * size, columns * size, 3), np.uint8)
@@ -247,8 +258,6 @@ def _lighting_for(env, size: int) -> torch.Tensor:
     """The environment's mirror ball at the field's lighting size ``(1, 3, size, size)``."""
     if env.mirror_ball.shape[-1] == size:
         return env.mirror_ball[None].float()
-    from kornia_ilum.geometry import latlong_to_mirror_ball
-
     return latlong_to_mirror_ball(env.latlong[None].float(), size).clamp(min=0.0)
 
 
@@ -271,9 +280,6 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
         a dict: ``"image"`` ``(3, H, W)`` uint8, ``"lighting"`` the ``(3, 32, 32)`` mirror ball in image
         units (times the exposure), ``"gain"`` a float, ``"face_box"`` the ``(4,)`` landmark box.
     """
-    from kornia_ilum.color import encode_srgb8
-    from kornia_ilum.synth.lightstage.portraits import auto_exposure, frame_background, relight_portraits
-
     lighting = _lighting_for(env, field.lighting_size)
     image, alpha = relight_portraits(field, lighting)
     linear = image + (1.0 - alpha) * frame_background(env.latlong[None].float(), field.camera)
@@ -288,8 +294,6 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
 
 def _crop(image: torch.Tensor, box: torch.Tensor, size: int) -> torch.Tensor:
     """The square crop (face box expanded 1.25 x) of a ``(3, H, W)`` float image, resized to ``size``."""
-    from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
-
     square = square_crop_boxes(box[None].float(), CROP_SCALE)
     return crop_faces(image[None], square, size)[0]
 
@@ -297,12 +301,6 @@ def _crop(image: torch.Tensor, box: torch.Tensor, size: int) -> torch.Tensor:
 def _sphere_strip(lighting: torch.Tensor, side: int) -> torch.Tensor:
     """The diffuse, matte-silver and mirror spheres of ``lighting`` as the loss sees them
     (``softclip(I)^(1/2.2)``), side by side, 3-pixel white gaps."""
-    import torch.nn.functional as F
-
-    from kornia_ilum.color import gamma_encode
-    from kornia_ilum.filters import soft_clip
-    from kornia_ilum.render import BRDFS, render_spheres
-
     spheres = render_spheres(lighting[None], size=32)
     gap = torch.ones(3, side, 3)
     parts = []
@@ -345,16 +343,9 @@ def training_sheet(
     Returns:
         the number of portraits drawn.
     """
-    from kornia_ilum.synth.cli import _write_grid
-    from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-    from kornia_ilum.synth.environments.real import HDRFolderSource
-    from kornia_ilum.synth.lightstage.cache import read_field, read_manifest
-
     entries = read_manifest(cache_dir)["entries"]
     chosen = [e for e in entries if split is None or e.get("split") == split] or entries
     if not chosen:
-        from kornia_ilum.core.errors import ValueCheckError
-
         raise ValueCheckError(f"the cache {cache_dir} has no field")
     order = np.random.default_rng(seed).permutation(len(chosen))
     sources = default_sources()
@@ -379,6 +370,6 @@ def training_sheet(
                         f"yaw {entry['camera']['yaw_deg']:+.0f}\n{env.label}: {env.source.split(':')[-1]}")
     title = (f"light-stage training portraits (face crop 1.25 x, shown at {size}) | ground truth: diffuse, "
              "matte silver, mirror")
-    _write_grid(tiles, captions, title, path, columns, (1.45, 1.45 * (size + 3 + side) / size + 0.3), 5.5, 100,
-                True)
+    write_grid(tiles, captions, title, path, columns, (1.45, 1.45 * (size + 3 + side) / size + 0.3), 5.5, 100,
+               True)
     return count

@@ -23,11 +23,11 @@ How one OLAT image is rendered:
   the lat-long map, whose fine azimuthal resolution separates the thin rim wedges. Only the valid lights
   (812 at ``S = 32``) are rendered; the bitmap changes through :func:`mitsuba.traverse` between renders, the
   scene is built once.
-- **Frame and units.** The lighting frame is the *camera* frame of SPEC.md (+X right, +Y up, +Z toward the
-  camera). The camera stays at the origin looking along -Z, and the subject is turned and moved in front of
-  it (:class:`Camera`), so light directions never rotate with the view. The envmap holds radiance 1 in the
-  light's solid angle, so ``R`` is in SPEC units: a white Lambertian patch facing a light of radiance ``L``
-  over solid angle ``Omega`` reads ``L Omega cos / pi``.
+- **Frame and units.** The lighting frame is the *camera* frame of docs/conventions.rst ("Frames": +X right,
+  +Y up, +Z toward the camera). The camera stays at the origin looking along -Z, and the subject is turned and
+  moved in front of it (:class:`Camera`), so light directions never rotate with the view. The envmap holds
+  radiance 1 in the light's solid angle, so ``R`` is in the units of docs/conventions.rst: a white Lambertian
+  patch facing a light of radiance ``L`` over solid angle ``Omega`` reads ``L Omega cos / pi``.
 - **Background and matte.** Directly visible emitters are hidden, so background pixels are 0 and the field is
   premultiplied by the pixel coverage (box pixel filter). The matte ``alpha`` is that coverage: the alpha
   channel of the first OLAT render (every render uses the same seed, hence the same sub-pixel positions, so
@@ -38,11 +38,10 @@ How one OLAT image is rendered:
   Lambertian sphere under a uniform environment (32 x 32 pixels, ``S = 8``, 16 spp) the sum of the OLATs
   is within 1.1 % rms of the albedo per pixel, 0.1 % on average.
 
-Cost of the reference (``benchmarks/bench_olat.py``, one thread of the project's shared 2-core CPU, a ``make_subject`` head of
-about 140 000 triangles): 0.45 s per light at 256 x 256 and 16 spp with ``llvm_ad_rgb`` on a quiet core, 0.55 to
-0.75 s under load, i.e. about 6 to 10 minutes per subject and view (812 lights); ``scalar_rgb`` is about 1.7
-times slower. Each render costs about 25 ms plus a time proportional to ``size^2 * spp``; the ``volpath``
-integrator that the cornea needs costs about 1.5 times ``path``. Threads scale with free cores.
+Cost of the reference: one Mitsuba render per valid light (812 at ``S = 32``), each a fixed overhead plus a
+time proportional to ``size^2 * spp``; ``scalar_rgb`` is slower than ``llvm_ad_rgb``, and the ``volpath``
+integrator that the cornea needs is slower than ``path``. Threads scale with free cores. The measured times
+(``benchmarks/bench_olat.py``) are in docs/lightstage.rst, "Measured".
 """
 
 from __future__ import annotations
@@ -60,16 +59,17 @@ import torch
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_pixel_index, mirror_ball_valid
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.materials import (
-    _bitmap,
-    _check_subject,
-    _import_mitsuba,
-    _mitsuba_mesh,
+    bitmap_texture,
+    check_subject,
+    import_mitsuba,
     material_bsdf,
+    mitsuba_mesh,
     select_mitsuba_variant,
 )
-from kornia_ilum.synth.lightstage.olat import ReflectanceField
-from kornia_ilum.synth.lightstage.scene import Camera, _pivot, camera_transform, project_points
+from kornia_ilum.synth.lightstage.scene import Camera, camera_transform, project_points, subject_pivot
+from kornia_ilum.synth.lightstage.settings import REFERENCE_MAX_DEPTH, REFERENCE_SPP, Reference
 
 if TYPE_CHECKING:  # the subjects module is only needed for the annotation
     from kornia_ilum.synth.lightstage.subjects import Subject
@@ -111,7 +111,7 @@ def olat_envmap_basis(lighting_size: int, height: int) -> tuple[Any, np.ndarray]
         >>> basis.shape, len(valid)
         ((512, 16), 12)
     """
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # lazy: only the reference renderer builds sparse bases
 
     check_positive_int(lighting_size, "lighting_size")
     check_positive_int(height, "height")
@@ -172,10 +172,11 @@ def _build_scene(mi: Any, subject: Any, camera: Camera, transform: np.ndarray, s
         bsdf = material_bsdf(part.material)
         opacity = getattr(part.material, "opacity_texture", None)
         if opacity is not None and uvs is not None:  # alpha-tested: binary texels, nearest (as the one-pass)
-            bsdf = {"type": "mask", "opacity": _bitmap((np.asarray(opacity) >= 0.5).astype(np.float32)), "bsdf": bsdf}
+            mask = bitmap_texture((np.asarray(opacity) >= 0.5).astype(np.float32))
+            bsdf = {"type": "mask", "opacity": mask, "bsdf": bsdf}
             has_null = True
         name = f"part{i:03d}_{getattr(part, 'name', 'mesh')}"
-        objects[name] = _mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, bsdf, uvs=uvs)
+        objects[name] = mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, bsdf, uvs=uvs)
     integrator = "volpath" if has_null else "path"
     to_world = np.eye(4)
     to_world[:3, :3] = _ENV_TO_WORLD
@@ -241,34 +242,29 @@ class _Session:
         return img
 
 
-def _session(subject: Any, camera: Camera, lighting_size: int, spp: int, variant: str | None, max_depth: int,
-             seed: int, envmap_height: int | None, threads: int | None) -> _Session:
-    """Validate everything, then select the variant and build the scene."""
+def _session(subject: Any, camera: Camera, settings: Reference, variant: str | None, threads: int | None
+             ) -> _Session:
+    """Validate the rest (the settings are), then select the variant and build the scene."""
     if not isinstance(camera, Camera):
         raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
-    check_positive_int(lighting_size, "lighting_size")
-    check_positive_int(spp, "spp")
-    check_positive_int(max_depth, "max_depth")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueCheckError(f"seed must be a non-negative int, got {seed!r}")
-    height = 4 * lighting_size if envmap_height is None else envmap_height
-    check_positive_int(height, "envmap_height")
     if threads is not None:
         check_positive_int(threads, "threads")
-    _check_subject(subject)
+    check_subject(subject)
     for part in subject.parts:
         material_bsdf(part.material)  # validates every material before any rendering
-    basis, valid = olat_envmap_basis(lighting_size, height)
+    height = settings.envmap_height
+    basis, valid = olat_envmap_basis(settings.lighting_size, height)
     variant = select_mitsuba_variant(variant)
-    mi = _import_mitsuba()
+    mi = import_mitsuba()
     if threads is not None:
-        import drjit as dr
+        import drjit as dr  # lazy: Dr.Jit comes with Mitsuba, an optional extra
 
         dr.set_thread_count(threads)
-    transform = camera_transform(camera, _pivot(subject))
-    scene, integrator = _build_scene(mi, subject, camera, transform, spp, max_depth, height)
+    transform = camera_transform(camera, subject_pivot(subject))
+    scene, integrator = _build_scene(mi, subject, camera, transform, settings.spp, settings.max_depth, height)
     spp = int(scene.sensors()[0].sampler().sample_count())  # multijitter rounds up to a product, e.g. 32 -> 35
-    return _Session(mi, scene, mi.traverse(scene), variant, integrator, transform, basis, valid, height, spp, seed)
+    return _Session(mi, scene, mi.traverse(scene), variant, integrator, transform, basis, valid, height, spp,
+                    settings.seed)
 
 
 def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, seconds: float) -> dict[str, Any]:
@@ -282,7 +278,7 @@ def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, s
         "lighting_size": lighting_size,
         "envmap_size": [session.height, 2 * session.height],
         "render_seconds": round(seconds, 3),
-        "pivot": _pivot(subject).tolist(),
+        "pivot": subject_pivot(subject).tolist(),
         "subject_to_camera": session.transform.tolist(),
     }
     for key in ("split", "skin_tone"):
@@ -294,15 +290,10 @@ def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, s
 def render_olat_reference(
     subject: Subject,
     camera: Camera,
+    settings: Reference | None = None,
     *,
-    lighting_size: int = 32,
-    spp: int = 16,
     variant: str | None = None,
-    max_depth: int = 4,
-    seed: int = 0,
-    envmap_height: int | None = None,
     threads: int | None = None,
-    lights: np.ndarray | list[int] | None = None,
     callback: Callable[[int], Any] | None = None,
 ) -> ReflectanceField:
     r"""The per-light reference renderer: one Mitsuba render per light (module docstring for the method).
@@ -311,16 +302,11 @@ def render_olat_reference(
         subject: a :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (anything with ``parts`` of
             ``MeshPart`` with ``vertices``, ``faces`` and ``material``, ``face_landmarks`` and ``seed``).
         camera: the camera; its ``size`` is the image side.
-        lighting_size: the mirror-ball side ``S`` of the lighting basis (``N = S^2`` lights).
-        spp: samples per pixel of each OLAT render; the stratified sampler rounds it up to a product of two
-            near-equal integers (16 and 25 stay, 32 becomes 35); ``meta["spp"]`` holds the count used.
+        settings: the :class:`~kornia_ilum.synth.lightstage.settings.Reference` settings (lighting size,
+            samples, path depth, seed, envmap height, lights); ``None``: ``Reference()``. The seed is the same
+            for every light (module docstring, Noise).
         variant: the Mitsuba variant, or ``None`` for the first that works (:func:`select_mitsuba_variant`).
-        max_depth: Mitsuba's path depth: 2 is direct light only, 4 adds two bounces of interreflection.
-        seed: the sampler seed, the same for every light (module docstring, Noise).
-        envmap_height: lat-long rows of the light bitmaps; default ``4 S`` (1.4 degree texels at ``S = 32``).
         threads: if given, sets Dr.Jit's thread count (process-global) before rendering.
-        lights: render only these light indices (the other columns stay 0); default all valid lights.
-            For benchmarks and tests.
         callback: called with 1 after each light (a progress bar's ``update``).
 
     Returns:
@@ -333,7 +319,8 @@ def render_olat_reference(
         - alpha: :math:`(1, size, size)` float32
 
     Convention:
-        Light directions in the camera frame of SPEC.md; radiance units (module docstring).
+        Light directions in the camera frame of docs/conventions.rst ("Frames"); radiance units (module
+        docstring).
 
     Raises:
         ImportError: Mitsuba is not installed.
@@ -341,25 +328,24 @@ def render_olat_reference(
 
     Examples:
         >>> from types import SimpleNamespace
-        >>> from kornia_ilum.synth.lightstage.olat import _icosphere  # a unit sphere mesh, for examples
-        >>> v, f = _icosphere(2)
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere  # a unit sphere mesh
+        >>> v, f = icosphere(2)
         >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
-        >>> rf = render_olat_reference(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), lighting_size=4, spp=4,
-        ...                  variant="scalar_rgb")
+        >>> rf = render_olat_reference(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8),
+        ...                            Reference(lighting_size=4, spp=4), variant="scalar_rgb")
         >>> rf.field.shape, rf.field.dtype, rf.meta["lights_rendered"]
         (torch.Size([3, 64, 16]), torch.bfloat16, 12)
     """
     start = time.perf_counter()
-    session = _session(subject, camera, lighting_size, spp, variant, max_depth, seed, envmap_height, threads)
+    settings = Reference() if settings is None else settings
+    if not isinstance(settings, Reference):
+        raise TypeCheckError(f"settings must be Reference settings, got {type(settings).__name__}")
+    lighting_size = settings.lighting_size
+    session = _session(subject, camera, settings, variant, threads)
     setup = time.perf_counter() - start
-    if lights is None:
-        todo = session.valid
-    else:
-        todo = np.asarray(lights, dtype=np.int64).ravel()
-        if len(todo) == 0 or not np.isin(todo, session.valid).all():
-            raise ValueCheckError(f"lights must be valid light indices of the {lighting_size}^2 mirror ball")
+    todo = session.valid if settings.lights is None else np.asarray(settings.lights, dtype=np.int64)
     size = camera.size
     out = torch.zeros(3, size * size, lighting_size**2, dtype=torch.bfloat16)
     alpha = torch.zeros(1, size, size)
@@ -372,7 +358,7 @@ def render_olat_reference(
             callback(1)
     box = project_points(subject.face_landmarks, camera, session.transform)
     face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
-    meta = _meta(session, subject, max_depth, lighting_size, time.perf_counter() - start)
+    meta = _meta(session, subject, settings.max_depth, lighting_size, time.perf_counter() - start)
     meta["lights_rendered"] = len(todo)
     meta["landmarks"] = [[round(float(x), 3) for x in xy] for xy in box.tolist()]  # LANDMARK_NAMES order
     meta["setup_seconds"] = round(setup, 3)
@@ -384,9 +370,9 @@ def render_lighting(
     camera: Camera,
     lighting: torch.Tensor,
     *,
-    spp: int = 16,
+    spp: int = REFERENCE_SPP,
     variant: str | None = None,
-    max_depth: int = 4,
+    max_depth: int = REFERENCE_MAX_DEPTH,
     seed: int = 0,
     envmap_height: int | None = None,
     threads: int | None = None,
@@ -394,14 +380,16 @@ def render_lighting(
     r"""Render a subject directly under a mirror-ball lighting: the reference that relighting must match.
 
     The envmap is the OLAT basis weighted by the lighting, ``sum_n L[n] basis_n``, so by the linearity of light
-    transport the image equals ``relight(render_olat(...).field, L)`` up to Monte-Carlo noise (same scene,
-    camera and settings as :func:`render_olat`).
+    transport the image equals ``relight(render_olat_reference(...).field, L)`` up to Monte-Carlo noise (same
+    scene, camera and settings).
 
     Args:
-        subject: as for :func:`render_olat`.
+        subject: as for :func:`render_olat_reference`.
         camera: the camera.
-        lighting: ``(3, S, S)`` mirror-ball radiance (SPEC.md), non-negative; invalid pixels are ignored.
-        spp, variant, max_depth, seed, envmap_height, threads: as for :func:`render_olat`.
+        lighting: ``(3, S, S)`` mirror-ball radiance (docs/conventions.rst, "Mirror ball"), non-negative;
+            invalid pixels are ignored.
+        spp, max_depth, seed, envmap_height: as for :class:`~kornia_ilum.synth.lightstage.settings.Reference`.
+        variant, threads: as for :func:`render_olat_reference`.
 
     Returns:
         ``(image, alpha)``: ``(3, size, size)`` float32 linear RGB (premultiplied, background 0) and the
@@ -409,8 +397,8 @@ def render_lighting(
 
     Examples:
         >>> from types import SimpleNamespace
-        >>> from kornia_ilum.synth.lightstage.olat import _icosphere
-        >>> v, f = _icosphere(2)
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere
+        >>> v, f = icosphere(2)
         >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
@@ -422,8 +410,9 @@ def render_lighting(
     check_tensor(lighting, "lighting", ["3", "S", "S"], nonnegative=True)
     if lighting.shape[-1] != lighting.shape[-2]:
         raise ShapeError(f"lighting must have shape (3, S, S), got {tuple(lighting.shape)}")
-    lighting_size = int(lighting.shape[-1])
-    session = _session(subject, camera, lighting_size, spp, variant, max_depth, seed, envmap_height, threads)
+    settings = Reference(lighting_size=int(lighting.shape[-1]), spp=spp, max_depth=max_depth, seed=seed,
+                         envmap_height=envmap_height)
+    session = _session(subject, camera, settings, variant, threads)
     lights = lighting.detach().to("cpu", torch.float64).flatten(1).T.numpy()  # (N, 3)
     img = session.render(np.asarray(session.basis @ lights))
     image = torch.from_numpy(np.ascontiguousarray(img[..., :3].transpose(2, 0, 1)))

@@ -1,7 +1,8 @@
 r"""The light stage's camera: where it stands, how it frames a subject, and where subject points land.
 
-The lighting stays in the camera frame of SPEC.md (+X right, +Y up, +Z toward the camera): the camera is a
-pinhole at the origin looking along -Z, and the subject is turned and moved in front of it.
+The lighting stays in the camera frame of docs/conventions.rst ("Frames": +X right, +Y up, +Z toward the
+camera): the camera is a pinhole at the origin looking along -Z, and the subject is turned and moved in front
+of it.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "frame_distance",
     "project_points",
     "sample_views",
+    "subject_pivot",
 ]
 
 #: The camera aims this fraction of the face-landmark box's height above the box's centre: OpenCV's Haar
@@ -61,13 +63,13 @@ class Camera:
             counter-clockwise in the image.
 
     Convention:
-        In the camera frame (SPEC.md), the camera is a pinhole at the origin looking along -Z, +X right, +Y up;
-        the subject is turned by the inverse of the orbit and its pivot placed at ``(0, 0, -distance)``. So
-        ``yaw_deg = 30`` is the same image as the frontal camera with the subject turned by -30 degrees about
-        +Y, under the same camera-frame lighting. ``R = camera_rotation(yaw_deg, -pitch_deg)`` of
-        :func:`kornia_ilum.synth.background.camera_rotation` maps camera axes to subject axes. The background
-        behind the subject is :func:`~kornia_ilum.synth.background.render_background` with the same ``fov_deg``
-        and no rotation (the environment is already in the camera frame).
+        In the camera frame (docs/conventions.rst), the camera is a pinhole at the origin looking along -Z, +X
+        right, +Y up; the subject is turned by the inverse of the orbit and its pivot placed at ``(0, 0,
+        -distance)``. So ``yaw_deg = 30`` is the same image as the frontal camera with the subject turned by
+        -30 degrees about +Y, under the same camera-frame lighting. ``R = camera_rotation(yaw_deg,
+        -pitch_deg)`` of :func:`kornia_ilum.synth.background.camera_rotation` maps camera axes to subject
+        axes. The background behind the subject is :func:`~kornia_ilum.synth.background.render_background`
+        with the same ``fov_deg`` and no rotation (the environment is already in the camera frame).
 
     Examples:
         >>> Camera(fov_deg=30.0, distance=0.55, yaw_deg=0.0, pitch_deg=0.0)
@@ -99,7 +101,12 @@ class Camera:
         return {k: getattr(self, k) for k in ("fov_deg", "distance", "yaw_deg", "pitch_deg", "size", "roll_deg")}
 
 
-def _pivot(subject: Any) -> np.ndarray:
+def subject_pivot(subject: Any) -> np.ndarray:
+    """The point a :class:`Camera` aims at: the pivot of the subject's ``face_landmarks`` (float64 ``(3,)``).
+
+    The landmark box's centre raised by :data:`PIVOT_RAISE` of its height; both renderers and the previews
+    turn the subject about it (:func:`camera_transform`).
+    """
     return _landmark_pivot(np.asarray(subject.face_landmarks, dtype=np.float64))
 
 

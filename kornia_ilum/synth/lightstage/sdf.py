@@ -4,10 +4,10 @@ The synthetic subjects (:mod:`kornia_ilum.synth.lightstage.subjects`) are built 
 with polynomial smooth minima, and meshed with :func:`skimage.measure.marching_cubes`.
 
 Convention:
-    Every primitive takes the coordinates ``x, y, z`` as broadcastable float32 arrays (metres, SPEC frame) and
-    returns the signed distance, negative inside. Most are *bounds* or close approximations of the true
-    distance (the ellipsoid is Inigo Quilez's first-order bound, a warped domain stretches distances by its
-    Jacobian): good enough for meshing, which only needs the zero set and the sign.
+    Every primitive takes the coordinates ``x, y, z`` as broadcastable float32 arrays (metres, the frame of
+    docs/conventions.rst) and returns the signed distance, negative inside. Most are *bounds* or close
+    approximations of the true distance (the ellipsoid is Inigo Quilez's first-order bound, a warped domain
+    stretches distances by its Jacobian): good enough for meshing, which only needs the zero set and the sign.
 
 References:
     Inigo Quilez, "distance functions" and "smooth minimum" (iquilezles.org/articles), for the primitive

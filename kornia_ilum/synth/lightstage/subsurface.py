@@ -21,9 +21,9 @@ model, with the red channel's weights (as Jimenez et al. 2015 do for all channel
 ``(1, 0.37, 0.3)``. (Jensen et al. 2001's dipole for their "skin1" measurement decays with the diffuse mean
 free paths ``1 / sigma_tr = (3.67, 1.37, 0.68)`` mm, a softer look: pass those for it.)
 
-**Geometry.** Pixels are back-projected with ``focal_px`` and ``depth`` (pinhole, SPEC.md frame) and the
-profile is evaluated at the 3D distance between the two surface points, so a radius in millimetres spans
-``focal_px * r / depth`` pixels, and light does not cross depth steps: across a 5 cm step the weight is
+**Geometry.** Pixels are back-projected with ``focal_px`` and ``depth`` (pinhole, docs/conventions.rst frame)
+and the profile is evaluated at the 3D distance between the two surface points, so a radius in millimetres
+spans ``focal_px * r / depth`` pixels, and light does not cross depth steps: across a 5 cm step the weight is
 ``exp(-50^2 / (2 * 7.41 * s^2))``, zero in float64. The window is truncated at 3 standard deviations of the
 widest Gaussian (and at ``max_radius_px``).
 
@@ -40,7 +40,7 @@ in the source pixel). Hence, for every channel and light, exactly (up to roundin
 up to the albedo) is conserved; with a constant albedo, the plain pixel sum is. Near the skin's borders the
 receivers are fewer, so border pixels get a little brighter while the light that would have left stays in.
 
-**Coverage.** The field is premultiplied by ``alpha`` (as :class:`~kornia_ilum.synth.lightstage.olat.
+**Coverage.** The field is premultiplied by ``alpha`` (as :class:`~kornia_ilum.synth.lightstage.field.
 ReflectanceField`), ``gbuffer.subsurface`` is the skin fraction of all of a pixel's samples, and the albedo is
 the mean over the pixel's hits. Pixel ``p``'s skin share is ``f[p] = subsurface[p] / alpha[p]``: that part of
 its value scatters, the rest stays; receivers are weighted by their skin area ``subsurface[p]``. Pixels
@@ -49,8 +49,7 @@ without skin are unchanged.
 Measured: a single lit pixel on a flat patch at 0.5 mm per pixel spreads with RMS radii
 ``(1.64, 0.61, 0.49)`` mm (asked ``(1.66, 0.62, 0.50)``) and keeps ``(35, 56, 62) %`` of its light; the
 conserved sum above holds to 2e-16 (relative) on a 192 x 192 synthetic head. Build and apply times are in
-``benchmarks/bench_filters.py`` (a few seconds at most for 192 x 192 x 812 on one thread, hundreds of times
-faster than the direct per-light reference there).
+``benchmarks/bench_filters.py`` (far below the direct per-light reference's there).
 
 Limits: a screen-space approximation (no light through thin parts such as ears, no scattering from surfaces
 the camera does not see, chord instead of geodesic distance); one scattering profile for the whole face; the
@@ -241,7 +240,7 @@ def subsurface_scatter(
         - diffuse: :math:`(3, P, N)`, output :math:`(3, P, N)`, with :math:`P = H W` from ``gbuffer.size``.
 
     Convention:
-        Camera frame of SPEC.md; ``depth`` in metres along -Z; radii in millimetres.
+        Camera frame of docs/conventions.rst; ``depth`` in metres along -Z; radii in millimetres.
 
     Examples:
         >>> g = GBuffer(torch.full((3, 8, 8), 0.5), torch.zeros(3, 8, 8), torch.ones(1, 8, 8),

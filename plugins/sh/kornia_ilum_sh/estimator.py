@@ -7,14 +7,16 @@ all predict order-2 SH), trained here on the same data and with the same renderi
 
 Network (4,878,011 parameters at ``latent_dim=1024``): the encoder of
 :class:`~kornia_ilum.estimators.OursEstimator`, built by :func:`kornia_ilum.estimators.ours.build_encoder`
-(its ``encoder`` and ``to_latent`` modules: five 3 x 3 convolutions of depths 16 to 256, each with ReLU and blur-pooling,
-256 -> 8 px, the 8 x 8 convolution with ReLU, the fully-connected layer to the 1024-d latent), on the crop
-shifted to ``[-0.5, 0.5]`` as in ``ours``; then a linear head ``1024 -> 27``, read as the ``(B, 9, 3)``
-radiance SH coefficients of SPEC.md ("Spherical harmonics": real, orthonormal, order 2, SPEC order and
-frame), in the units of the input image (linear, not log: SH of log lighting is not lighting).
+(its ``encoder`` and ``to_latent`` modules: five 3 x 3 convolutions of depths 16 to 256, each with ReLU and
+blur-pooling, 256 -> 8 px, the 8 x 8 convolution with ReLU, the fully-connected layer to the 1024-d latent),
+on the crop shifted to ``[-0.5, 0.5]`` as in ``ours``; then a linear head ``1024 -> 27``, read as the
+``(B, 9, 3)`` radiance SH coefficients of docs/conventions.rst ("Spherical harmonics": real, orthonormal,
+order 2, the order and frame of docs/conventions.rst), in the units of the input image (linear, not log: SH
+of log lighting is not lighting).
 
 Negative lobes. An order-2 function is negative near the antipode of a bright light (the order-2 SH of a
-point light dips to -20 % of its peak), but SPEC.md says HDR lighting is never negative. So:
+point light dips to -20 % of its peak), but docs/conventions.rst ("Images") says HDR lighting is never
+negative. So:
 
 - ``estimate.sh`` holds the raw, unclamped coefficients (what the network predicts);
 - ``estimate.mirror_ball`` is ``sh_reconstruct(sh, 32, clamp_negative=True)``: the reconstruction at the
@@ -22,7 +24,9 @@ point light dips to -20 % of its peak), but SPEC.md says HDR lighting is never n
   ``log_mirror_ball`` is ``log(1 + mirror_ball)``;
 - training (:mod:`kornia_ilum_sh.recipe`) renders the spheres from the *unclamped* reconstruction, so the
   loss sees the negative lobes as the SH lighting really is (``softclip`` counts negative sphere values as
-  0, SPEC.md, ``L_rec``), plus a small penalty on negative radiance (see there).
+  0, docs/conventions.rst, "The paper's error measure L_rec"), plus a small penalty on negative radiance
+  (see there). The recipe imports this module, never the other way: creating the estimator does not import
+  the training code.
 
 The head's bias starts at uniform radiance :data:`INIT_RADIANCE` (coefficient (0, 0) =
 ``INIT_RADIANCE * sqrt(4 pi)``, the others 0), so that the untrained network's spheres are positive and the
@@ -41,7 +45,6 @@ from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEsti
 from kornia_ilum.estimators.ours import build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.sh import sh_reconstruct
-from kornia_ilum_sh.recipe import SHRecipe
 
 __all__ = ["INIT_RADIANCE", "LIGHTING_SIZE", "NUM_COEFFICIENTS", "PAPER", "SHEstimator"]
 
@@ -80,9 +83,9 @@ class SHEstimator(LightingEstimator):
         - Output: ``sh``: :math:`(B, 9, 3)`; ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`
 
     Convention:
-        SPEC.md, "Spherical harmonics" (order, frame, orthonormal basis), "Mirror ball" and "Units of
-        lighting": radiance in the units of the input image, 0 outside the ball. The outputs have the
-        dtype of the module's parameters, also under :func:`torch.autocast` (the reconstruction runs in
+        docs/conventions.rst, "Spherical harmonics" (order, frame, orthonormal basis), "Mirror ball" and
+        "Units of lighting": radiance in the units of the input image, 0 outside the ball. The outputs have
+        the dtype of the module's parameters, also under :func:`torch.autocast` (the reconstruction runs in
         float32 outside autocast, then is cast).
 
     Examples:
@@ -108,9 +111,6 @@ class SHEstimator(LightingEstimator):
         "(kornia_ilum_sh/weights/); reinstall it",
     )
 
-    #: ``kornia-ilum train --estimator sh`` trains it with this recipe.
-    training_recipe = SHRecipe
-
     def __init__(self, latent_dim: int = 1024) -> None:
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
@@ -129,8 +129,8 @@ class SHEstimator(LightingEstimator):
             crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
 
         Returns:
-            :math:`(B, 9, 3)` radiance SH coefficients (SPEC order), in the dtype of the head (or of an
-            enclosing autocast).
+            :math:`(B, 9, 3)` radiance SH coefficients (the order of docs/conventions.rst), in the dtype of
+            the head (or of an enclosing autocast).
         """
         dtype = self.head.weight.dtype
         latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))

@@ -1,15 +1,16 @@
 r"""Training of ``sh``: the rendering loss of ``ours`` on the unclamped SH reconstruction, no discriminator.
 
-:class:`SHRecipe` is :attr:`SHEstimator.training_recipe <kornia_ilum_sh.SHEstimator.training_recipe>`, so
+:class:`SHRecipe` is the plugin's entry point ``sh`` of the group ``kornia_ilum.recipes``, so
 ``kornia-ilum train --estimator sh`` (:func:`kornia_ilum.train.train`) trains it: the same data, optimiser
 and multi-scale loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` as ``ours``
-(:func:`~kornia_ilum.train.training_losses`), without the adversarial term (an order-2 function cannot
+(:func:`~kornia_ilum.train.losses.training_losses`), without the adversarial term (an order-2 function cannot
 look like a real mirror ball, so there is nothing for a discriminator to teach).
 
 :class:`MultiScaleSH` gives the loop ``{size: lighting}`` for sizes 4, 8, 16, 32: the *unclamped*
 reconstruction of the predicted coefficients at 32 px, brought to each size by the energy-keeping pyramid
-(:func:`~kornia_ilum.render.mirror_ball_pyramid`, SPEC.md "Multi-scale"). The loss thus sees the negative
-lobes; ``softclip`` counts negative sphere pixels as 0 with gradient 0 (SPEC.md, ``L_rec``).
+(:func:`~kornia_ilum.render.mirror_ball_pyramid`, docs/conventions.rst, "Multi-scale"). The loss thus sees
+the negative lobes; ``softclip`` counts negative sphere pixels as 0 with gradient 0 (docs/conventions.rst,
+"The paper's error measure L_rec").
 
 Stalling, and the penalty. Where a sphere pixel's render is negative the loss has no gradient. The mirror
 sphere shows the lighting itself, so a negative lobe gets no gradient from it, only from the diffuse and
@@ -29,8 +30,6 @@ every sample the training would stop for good. Two things prevent it:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import torch
 from torch import Tensor, nn
 
@@ -38,9 +37,7 @@ from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_reconstruct
 from kornia_ilum.train.recipes import Recipe
-
-if TYPE_CHECKING:
-    from kornia_ilum_sh.estimator import SHEstimator
+from kornia_ilum_sh.estimator import SHEstimator
 
 __all__ = ["NEGATIVE_PENALTY", "SCALES", "MultiScaleSH", "SHRecipe", "negative_penalty"]
 
@@ -88,11 +85,7 @@ class MultiScaleSH(nn.Module):
 
     def __init__(self, estimator: SHEstimator | None = None) -> None:
         super().__init__()
-        if estimator is None:
-            from kornia_ilum_sh.estimator import SHEstimator
-
-            estimator = SHEstimator()
-        self.estimator = estimator
+        self.estimator = SHEstimator() if estimator is None else estimator
 
     def forward(self, crops: Tensor) -> dict[int, Tensor]:
         sh = self.estimator.coefficients(crops)

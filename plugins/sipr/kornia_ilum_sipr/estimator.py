@@ -1,15 +1,17 @@
 r"""The ``sipr`` estimator: the encoder and lighting head of the SIPR U-Net (Sun et al. 2019).
 
-Sun et al., "Single Image Portrait Relighting" (SIGGRAPH 2019), train a U-Net that relights a portrait and,
-at its bottleneck, estimates the portrait's lighting; LeGendre et al. 2020 compare against that lighting
+Sun et al., "Single Image Portrait Relighting" (SIGGRAPH 2019), train a U-Net that relights a portrait and, at
+its bottleneck, estimates the portrait's lighting; LeGendre et al. 2020 compare against that lighting
 estimate. At inference only the encoder and the lighting head run (:mod:`kornia_ilum_sipr.network`), on
 batches of any size; the relighting decoder is training-only (:mod:`kornia_ilum_sipr.recipe`) and not in the
-shipped weights.
+shipped weights. The recipe imports this module, never the other way: creating the estimator does not import
+the training code.
 
 The head predicts a 16 x 32 lat-long ``z = log(1 + L)``; the estimate's ``mirror_ball`` is ``L = exp(z) - 1``
-resampled to the SPEC.md 32 x 32 equal-area mirror ball by energy-conserving area averaging
-(:func:`~kornia_ilum.geometry.latlong_to_mirror_ball`, ``mode="area"``: ``sum(L * omega)`` per channel is
-kept), and ``log_mirror_ball`` is ``log(1 + mirror_ball)``. Lighting is in the units of the input image.
+resampled to the 32 x 32 equal-area mirror ball of docs/conventions.rst ("Mirror ball") by energy-conserving
+area averaging (:func:`~kornia_ilum.geometry.latlong_to_mirror_ball`, ``mode="area"``: ``sum(L * omega)`` per
+channel is kept), and ``log_mirror_ball`` is ``log(1 + mirror_ball)``. Lighting is in the units of the input
+image.
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ from torch import Tensor
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
-from kornia_ilum_sipr.recipe import SIPRRecipe
 
 __all__ = ["LIGHTING_SIZE", "PAPER", "SIPREstimator"]
 
@@ -49,7 +50,7 @@ class SIPREstimator(LightingEstimator):
         - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`
 
     Convention:
-        SPEC.md, "Mirror ball" and "Units of lighting". The outputs have the dtype of the module's
+        docs/conventions.rst, "Mirror ball" and "Units of lighting". The outputs have the dtype of the module's
         parameters, also under :func:`torch.autocast` (the resampling runs in float32, then is cast).
 
     Examples:
@@ -74,9 +75,6 @@ class SIPREstimator(LightingEstimator):
         "yet, pass pretrained=False for the untrained network",
         needs_weights=True,
     )
-
-    #: ``kornia-ilum train --estimator sipr`` trains it with this recipe.
-    training_recipe = SIPRRecipe
 
     def __init__(self) -> None:
         super().__init__()

@@ -70,8 +70,8 @@ def log_latlong_target(mirror_ball: Tensor) -> Tensor:
 
 
 def log_latlong_to_mirror_ball(log_latlong: Tensor, size: int = 32) -> Tensor:
-    r"""The inverse way: the lighting of a ``log(1 + L)`` lat-long map on the SPEC ``size`` mirror ball, float32,
-    by area averaging (``sum(L * omega)`` per channel kept).
+    r"""The inverse way: the lighting of a ``log(1 + L)`` lat-long map on the ``size`` mirror ball of
+    docs/conventions.rst, float32, by area averaging (``sum(L * omega)`` per channel kept).
 
     Examples:
         >>> ball = log_latlong_to_mirror_ball(torch.full((1, 3, 16, 32), math.log(2.0)))

@@ -1,7 +1,7 @@
 r"""Training of ``sipr``: relight one portrait to another lighting, and estimate its own lighting.
 
-:class:`SIPRRecipe` is :attr:`SIPREstimator.training_recipe <kornia_ilum_sipr.SIPREstimator.training_recipe>`,
-so ``kornia-ilum train --estimator sipr`` (:func:`kornia_ilum.train.train`) trains it with the loop, the
+:class:`SIPRRecipe` is the plugin's entry point ``sipr`` of the group ``kornia_ilum.recipes``, so
+``kornia-ilum train --estimator sipr`` (:func:`kornia_ilum.train.train`) trains it with the loop, the
 optimiser (Adam at 1.5e-4), the batch (32) and the steps of ``ours``, on the same light-stage cache and
 environments. What differs is what SIPR needs (Sun et al. 2019; LeGendre et al. 2020, Sec. 4):
 
@@ -34,16 +34,17 @@ compare the curves with ``ours``'s); the losses that train it are the ``relit`` 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import torch
 from torch import Tensor, nn
 
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.train.config import RuntimeSettings, TrainConfig
+from kornia_ilum.train.losses import training_losses
 from kornia_ilum.train.recipes import Recipe, batch_images
+from kornia_ilum_sipr.estimator import SIPREstimator
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, RelightingDecoder, log_latlong_target, log_latlong_to_mirror_ball
-
-if TYPE_CHECKING:
-    from kornia_ilum_sipr.estimator import SIPREstimator
 
 __all__ = ["CROP_EXTENT", "CROP_POSITION", "LIGHTING_WEIGHT", "RELIT_WEIGHT", "SIPRRecipe", "SIPRTrainer", "masked_l1"]
 
@@ -92,11 +93,7 @@ class SIPRTrainer(nn.Module):
 
     def __init__(self, estimator: SIPREstimator | None = None) -> None:
         super().__init__()
-        if estimator is None:
-            from kornia_ilum_sipr.estimator import SIPREstimator
-
-            estimator = SIPREstimator()
-        self.estimator = estimator
+        self.estimator = SIPREstimator() if estimator is None else estimator
         self.decoder = RelightingDecoder(LIGHTING_SHAPE)
 
     def forward(self, crops: Tensor, target_log_lighting: Tensor) -> tuple[Tensor, Tensor]:
@@ -113,7 +110,7 @@ class SIPRRecipe(Recipe):
     def build(self) -> tuple[nn.Module, nn.Module | None]:
         return SIPRTrainer(), None
 
-    def dataset(self, dataset: Any) -> Any:
+    def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
         """The portraits as SIPR was trained on them (module docstring)."""
         config = dataclasses.replace(dataset.config, background="black", pairs=True, crop="face",
                                      crop_position=CROP_POSITION, crop_extent=CROP_EXTENT)
@@ -122,19 +119,17 @@ class SIPRRecipe(Recipe):
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
 
-    def step(self, model: nn.Module, disc: nn.Module | None, opt_g: Any, opt_d: Any, batch: dict[str, Any],
-             device: torch.device, config: Any) -> dict[str, Tensor]:
+    def step(self, *, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
+             opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
+             config: TrainConfig, runtime: RuntimeSettings) -> dict[str, Tensor]:
         """One Adam step on the relighting and lighting losses (module docstring)."""
-        from kornia_ilum.train import training_losses
-
-        memory = torch.channels_last if config.channels_last else torch.contiguous_format
-        crops = batch_images(batch, "image", device, memory)
+        crops = batch_images(batch, "image", device, runtime.memory_format)
         target_image, alpha = batch_images(batch, "pair_image", device), batch_images(batch, "alpha", device)
         source = batch["mirror_ball"].to(device, non_blocking=True).float()
         with torch.no_grad():
             source_z = log_latlong_target(source)
             target_z = log_latlong_target(batch["pair_mirror_ball"].to(device, non_blocking=True))
-        with torch.autocast(device.type, dtype=torch.bfloat16, enabled=config.bf16):
+        with torch.autocast(device.type, dtype=torch.bfloat16, enabled=runtime.bf16):
             relit, z = model(crops, target_z)
         relit_loss = masked_l1(relit.float(), target_image, alpha)
         lighting_loss = (z.float() - source_z).square().mean()

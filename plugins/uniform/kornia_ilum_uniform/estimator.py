@@ -1,9 +1,9 @@
 r"""The ``uniform`` estimator: constant lighting = mean linear face colour / an assumed skin albedo.
 
-The baseline every learned estimator must beat. Under a uniform environment of radiance ``L``, a
-Lambertian surface of albedo ``a`` shows radiance ``a L`` from every direction (SPEC.md, "Units of
-lighting"), so the lighting is estimated, per channel, as ``L = m / a`` with ``m`` the mean linear colour
-of the face pixels.
+The baseline every learned estimator must beat. Under a uniform environment of radiance ``L``, a Lambertian
+surface of albedo ``a`` shows radiance ``a L`` from every direction (docs/conventions.rst, "Units of
+lighting"), so the lighting is estimated, per channel, as ``L = m / a`` with ``m`` the mean linear colour of
+the face pixels.
 
 Face pixels: the crop is the square of side 1.25 x the face box centred on it (LeGendre et al. 2020), so
 the box is the central 80 % of the crop; inside it, a central ellipse with semi-axes 0.35 (horizontal)
@@ -123,8 +123,8 @@ def uniform_lighting(
         - Output: :math:`(B, 3)`
 
     Convention:
-        SPEC.md, "Units of lighting": a Lambertian surface of albedo ``a`` under uniform radiance ``L``
-        shows ``a L``, so ``L = mean / a``. Each crop is independent of the others in the batch.
+        docs/conventions.rst, "Units of lighting": a Lambertian surface of albedo ``a`` under uniform radiance
+        ``L`` shows ``a L``, so ``L = mean / a``. Each crop is independent of the others in the batch.
 
     Examples:
         >>> grey = torch.full((1, 3, 256, 256), 0.5)  # sRGB 0.5 = linear 0.2140

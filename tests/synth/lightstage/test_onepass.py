@@ -13,12 +13,16 @@ import numpy as np
 import pytest
 import torch
 
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.render import relight
 from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
-from kornia_ilum.synth.lightstage.olat import _icosphere, render_olat
+from kornia_ilum.synth.lightstage.olat import render_olat
 from kornia_ilum.synth.lightstage.onepass import light_cells
-from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
+from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera, sample_views
+from kornia_ilum.synth.lightstage.settings import OnePass, Reference
+from kornia_ilum.synth.lightstage.subjects import subject_source
+from kornia_ilum.synth.lightstage.subjects.base import icosphere
 
 S = 4
 CAM = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=20)
@@ -41,7 +45,7 @@ def card(x: float) -> SimpleNamespace:
 
 
 def scene(with_card: bool = True) -> SimpleNamespace:
-    v, f = _icosphere(4)
+    v, f = icosphere(4)
     ball = SimpleNamespace(name="ball", vertices=v, faces=f, material=mat("skin", 0.6, roughness=0.25))
     occ = SimpleNamespace(name="occ", vertices=0.4 * v + np.array([0.5, 1.5, 0.4], np.float32), faces=f,
                           material=mat("diffuse", 0.3))
@@ -56,9 +60,9 @@ def fields():
     if not variant.startswith("llvm"):
         pytest.fail("the one-pass renderer needs llvm_ad_rgb (apt-get install libllvm19 on Debian 12)")
     sub = scene()
-    fast = render_olat(sub, CAM, lighting_size=S, spp=16, shade_spp=16, method="onepass", threads=1)
-    ref = render_olat(sub, CAM, lighting_size=S, spp=64, method="reference", max_depth=2, threads=1,
-                     envmap_height=64)  # sharp light boundaries
+    fast = render_olat(sub, CAM, OnePass(lighting_size=S, spp=16, shade_spp=16), threads=1)
+    sharp = Reference(lighting_size=S, spp=64, max_depth=2, envmap_height=64)  # sharp light boundaries
+    ref = render_olat(sub, CAM, sharp, threads=1)
     return fast, ref
 
 
@@ -74,6 +78,7 @@ def test_light_cells_partition() -> None:
     assert omega.sum() >= 4 * np.pi and omega.sum() < 4 * np.pi * 1.05
 
 
+@pytest.mark.slow
 def test_matches_reference(fields) -> None:
     fast, ref = fields
     assert fast.meta["method"] == "onepass" and fast.field.shape == ref.field.shape
@@ -90,11 +95,12 @@ def test_matches_reference(fields) -> None:
         assert err < 0.12, err  # noise of both at 20 px (the edges dominate)
 
 
+@pytest.mark.slow
 def test_card_lets_light_through(fields) -> None:
     """Light from +X reaches the sphere through the card's transparent stripes: neither dark nor fully lit."""
     fast, ref = fields
     with_card = fast.field.float()
-    no_card = render_olat(scene(False), CAM, lighting_size=S, spp=16, shade_spp=16, method="onepass",
+    no_card = render_olat(scene(False), CAM, OnePass(lighting_size=S, spp=16, shade_spp=16),
                           threads=1).field.float()
     light = 7  # row 1, column 3: from +X, a little up
     ratio = with_card[..., light].sum() / no_card[..., light].sum()
@@ -102,22 +108,20 @@ def test_card_lets_light_through(fields) -> None:
     assert 0.2 < ratio < 0.9 and abs(ratio - ref_ratio) < 0.1, (ratio, ref_ratio)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 22, 4])  # hair cards; a full beard (alpha-tested fur shells); glasses (lenses)
 def test_makehuman_matches_reference(shared_data, seed) -> None:
     """A photoreal MakeHuman subject (textured skin, alpha-tested hair cards, cornea, accessories) at 24 px, S = 8:
     the one-pass field (no post-processing) and the per-light reference agree within their noise, light by light
     and relit."""
-    from kornia_ilum.synth.lightstage.scene import sample_views
-    from kornia_ilum.synth.lightstage.subjects import subject_source
-
     subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(seed)
     want = {1: "hair", 22: "beard0", 4: "lenses"}[seed]
     assert want in {p.name for p in subj.parts}
     cam = sample_views(seed, 4, 24, landmarks=subj.face_landmarks)[0]
     s = 8
-    fast = render_olat(subj, cam, lighting_size=s, spp=16, shade_spp=16, method="onepass", subsurface=False,
-                       denoise=False, threads=1)
-    ref = render_olat(subj, cam, lighting_size=s, spp=64, method="reference", max_depth=2, threads=1)
+    plain = OnePass(lighting_size=s, spp=16, shade_spp=16, subsurface=False, denoise=False)
+    fast = render_olat(subj, cam, plain, threads=1)
+    ref = render_olat(subj, cam, Reference(lighting_size=s, spp=64, max_depth=2), threads=1)
     f, r = fast.field.float(), ref.field.float()
     assert torch.isfinite(f).all() and (f >= 0).all()
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
@@ -136,7 +140,7 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
         assert err < relit_err, err
     assert abs(fast.alpha.mean() - ref.alpha.mean()) < 0.02
     # the default sampling (32 camera samples, 4 or 16 tracing the lights, demodulated) agrees as well
-    demod = render_olat(subj, cam, lighting_size=s, method="onepass", subsurface=False, threads=1)
+    demod = render_olat(subj, cam, OnePass(lighting_size=s, subsurface=False), threads=1)
     assert demod.meta["demodulate"] and demod.meta["spp"] == 32
     d = demod.field.float()
     rel = (d.sum((0, 1))[lit] - per_light_r[lit]).abs() / per_light_r[lit]
@@ -148,10 +152,11 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
     assert abs(demod.alpha.mean() - ref.alpha.mean()) < 0.02
 
 
+@pytest.mark.slow
 def test_demodulated_matches_reference(fields) -> None:
     """16 camera samples of which 4 trace the lights (demodulated): per-light sums still match the reference."""
     _, ref = fields
-    fast = render_olat(scene(), CAM, lighting_size=S, spp=16, shade_spp=4, method="onepass", threads=1)
+    fast = render_olat(scene(), CAM, OnePass(lighting_size=S, spp=16, shade_spp=4), threads=1)
     assert fast.meta["demodulate"] and fast.meta["shade_spp"] == 4
     f, r = fast.field.float(), ref.field.float()
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
@@ -173,12 +178,13 @@ def textured_quad() -> SimpleNamespace:
     tex = np.random.default_rng(0).uniform(0.05, 0.95, (128, 128, 3)).astype(np.float32)
     quad = SimpleNamespace(name="quad", vertices=v, faces=f, uvs=uv,
                            material=SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), albedo_texture=tex))
-    sv, sf = _icosphere(3)
+    sv, sf = icosphere(3)
     ball = SimpleNamespace(name="ball", vertices=0.8 * sv + np.array([0, 0, 1.0], np.float32), faces=sf,
                            material=mat("diffuse", 0.7))
     return SimpleNamespace(seed=0, split="train", skin_tone=2, parts=[quad, ball], face_landmarks=sv)
 
 
+@pytest.mark.slow
 def test_demodulation_antialiases_texture() -> None:
     """At the light cost of 4 samples per pixel, 32 demodulated camera samples match a 64-sample reference's
     anti-aliased texture and silhouette much better than 4 plain samples, under one light and under all
@@ -187,10 +193,10 @@ def test_demodulation_antialiases_texture() -> None:
     sub = textured_quad()
     cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=16)
     s = 16
-    kw = dict(lighting_size=s, method="onepass", subsurface=False, threads=1)
-    ref = render_olat(sub, cam, spp=64, shade_spp=64, seed=1, **kw).field.float()
-    plain = render_olat(sub, cam, spp=4, seed=2, **kw).field.float()
-    demod = render_olat(sub, cam, spp=32, shade_spp=4, seed=2, **kw).field.float()
+    kw = dict(lighting_size=s, subsurface=False)
+    ref = render_olat(sub, cam, OnePass(spp=64, shade_spp=64, seed=1, **kw), threads=1).field.float()
+    plain = render_olat(sub, cam, OnePass(spp=4, seed=2, **kw), threads=1).field.float()
+    demod = render_olat(sub, cam, OnePass(spp=32, shade_spp=4, seed=2, **kw), threads=1).field.float()
     for lights in (torch.ones(1, s * s, 3), torch.zeros(1, s * s, 3).index_fill_(1, torch.tensor([100]), 5.0)):
         img_r = relight(ref, lights)
         err = [((relight(x, lights) - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()).item()
@@ -198,19 +204,18 @@ def test_demodulation_antialiases_texture() -> None:
         assert err[1] < 0.65 * err[0], err
 
 
+@pytest.mark.slow
 def test_sampling_settings() -> None:
     """Mixed pixels (the sphere's silhouette) trace edge_spp samples, plain ones shade_spp; bad settings raise."""
-    from kornia_ilum.core.errors import ValueCheckError
-
     sub = textured_quad()
     cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=12)
-    kw = dict(lighting_size=S, method="onepass", subsurface=False, threads=1)
-    a = render_olat(sub, cam, spp=16, shade_spp=2, edge_spp=2, **kw)
-    b = render_olat(sub, cam, spp=16, shade_spp=2, edge_spp=8, **kw)
+    kw = dict(lighting_size=S, subsurface=False)
+    a = render_olat(sub, cam, OnePass(spp=16, shade_spp=2, edge_spp=2, **kw), threads=1)
+    b = render_olat(sub, cam, OnePass(spp=16, shade_spp=2, edge_spp=8, **kw), threads=1)
     assert 2.0 <= a.meta["traced_per_pixel"] < 2.3  # a part seen by few samples still gets one traced hit
     assert 2.2 < b.meta["traced_per_pixel"] < 8.0
-    plain = render_olat(sub, cam, spp=4, **kw)
+    plain = render_olat(sub, cam, OnePass(spp=4, **kw), threads=1)
     assert plain.meta["shade_spp"] == 4 and not plain.meta["demodulate"]
     for bad in (dict(spp=4, shade_spp=8), dict(spp=8, shade_spp=2, demodulate=False), dict(spp=8, edge_spp=16)):
         with pytest.raises(ValueCheckError):
-            render_olat(sub, cam, **kw, **bad)
+            render_olat(sub, cam, OnePass(**kw, **bad), threads=1)

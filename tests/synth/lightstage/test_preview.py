@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from kornia_ilum.synth.lightstage.cache import build_cache, read_field, read_manifest
+from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache, read_field, read_manifest
+from kornia_ilum.synth.lightstage.settings import Auto
 from kornia_ilum.synth.lightstage.preview import compose_portrait, preview_bsdf, render_preview, training_sheet
 from kornia_ilum.synth.lightstage.scene import sample_views
 from kornia_ilum.synth.lightstage.subjects import Material, MeshPart, make_subject
@@ -19,13 +20,15 @@ from tests.conftest import SHARED_DATA
 PNG = b"\x89PNG\r\n\x1a\n"
 ROOT = Path(__file__).resolve().parents[3]
 
+pytestmark = pytest.mark.slow  # every test renders with Mitsuba (a preview, or the tiny cache's fields)
+
 
 @pytest.fixture(scope="module")
 def tiny_cache(tmp_path_factory) -> Path:
     """Two mannequins (seed 1 is an eval subject), two views each, 24 px, 4 x 4 lights."""
     out = tmp_path_factory.mktemp("cache")
-    build_cache("mannequin", [0, 1], out, views_per_subject=2, size=24, spp=1, lighting_size=4, workers=1,
-                progress=False)
+    build_cache("mannequin", [0, 1], out, renderer=Auto(spp=1, lighting_size=4),
+                views=SampledViews(2, size=24), workers=Workers(processes=1), progress=False)
     return out
 
 

@@ -1,4 +1,4 @@
-"""Random camera views of the light stage (kornia_ilum.synth.lightstage.scene.sample_views)."""
+"""The light stage's cameras (kornia_ilum.synth.lightstage.scene): views, transforms, projection."""
 
 from __future__ import annotations
 
@@ -6,19 +6,25 @@ import math
 
 import numpy as np
 import pytest
+import torch
 
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.synth.lightstage.olat import render_olat
 from kornia_ilum.synth.lightstage.scene import (
     FACE_FRACTION,
+    PIVOT_RAISE,
     Camera,
-    _pivot,
     camera_transform,
     fov_from_focal,
     frame_distance,
     project_points,
     sample_views,
+    subject_pivot,
 )
+from kornia_ilum.synth.lightstage.settings import Auto
 from kornia_ilum.synth.lightstage.subjects import make_subject
+from kornia_ilum.synth.lightstage.subjects.base import icosphere
+from tests.synth.lightstage.spheres import sphere_subject
 
 
 class TestSampleViews:
@@ -57,13 +63,15 @@ class TestSampleViews:
         for seed in (0, 3):
             subject = make_subject(seed)
             for view in sample_views(seed, 6, 192, landmarks=subject.face_landmarks):
-                xy = project_points(subject.face_landmarks, view, camera_transform(view, _pivot(subject))).numpy()
+                transform = camera_transform(view, subject_pivot(subject))
+                xy = project_points(subject.face_landmarks, view, transform).numpy()
                 height = np.ptp(xy[:, 1]) / view.size
                 assert abs(height - FACE_FRACTION) < 0.005
                 assert xy.min() > 0.1 * view.size and xy.max() < 0.9 * view.size
             nominal = sample_views(seed, 4, 192)  # framed for a typical face: close to it
             for view in nominal:
-                xy = project_points(subject.face_landmarks, view, camera_transform(view, _pivot(subject))).numpy()
+                transform = camera_transform(view, subject_pivot(subject))
+                xy = project_points(subject.face_landmarks, view, transform).numpy()
                 assert 0.4 < np.ptp(xy[:, 1]) / view.size < 0.6
 
     def test_exception(self) -> None:
@@ -84,3 +92,79 @@ def test_frame_distance_wide_lens_stands_closer() -> None:
     wide = frame_distance(Camera(70.0, 1.0, 0.0, 0.0), lm)
     tele = frame_distance(Camera(24.0, 1.0, 0.0, 0.0), lm)
     assert 0.2 < wide < 0.35 and 0.6 < tele < 0.8
+
+class TestCamera:
+    def test_smoke(self) -> None:
+        cam = Camera(30.0, 0.5, 10.0, -5.0, size=64)
+        assert Camera(**cam.to_dict()) == cam
+
+    @pytest.mark.parametrize(
+        ("kwargs", "error", "match"),
+        [
+            ({"fov_deg": 0.0}, ValueCheckError, "fov_deg must be in"),
+            ({"fov_deg": 180.0}, ValueCheckError, "fov_deg must be in"),
+            ({"distance": -1.0}, ValueCheckError, "distance must be positive"),
+            ({"yaw_deg": float("nan")}, ValueCheckError, "yaw_deg must be finite"),
+            ({"pitch_deg": "up"}, TypeCheckError, "pitch_deg must be a number"),
+            ({"size": 0}, ValueCheckError, "Camera.size must be positive"),
+            ({"size": 2.5}, TypeCheckError, "Camera.size must be an int"),
+        ],
+    )
+    def test_exception(self, kwargs: dict, error: type, match: str) -> None:
+        args = {"fov_deg": 30.0, "distance": 1.0, "yaw_deg": 0.0, "pitch_deg": 0.0, **kwargs}
+        with pytest.raises(error, match=match):
+            Camera(**args)
+
+class TestCameraTransform:
+    def test_frontal(self) -> None:
+        t = camera_transform(Camera(30.0, 2.0, 0.0, 0.0), (0.1, 0.2, 0.3))
+        np.testing.assert_allclose(t[:3, :3], np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(t[:3, :3] @ [0.1, 0.2, 0.3] + t[:3, 3], [0.0, 0.0, -2.0], atol=1e-12)
+
+    @pytest.mark.parametrize(
+        ("yaw", "pitch", "toward_camera"),
+        [(90.0, 0.0, (1.0, 0.0, 0.0)), (-90.0, 0.0, (-1.0, 0.0, 0.0)), (0.0, 90.0, (0.0, 1.0, 0.0))],
+    )
+    def test_orbit(self, yaw: float, pitch: float, toward_camera: tuple) -> None:
+        """The subject point on the camera's side comes nearest: yaw toward +X, pitch from above."""
+        t = camera_transform(Camera(30.0, 2.0, yaw, pitch), (0.0, 0.0, 0.0))
+        np.testing.assert_allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(t[:3, :3] @ toward_camera + t[:3, 3], [0.0, 0.0, -1.0], atol=1e-12)
+
+    def test_yaw_turns_face_left(self) -> None:
+        """Positive yaw: the subject's nose (+Z) turns toward the image's left (-X)."""
+        t = camera_transform(Camera(30.0, 2.0, 30.0, 0.0), (0.0, 0.0, 0.0))
+        assert (t[:3, :3] @ [0.0, 0.0, 1.0])[0] < -0.4
+
+class TestProjectPoints:
+    def test_smoke(self) -> None:
+        cam = Camera(90.0, 1.0, 0.0, 0.0, size=100)
+        xy = project_points(np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [-1.0, -1.0, 0.0]]), cam,
+                            camera_transform(cam, (0.0, 0.0, 0.0)))
+        torch.testing.assert_close(xy, torch.tensor([[50.0, 50.0], [75.0, 25.0], [0.0, 100.0]]))
+
+    def test_exception(self) -> None:
+        cam = Camera(60.0, 1.0, 0.0, 0.0)
+        t = camera_transform(cam, (0.0, 0.0, 0.0))
+        with pytest.raises(ValueCheckError, match="in front of the camera"):
+            project_points(np.array([[0.0, 0.0, 2.0]]), cam, t)
+        with pytest.raises(ShapeError, match=r"points must have shape \(K, 3\)"):
+            project_points(np.zeros((4, 2)), cam, t)
+
+    @pytest.mark.slow
+    def test_matches_render(self, variant: str) -> None:
+        """A small ball off the pivot, seen from an orbit, lands where project_points puts its centre."""
+        pivot_marks = 0.2 * icosphere(1)[0]  # landmarks around the origin; not rendered
+        centre = (0.3, 0.25, 0.1)
+        subject = sphere_subject(radius=0.03, centre=centre, landmarks=pivot_marks, subdivisions=2)
+        cam = Camera(40.0, 2.0, 30.0, 15.0, size=64)
+        rf = render_olat(subject, cam, Auto(lighting_size=2, spp=16), variant=variant, threads=1)
+        alpha = rf.alpha[0]
+        yy, xx = torch.meshgrid(torch.arange(64.0) + 0.5, torch.arange(64.0) + 0.5, indexing="ij")
+        centroid = torch.stack([(alpha * xx).sum(), (alpha * yy).sum()]) / alpha.sum()
+        pivot = (0.0, PIVOT_RAISE * 0.4, 0.0)  # the landmark box is 0.4 high, centred at the origin
+        expected = project_points(np.array([centre]), cam, camera_transform(cam, pivot))[0]
+        assert torch.dist(centroid, expected) < 0.3
+        box = project_points(pivot_marks, cam, camera_transform(cam, pivot))
+        torch.testing.assert_close(rf.face_box, torch.cat([box.min(0).values, box.max(0).values]))
+        torch.testing.assert_close(torch.tensor(rf.meta["landmarks"]), box, atol=1e-3, rtol=0)

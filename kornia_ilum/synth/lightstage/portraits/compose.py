@@ -24,12 +24,14 @@ from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
 from kornia_ilum.geometry import mirror_ball_to_lights
 from kornia_ilum.render import SPHERE_SIZES, relight, sphere_pyramid
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, latlong_grid, lookup_latlong
-from kornia_ilum.synth.lightstage.olat import ReflectanceField
+from kornia_ilum.synth.camera_effects import lens_blur
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.scene import PIVOT_RAISE, Camera
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
 
 __all__ = [
     "DETECTOR_BOX",
+    "add_relit",
     "auto_exposure",
     "background_pyramid",
     "crop_images",
@@ -40,6 +42,7 @@ __all__ = [
     "random_crop_boxes",
     "relight_portraits",
     "sphere_targets",
+    "uniform_draws",
 ]
 
 #: The box OpenCV's Haar detector draws around a light-stage face, in terms of the *inner* face landmarks
@@ -47,7 +50,7 @@ __all__ = [
 #: out when the head turns): a square of side ``scale * h`` centred at the inner box's centre raised by
 #: ``raise_ * h``, ``h`` the inner box's height. Fitted on the 16 detections in 36 renders (12 subjects x 3
 #: views, 192 x 192): side 1.13 +- 0.14 h, centre raised 0.19 +- 0.04 h (the cameras aim there:
-#: :data:`~kornia_ilum.synth.lightstage.olat.PIVOT_RAISE`), horizontal offset -0.02 +- 0.03 h.
+#: :data:`~kornia_ilum.synth.lightstage.scene.PIVOT_RAISE`), horizontal offset -0.02 +- 0.03 h.
 DETECTOR_BOX: dict[str, Any] = {
     "landmarks": (
         "brow_right_top", "brow_left_top", "eye_right_outer", "eye_left_outer", "nose_tip",
@@ -60,7 +63,13 @@ DETECTOR_BOX: dict[str, Any] = {
 _INNER = [LANDMARK_NAMES.index(n) for n in DETECTOR_BOX["landmarks"]]
 
 
-def _uniform(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:
+def uniform_draws(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:
+    """``n`` float64 draws uniform in ``[lo, hi)`` from ``generator`` (one ``torch.rand`` call).
+
+    Examples:
+        >>> uniform_draws(3, 2.0, 4.0, torch.Generator().manual_seed(0)).shape
+        torch.Size([3])
+    """
     return lo + (hi - lo) * torch.rand(n, generator=generator, dtype=torch.float64)
 
 
@@ -140,9 +149,9 @@ def face_crop_boxes(
     side = boxes[:, 2] - boxes[:, 0]
     cx, cy = 0.5 * (boxes[:, 0] + boxes[:, 2]), 0.5 * (boxes[:, 1] + boxes[:, 3])
     if generator is not None:
-        side = side * torch.exp(_uniform(b, -extent, extent, generator))
-        cx = cx + side * _uniform(b, -position, position, generator)
-        cy = cy + side * _uniform(b, -position, position, generator)
+        side = side * torch.exp(uniform_draws(b, -extent, extent, generator))
+        cx = cx + side * uniform_draws(b, -position, position, generator)
+        cy = cy + side * uniform_draws(b, -position, position, generator)
     return _fit_inside(torch.stack([cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2], -1), size)
 
 
@@ -178,7 +187,7 @@ def random_crop_boxes(
     best = torch.zeros(b, 4, dtype=torch.float64)
     best_overlap = torch.full((b,), math.inf, dtype=torch.float64)
     for _ in range(tries):
-        s = _uniform(b, side[0] * size, side[1] * size, generator)
+        s = uniform_draws(b, side[0] * size, side[1] * size, generator)
         x0 = torch.rand(b, generator=generator, dtype=torch.float64) * (size - s)
         y0 = torch.rand(b, generator=generator, dtype=torch.float64) * (size - s)
         cand = torch.stack([x0, y0, x0 + s, y0 + s], -1)
@@ -206,8 +215,9 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
         ``(1, 1, H, W)`` matte (the same for every lighting).
 
     Convention:
-        SPEC units (:mod:`~kornia_ilum.synth.lightstage.olat`): ``image = sum_n R[:, :, n] L[n]``. One batched
-        product per call: relight many lightings of one field together.
+        The units of docs/conventions.rst (:mod:`~kornia_ilum.synth.lightstage.field`):
+        ``image = sum_n R[:, :, n] L[n]``. One batched product per call: relight many lightings of one field
+        together.
 
     Examples:
         >>> rf = ReflectanceField(torch.ones(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
@@ -221,13 +231,16 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
         raise TypeCheckError(f"field must be a ReflectanceField, got {type(field).__name__}")
     s = field.lighting_size
     check_tensor(lighting, "lighting", ["B", "3", str(s), str(s)], finite=True, nonnegative=True)
-    image = _add_relit(lighting.new_zeros(lighting.shape[0], 3, field.size, field.size, dtype=torch.float32),
+    image = add_relit(lighting.new_zeros(lighting.shape[0], 3, field.size, field.size, dtype=torch.float32),
                        field, lighting)
     return image, field.alpha.float().reshape(1, 1, field.size, field.size)
 
 
-def _add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
-    """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels."""
+def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
+    """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels.
+
+    Unchecked (the callers check): ``lighting`` is ``(B, 3, S, S)`` with the field's ``S``. Returns ``frame``.
+    """
     lights = mirror_ball_to_lights(lighting.float())
     if field.light_index is not None:
         lights = lights[:, field.light_index]
@@ -287,7 +300,7 @@ def _check_mirror(mirror: object, n: int) -> None:
 def _crop_grid(boxes: torch.Tensor, hw: Sequence[int], size: int, mirror: torch.Tensor | None) -> torch.Tensor:
     """The ``grid_sample`` grid (normalised, ``align_corners=False``) of axis-aligned crops of an ``hw`` frame.
 
-    Separable, so built from two 1-D coordinate vectors (6 times faster than
+    Separable, so built from two 1-D coordinate vectors (cheaper than
     :func:`~torch.nn.functional.affine_grid`, which multiplies every output pixel by a matrix).
     """
     h, w = hw
@@ -304,11 +317,12 @@ def _crop_grid(boxes: torch.Tensor, hw: Sequence[int], size: int, mirror: torch.
 def frame_background(latlong: torch.Tensor, camera: Camera, mirror: torch.Tensor | None = None) -> torch.Tensor:
     r"""What the camera sees of each environment, linear, one ray per pixel of its frame.
 
-    The pixels' rays of the pinhole ``camera`` (:func:`~kornia_ilum.synth.background.camera_rays`: SPEC frame,
-    looking along -Z; the environment is in the camera frame, so no rotation) looked up bilinearly in the
-    lat-long maps (:func:`~kornia_ilum.synth.background.lookup_latlong`). The rays' lat-long coordinates are
-    computed once per camera and cached (:func:`~kornia_ilum.synth.background.latlong_grid`), so a frame costs
-    one :func:`~torch.nn.functional.grid_sample`.
+    The pixels' rays of the pinhole ``camera`` (:func:`~kornia_ilum.synth.background.camera_rays`: the frame
+    of docs/conventions.rst, looking along -Z; the environment is in the camera frame, so no rotation) looked
+    up bilinearly in the lat-long maps (:func:`~kornia_ilum.synth.background.lookup_latlong`). The rays'
+    lat-long coordinates are computed once per camera and cached
+    (:func:`~kornia_ilum.synth.background.latlong_grid`), so a frame costs one
+    :func:`~torch.nn.functional.grid_sample`.
 
     Args:
         latlong: ``(B, 3, H, 2H)`` linear lat-long maps in the camera frame.
@@ -533,11 +547,11 @@ def frame_backgrounds(
     sharp). The blur is made at a coarser level ``k = max(1, ceil(log2 sigma))`` of the pyramid: the view is
     looked up at ``size / 2^k`` in the map averaged ``2^k`` times, blurred by the rest
     (:func:`~kornia_ilum.synth.camera_effects.lens_blur` of ``sqrt((sigma / 2^k)^2 - 1/6)``, the bilinear
-    enlargement's own spread subtracted; a per-image separable kernel, 3 to 10 times faster here than
+    enlargement's own spread subtracted; a per-image separable kernel, cheaper than
     :func:`kornia.filters.gaussian_blur2d` with per-image sigmas) and enlarged to ``size`` (bilinear, OpenCV's
-    ``resize`` on CPU float32): a blurred frame costs less than a sharp one. The widths are approximate (the averaged map and the enlargement blur a
-    little in their own ways, and blurs below 0.8 pixel come out at about 0.8); the blur is the same everywhere
-    (a distant background).
+    ``resize`` on CPU float32): a blurred frame costs less than a sharp one. The widths are approximate (the
+    averaged map and the enlargement blur a little in their own ways, and blurs below 0.8 pixel come out at
+    about 0.8); the blur is the same everywhere (a distant background).
 
     Args:
         pyramids: ``B`` pyramids of padded maps (the same map may appear several times).
@@ -556,8 +570,6 @@ def frame_backgrounds(
         >>> tuple(view.shape), bool(torch.allclose(view, torch.ones(())))
         ((2, 3, 16, 16), True)
     """
-    from kornia_ilum.synth.camera_effects import lens_blur
-
     if not isinstance(camera, Camera):
         raise TypeCheckError(f"camera must be a Camera, got {type(camera).__name__}")
     b = len(pyramids)
@@ -602,14 +614,14 @@ def _enlarge(frames: torch.Tensor, out: torch.Tensor, members: list[int]) -> Non
     """``out[members] = `` the frames enlarged to ``out``'s size, bilinear (``align_corners=False``).
 
     On CPU float32 with OpenCV's ``resize`` plane by plane (``INTER_LINEAR`` with float weights on float images:
-    the same values up to float rounding, 7 times faster than :func:`~torch.nn.functional.interpolate` on one
-    core here: 0.05 against 0.35 ms per 192 x 192 frame).
+    the same values up to float rounding, cheaper than :func:`~torch.nn.functional.interpolate` on one core:
+    docs/lightstage.rst, "Measured").
     """
     size = out.shape[-2:]
     if frames.dtype != torch.float32 or frames.device.type != "cpu" or out.dtype != torch.float32:
         out[members] = F.interpolate(frames, size=tuple(size), mode="bilinear", align_corners=False)
         return
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and only this CPU path needs it
 
     frames = frames.contiguous()
     for n, j in enumerate(members):

@@ -24,14 +24,24 @@ from kornia_ilum.core.check import check_choice, check_positive_int, trusted
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.core.seeding import hashed_generator
 from kornia_ilum.detection.crop import CROP_SCALE
-from kornia_ilum.geometry import flip_lighting_horizontal, latlong_to_mirror_ball
+from kornia_ilum.geometry import flip_lighting_horizontal, latlong_directions, latlong_to_mirror_ball
+from kornia_ilum.io import read_hdr
 from kornia_ilum.synth.background import latlong_grid, lookup_latlong
 from kornia_ilum.synth.camera_effects import CameraEffects
-from kornia_ilum.synth.environments import Environment, EnvironmentSampler
-from kornia_ilum.synth.lightstage.olat import ReflectanceField
+from kornia_ilum.synth.environments import (
+    Environment,
+    EnvironmentSampler,
+    HDRFolderSource,
+    IndoorSource,
+    SkySource,
+    render_outdoor,
+    render_room,
+    resize_latlong,
+)
+from kornia_ilum.synth.lightstage.cache import read_field, read_manifest
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.portraits.compose import (
-    _add_relit,
-    _uniform,
+    add_relit,
     auto_exposure,
     background_pyramid,
     crop_images,
@@ -40,6 +50,7 @@ from kornia_ilum.synth.lightstage.portraits.compose import (
     frame_backgrounds,
     random_crop_boxes,
     sphere_targets,
+    uniform_draws,
 )
 
 __all__ = ["MAX_WORKERS", "PortraitConfig", "PortraitDataset", "environment_background", "load_fields"]
@@ -94,8 +105,8 @@ class PortraitConfig:
         procedural_background_height: the height at which procedural skies are rendered again for their
             backgrounds (their lighting uses the sampler's maps); at most the sampler's height turns it off.
         room_background_height: the same for procedural rooms; by default the sampler's 128 rows (off): a room
-            costs 87 ms to render at 256 rows against 12 ms for a sky, 1.4 ms per sample at one new environment
-            per chunk of 64, which the data rate cannot afford.
+            costs several times a sky to render at 256 rows, more per sample (at one new environment per chunk
+            of 64) than the data rate can afford (docs/lightstage.rst, "Measured").
         background_sharp_probability: the fraction of backgrounds without depth of field.
         background_blur: the range of the depth of field's Gaussian (uniform, pixels of the rendered frame) for
             the others (:func:`frame_backgrounds`).
@@ -181,8 +192,6 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
     Raises:
         ValueCheckError: no field is left, fields of different lighting sizes, or an unknown split.
     """
-    from kornia_ilum.synth.lightstage.cache import read_field, read_manifest
-
     if split not in (None, "train", "eval"):
         raise ValueCheckError(f"split must be 'train', 'eval' or None, got {split!r}")
     if isinstance(source, (str, os.PathLike)):
@@ -209,16 +218,11 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
 
 @functools.lru_cache(maxsize=4)
 def _latlong_directions(rows: int) -> torch.Tensor:
-    from kornia_ilum.geometry import latlong_directions
-
     return latlong_directions(rows, dtype=torch.float64)
 
 
 @functools.lru_cache(maxsize=16)
 def _read_full(path: str, height: int | None) -> torch.Tensor:
-    from kornia_ilum.io import read_hdr
-    from kornia_ilum.synth.environments import resize_latlong
-
     image = read_hdr(path).float()
     if height is not None and image.shape[-2] > height:
         image = resize_latlong(image, height)
@@ -234,14 +238,6 @@ def _background_source(
 ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
     """:func:`environment_background` before the augmentation: ``(map, M, gains)``, float32 (``M`` float64); the
     map is ``env.latlong`` itself (already augmented) with ``M`` and ``gains`` ``None`` when nothing is finer."""
-    from kornia_ilum.synth.environments import (
-        HDRFolderSource,
-        IndoorSource,
-        SkySource,
-        render_outdoor,
-        render_room,
-    )
-
     params = env.params
     k = params.get("sampler", {}).get("source")
     source = sampler.sources[k] if isinstance(k, int) and 0 <= k < len(sampler.sources) else None
@@ -282,7 +278,7 @@ def environment_background(
     direction (a picture, not lighting: no energy bookkeeping needed). Other sources, and heights not above the
     working height, give ``env.latlong`` itself.
 
-    :class:`PortraitDataset` does not resample the whole map (43 ms at 512 rows): it keeps the source map,
+    :class:`PortraitDataset` does not resample the whole map (costly at 512 rows): it keeps the source map,
     applies the gains to its :func:`background_pyramid` and folds the rotation into the frame's lookup
     (``rotation`` of :func:`frame_backgrounds`), which sees the same background up to interpolation.
 
@@ -488,11 +484,11 @@ class PortraitDataset(IterableDataset):
         field_ids = torch.randint(len(self.fields), (nf,), generator=g).tolist()
         flips = torch.rand(n, generator=g) < cfg.flip_probability
         lightings = [self._lightings(worker, index, n, g) for _ in range(2 if cfg.pairs else 1)]
-        keys = [torch.exp(_uniform(n, *map(math.log, cfg.exposure_key), g)) for _ in lightings]
+        keys = [torch.exp(uniform_draws(n, *map(math.log, cfg.exposure_key), g)) for _ in lightings]
         blurs = []
         for _ in lightings:
             sharp = torch.rand(n, generator=g, dtype=torch.float64) < cfg.background_sharp_probability
-            blurs.append(torch.where(sharp, 0.0, _uniform(n, *cfg.background_blur, g)))
+            blurs.append(torch.where(sharp, 0.0, uniform_draws(n, *cfg.background_blur, g)))
         effects = [cfg.camera.draw(n, g) for _ in lightings]
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
@@ -591,7 +587,8 @@ class PortraitDataset(IterableDataset):
         else:
             frame = latlong.new_zeros(len(latlong), 3, rf.size, rf.size)
         if cfg.subject:
-            _add_relit(frame, rf, torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting))
+            flipped = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
+            add_relit(frame, rf, flipped)
         linear = crop_images(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)

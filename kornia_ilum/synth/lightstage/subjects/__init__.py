@@ -3,6 +3,7 @@
 :func:`subject_source` picks a source by name; both give :class:`Subject` objects that every renderer takes.
 """
 
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.synth.lightstage.subjects.base import (
     LANDMARK_NAMES,
     MONK_SKIN_TONES_SRGB,
@@ -37,8 +38,6 @@ def subject_source(name: str, assets: str | None = None) -> SubjectSource:
         >>> subject_source("mannequin").name
         'mannequin'
     """
-    from kornia_ilum.core.errors import ValueCheckError
-
     if name == "mannequin":
         return MannequinSource()
     if name == "makehuman":

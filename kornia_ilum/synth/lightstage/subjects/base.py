@@ -19,13 +19,14 @@ Train / evaluation split:
     the subject's appearance.
 
 Convention:
-    Metres, in the SPEC frame (+X right, +Y up, +Z toward the camera): the subject faces +Z, the eyes are near
-    ``y = 0``. The subject's right eye is at ``-X`` (on the image's left).
+    Metres, in the frame of docs/conventions.rst (+X right, +Y up, +Z toward the camera): the subject faces
+    +Z, the eyes are near ``y = 0``. The subject's right eye is at ``-X`` (on the image's left).
 """
 
 from __future__ import annotations
 
 import colorsys
+import math
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -49,8 +50,10 @@ __all__ = [
     "Subject",
     "SubjectSource",
     "fabric_colour",
+    "icosphere",
     "merge_meshes",
     "pick",
+    "seed_digest",
     "subject_split",
 ]
 
@@ -94,6 +97,40 @@ GLASSES_FRAMES: dict[str, float] = {"black": 3.0, "tortoise": 2.0, "metal": 1.5,
 FRAME_ALBEDO: dict[str, tuple[float, float, float]] = {
     "black": (0.015, 0.015, 0.015), "tortoise": (0.12, 0.05, 0.015), "metal": (0.45, 0.40, 0.30),
 }  # fmt: skip
+
+
+def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """A unit icosphere ``(vertices (V, 3) float32, faces (F, 3) int32)``, outward-wound; for examples, tests.
+
+    Examples:
+        >>> v, f = icosphere(1)
+        >>> v.shape, f.shape
+        ((42, 3), (80, 3))
+    """
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    verts = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+             (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
+             (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = [np.array(p, dtype=np.float64) / np.linalg.norm(p) for p in verts]
+    midpoints: dict[tuple[int, int], int] = {}
+
+    def mid(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in midpoints:
+            m = v[a] + v[b]
+            v.append(m / np.linalg.norm(m))
+            midpoints[key] = len(v) - 1
+        return midpoints[key]
+
+    for _ in range(subdivisions):
+        new = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            new += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = new
+    return np.asarray(v, dtype=np.float32), np.asarray(faces, dtype=np.int32)
 
 
 def merge_meshes(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -168,7 +205,7 @@ class MeshPart:
 
     Args:
         name: the part (``"skin"``, ``"lips"``, ``"sclera"``, ``"iris"``, ``"cornea"``, ``"hair"``, ...).
-        vertices: ``(V, 3)`` float32 metres in the SPEC frame.
+        vertices: ``(V, 3)`` float32 metres in the frame of docs/conventions.rst.
         faces: ``(F, 3)`` int32, counter-clockwise seen from outside (normals point out).
         material: its :class:`Material`.
         normals: optional ``(V, 3)`` float32 unit outward vertex normals (the SDF's gradient), for smooth
@@ -218,7 +255,12 @@ class Subject:
         raise KeyError(f"subject {self.seed} has no part {name!r}; it has {[p.name for p in self.parts]}")
 
 
-def _seed_digest(seed: int, salt: str) -> int:
+def seed_digest(seed: int, salt: str) -> int:
+    """A seed for one purpose (``salt``) of subject ``seed``: a hash, so purposes draw independent numbers.
+
+    Raises:
+        TypeCheckError: ``seed`` is not an int.
+    """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
     return hashed_seed(f"kornia_ilum.lightstage.{salt}:{int(seed)}")
@@ -242,7 +284,7 @@ def subject_split(seed: int) -> str:
         >>> sum(subject_split(s) == "eval" for s in range(10_000))
         1015
     """
-    return "eval" if _seed_digest(seed, "subject") % 10 == 0 else "train"
+    return "eval" if seed_digest(seed, "subject") % 10 == 0 else "train"
 
 
 @runtime_checkable

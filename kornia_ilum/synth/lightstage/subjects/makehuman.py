@@ -28,7 +28,8 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
 6. Accessories (:mod:`~kornia_ilum.synth.lightstage.subjects.makehuman_accessories`), drawn after every other
    choice so that those stay as they were: glasses, for men a stubble, moustache, goatee or beard, and a beanie
    (short hair under it).
-7. Frame: metres, SPEC axes (+Y up, +Z toward the camera), the eyes' centres at ``y = 0``, ``z = 0.066``.
+7. Frame: metres, the axes of docs/conventions.rst (+Y up, +Z toward the camera), the eyes' centres at
+   ``y = 0``, ``z = 0.066``.
 
 The assets are parsed once per source, lazily (targets on first use), and cached as sparse offsets.
 """
@@ -49,7 +50,7 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     Material,
     MeshPart,
     Subject,
-    _seed_digest,
+    seed_digest,
     subject_split,
 )
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import (
@@ -362,7 +363,7 @@ def retint_hair(texture: np.ndarray, opaque: np.ndarray, colour: tuple[float, fl
         >>> [round(float(x), 3) for x in out[0, :, 0]]  # the black texels are padded with the strand's colour
         [0.1, 0.1, 0.1, 0.1]
     """
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     detail = _luminance_detail(texture, opaque)
     if opaque.any() and not opaque.all():
@@ -450,7 +451,7 @@ class _Assets:
         )
         nose = (np.abs(v0[:, 0]) < 0.14) & (v0[:, 1] > lm["subnasale"][1]) & (v0[:, 1] < lm["glabella"][1])
         tz = (fh | nose) & (n0[:, 2] > 0.3) & (v0[:, 2] > lm["cheek_left"][2])
-        import cv2
+        import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
         tzm = raster_uv_mask(self.base.uvs[tri_t[tz[tri_v].all(1)]], self.tex_size).astype(np.float32)
         self.tzone = cv2.GaussianBlur(tzm, (0, 0), 6.0)
@@ -507,8 +508,8 @@ def _close_cap(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     border = e[c[inv.reshape(-1)] == 1]  # directed border edges, in the faces' orientation
     if not len(border):
         return v, f
-    import scipy.sparse as sp
-    import scipy.sparse.csgraph as cg
+    import scipy.sparse as sp  # lazy: SciPy is an optional dependency (the dev extra)
+    import scipy.sparse.csgraph as cg  # lazy: as scipy.sparse
 
     n, lab = cg.connected_components(
         sp.coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])), shape=(len(v), len(v))), directed=False
@@ -572,7 +573,7 @@ class MakeHumanSource:
     def params(self, seed: int) -> dict:
         """The random choices of ``seed`` (JSON-serialisable): shape, expression and appearance."""
         a = self.assets
-        rng = np.random.default_rng(_seed_digest(seed, "makehuman"))
+        rng = np.random.default_rng(seed_digest(seed, "makehuman"))
         ethnic = rng.dirichlet((0.8, 0.8, 0.8))
         male = bool(rng.random() < 0.5)
         gender = float(np.clip(1.0 - abs(rng.normal(0, 0.12)), 0.5, 1.0)) if male else float(
@@ -700,8 +701,8 @@ class MakeHumanSource:
             seed: any int.
 
         Returns:
-            The :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (``source="makehuman"``), metres, SPEC
-            frame, facing +Z, eye centres at ``y = 0``.
+            The :class:`~kornia_ilum.synth.lightstage.subjects.Subject` (``source="makehuman"``), metres,
+            the frame of docs/conventions.rst, facing +Z, eye centres at ``y = 0``.
         """
         a = self.assets
         p = self.params(seed)
@@ -857,7 +858,7 @@ class MakeHumanSource:
             tex = ((1.0 - shade) * tex + shade * np.minimum(tex, beard_rgb.astype(np.float32))).astype(np.float32)
             skin = dataclasses.replace(skin, material=dataclasses.replace(skin.material, albedo_texture=tex))
             parts = [skin if q.name == "skin" else q for q in parts]
-            rng = np.random.default_rng(_seed_digest(seed, "makehuman-beard"))
+            rng = np.random.default_rng(seed_digest(seed, "makehuman-beard"))
             parts += beard_parts(p, skin, wv, self.assets.head_island, beard_rgb, rng)
         if p["hat"] != "none":
             ears = np.concatenate([lm["ear_right"][None], lm["ear_left"][None]])
@@ -880,8 +881,8 @@ class MakeHumanSource:
 
     def _eye_shell(self, px: Proxy, alpha: np.ndarray) -> np.ndarray:
         """Per proxy vertex: whether it is on an eye's outer shell (a connected piece mapped to clear texels)."""
-        import scipy.sparse as sp
-        import scipy.sparse.csgraph as cg
+        import scipy.sparse as sp  # lazy: SciPy is an optional dependency (the dev extra)
+        import scipy.sparse.csgraph as cg  # lazy: as scipy.sparse
 
         m = px.mesh
         e = np.concatenate([m.tri_v[:, [0, 1]], m.tri_v[:, [1, 2]]])

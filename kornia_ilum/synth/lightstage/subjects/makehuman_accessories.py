@@ -2,7 +2,7 @@ r"""Glasses, beards and beanies for the MakeHuman subjects, fitted to each morph
 
 The MakeHuman assets have no accessories, so these are built here, with the styles and frequencies of the
 signed-distance mannequins' (:mod:`~kornia_ilum.synth.lightstage.subjects.mannequin`), as meshes fitted to the
-subject's own geometry (metres, SPEC frame, the eyes' centres at ``y = 0``):
+subject's own geometry (metres, the frame of docs/conventions.rst, the eyes' centres at ``y = 0``):
 
 - **Glasses** (:func:`glasses_parts`): two rims (tubes along superellipses, from oval to rectangular, wrapped on
   an arch of radius 16 cm; full rims, browline half-rims or rimless), a bridge and two temples that run back
@@ -306,7 +306,7 @@ def uv_weight_map(uv: np.ndarray, faces: np.ndarray, weight: np.ndarray, size: i
     Each face is filled with its vertices' mean weight (in 16 levels), then blurred by a texel and a half,
     so that the weight has no steps at the faces' edges.
     """
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     img = np.zeros((size, size), np.float32)
     level = np.round(weight[faces].mean(1) * 16).astype(int)
@@ -320,7 +320,7 @@ def uv_weight_map(uv: np.ndarray, faces: np.ndarray, weight: np.ndarray, size: i
 def _strand_mask(size: int, direction: np.ndarray, length: int, rng: np.random.Generator) -> np.ndarray:
     """``(size, size)`` float32 in ``[0, 1]``: noise smeared along ``direction`` (``(col, row)`` in the texture)
     over ``length`` texels (strands), equalised so that ``mask < d`` covers a fraction ``d``."""
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     noise = rng.random((size, size)).astype(np.float32)
     k = length
@@ -358,7 +358,7 @@ def beard_parts(
     """
     if p["facial_hair"] == "none":
         return []
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     keep = weight[skin.faces].max(1) > 0.02
     used, f = np.unique(skin.faces[keep], return_inverse=True)
@@ -440,7 +440,7 @@ def beanie_part(
     """
     if p["hat"] != "beanie":
         return None
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     centre, normal, off = _beanie_frame(p, lm)
     pts = np.concatenate([head, hair])

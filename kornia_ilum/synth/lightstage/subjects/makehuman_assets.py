@@ -297,7 +297,7 @@ def load_texture(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
         ``(rgb, alpha)``: ``(H, W, 3)`` float32 linear RGB (sRGB-decoded) and ``(H, W)`` float32 alpha in
         ``[0, 1]``, or ``None`` when the image has none.
     """
-    from PIL import Image
+    from PIL import Image  # lazy: Pillow is an optional dependency (the dev extra)
 
     with Image.open(path) as im:
         has_alpha = im.mode in ("RGBA", "LA") or (im.mode == "P" and "transparency" in im.info)
@@ -409,7 +409,7 @@ def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 def raster_uv_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
     """``(size, size)`` bool mask of the UV triangles (``(F, 3, 2)``, v up) drawn into image rows (v down)."""
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     img = np.zeros((size, size), np.uint8)
     px = np.stack([uv_tris[..., 0] * size, (1.0 - uv_tris[..., 1]) * size], -1)
@@ -439,7 +439,7 @@ def opaque_faces(uv_tris: np.ndarray, opacity: np.ndarray) -> np.ndarray:
         >>> opaque_faces(tris, op).tolist()
         [True, False]
     """
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     h, w = opacity.shape
     solid = opacity >= 0.5

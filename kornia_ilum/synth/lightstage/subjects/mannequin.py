@@ -32,8 +32,7 @@ Construction:
     brow ridge, jaw, neck and facial-hair likelihood; ``age`` greys hair; iris and hair colours depend on the
     skin tone).
 
-    Cost: about 0.9 s per subject on one core (1.3 s at most over 60 seeds), 140k triangles on average
-    (100k to 190k).
+    Size: 140k triangles on average (100k to 190k); the build time is in docs/lightstage.rst, "Measured".
 
 Skin tones (Monk Skin Tone scale):
     The skin's albedo follows the 10 tones of the Monk Skin Tone (MST) scale (Monk 2019; Google's published
@@ -79,9 +78,9 @@ Train / evaluation split:
     about 10% of seeds, fixed forever, disjoint by construction, and unrelated to the subject's appearance.
 
 Convention:
-    Metres, in the SPEC frame (+X right, +Y up, +Z toward the camera): the subject faces +Z, the eyes are at
-    ``y = 0`` and ``z`` about 0.07, the top of the head is near ``y = 0.12`` and the shoulders near
-    ``y = -0.22``. The subject's right eye is at ``-X`` (on the image's left).
+    Metres, in the frame of docs/conventions.rst (+X right, +Y up, +Z toward the camera): the subject faces
+    +Z, the eyes are at ``y = 0`` and ``z`` about 0.07, the top of the head is near ``y = 0.12`` and the
+    shoulders near ``y = -0.22``. The subject's right eye is at ``-X`` (on the image's left).
 """
 
 from __future__ import annotations
@@ -107,10 +106,10 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     Material,
     MeshPart,
     Subject,
-    _seed_digest,
     fabric_colour,
     merge_meshes,
     pick,
+    seed_digest,
     subject_split,
 )
 
@@ -168,7 +167,7 @@ def subject_params(seed: int) -> dict:
         >>> p == subject_params(0), 1 <= p["skin_tone"] <= 10
         (True, True)
     """
-    rng = np.random.default_rng(_seed_digest(seed, "subject.params"))
+    rng = np.random.default_rng(seed_digest(seed, "subject.params"))
 
     def n(mu: float, sigma: float, lo: float, hi: float) -> float:
         return float(np.clip(rng.normal(mu, sigma), lo, hi))
@@ -1121,7 +1120,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
             is unchanged, with about a third fewer triangles. Without it every part is a closed mesh.
 
     Returns:
-        The :class:`Subject`, in metres in the SPEC frame, facing +Z.
+        The :class:`Subject`, in metres in the frame of docs/conventions.rst, facing +Z.
 
     Raises:
         TypeCheckError: ``seed`` is not an int.

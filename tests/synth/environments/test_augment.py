@@ -1,4 +1,5 @@
-"""Tests of environment augmentation: energy-conserving rotation, flip, exposure, white balance (SPEC)."""
+"""Tests of environment augmentation: energy-conserving rotation, flip, exposure, white balance
+(docs/conventions.rst)."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from kornia_ilum.synth.environments import (
     rotate_latlong,
     white_balance_gains,
 )
-from kornia_ilum.synth.environments.augment import REFERENCE_KELVIN, RotateLatLong
+from kornia_ilum.synth.environments.augment import REFERENCE_KELVIN, RotateLatLong, weighted_quantile
 from kornia_ilum.synth.environments.sky import cct_to_rgb
 from kornia_ilum.synth.stats import cct_mccamy
 from tests.conftest import TOL
@@ -112,7 +113,8 @@ class TestRotateLatLong:
         assert angle_deg(centroid(rotate_latlong(x, rot)), rot @ d) < 0.1
 
     def test_yaw_convention(self):
-        """SPEC / rotate_lighting: +90 deg about +Y moves light from straight ahead (-Z) to the left (-X)."""
+        """docs/conventions.rst / rotate_lighting: +90 deg about +Y moves light from straight ahead (-Z) to
+        the left (-X)."""
         rot = lighting_rotation(yaw_deg=90.0)
         forward, left = torch.tensor([0.0, 0.0, -1.0], dtype=F64), torch.tensor([-1.0, 0.0, 0.0], dtype=F64)
         torch.testing.assert_close(rot @ forward, left)
@@ -306,3 +308,9 @@ def test_white_balance_keeps_median_colour_temperature(shared_data):
         gains = white_balance_gains(p["kelvin"], p["tint"])
         shifted += [1e6 / cct_mccamy(m * gains) for m in means]
     assert abs(float(torch.tensor(shifted).median()) - float(captured)) < 10.0
+
+
+def test_weighted_quantile():
+    v, w = torch.tensor([4.0, 1.0, 3.0, 2.0]), torch.tensor([1.0, 1.0, 1.0, 1.0])
+    assert float(weighted_quantile(v, w, 0.5)) == 2.0 and float(weighted_quantile(v, w, 1.0)) == 4.0
+    assert float(weighted_quantile(v, torch.tensor([0.0, 0.0, 0.0, 1.0]), 0.01)) == 2.0

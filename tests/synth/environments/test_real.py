@@ -1,4 +1,5 @@
-"""Tests of the real-map source: listing, labels, orientation (SPEC lat-long), energy conservation."""
+"""Tests of the real-map source: listing, labels, orientation (docs/conventions.rst lat-long), energy
+conservation."""
 
 from __future__ import annotations
 
@@ -87,6 +88,7 @@ class TestResizeLatLong:
         assert out.dtype == dtype
         assert_close_dtype(out, resize_latlong(x, 4), dtype, scale=2.0)
 
+    @pytest.mark.slow  # torch.compile (Inductor): compiles, slow on a cold cache
     def test_compile(self):
         x = torch.rand(3, 8, 16)
         compiled = torch.compile(resize_latlong)
@@ -164,14 +166,15 @@ class TestHDRFolderSource:
         assert torch.equal(source.sample(torch.Generator().manual_seed(7)).latlong, b.latlong)
 
     def test_orientation_is_spec_latlong(self, tmp_path):
-        """A bright pixel upper-left in the file is light from the left (-X) and above (+Y), per SPEC."""
+        """A bright pixel upper-left in the file is light from the left (-X) and above (+Y), per
+        docs/conventions.rst."""
         image = torch.full((3, 16, 32), 0.01)
         image[:, 4, 8] = 100.0
         write_hdr(tmp_path / "marker.exr", image)
         env = HDRFolderSource(tmp_path, height=16).environment(0)
         torch.testing.assert_close(env.latlong, read_hdr(tmp_path / "marker.exr"))
         d = latlong_directions(16, dtype=F64)[4, 8]
-        assert d[0] < -0.5 and d[1] > 0.5  # left, up: SPEC's "left half is -X, top row is +Y"
+        assert d[0] < -0.5 and d[1] > 0.5  # left, up: docs/conventions.rst's "left half is -X, top row is +Y"
         owner = int(mirror_ball_pixel_index(direction_to_mirror_ball(d), 32))
         assert int(env.mirror_ball.sum(0).flatten().argmax()) == owner
 
@@ -191,7 +194,8 @@ class TestHDRFolderSource:
 
 @pytest.mark.parametrize("name", ["pedestrian_overpass_1k.hdr", "interior.exr", "city.exr"])
 def test_shared_maps_conserve_energy(shared_data, name):
-    """Lat-long at the working height and the 32 x 32 ball keep sum(L * Omega) of the file (SPEC)."""
+    """Lat-long at the working height and the 32 x 32 ball keep sum(L * Omega) of the file
+    (docs/conventions.rst)."""
     source = HDRFolderSource(shared_data / "hdri")
     env = source.environment(source.names.index(name))
     assert env.label == ("indoor" if name == "interior.exr" else "outdoor")

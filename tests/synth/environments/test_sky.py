@@ -238,6 +238,7 @@ class TestSkyRadiance:
         ref = sky_radiance(d.to(dt).to(F64), sun.to(dt).to(F64), 3.0)
         assert_close_dtype(out / ref.mean(), ref / ref.mean(), dt)
 
+    @pytest.mark.slow  # torch.compile (Inductor): compiles, slow on a cold cache
     def test_compile(self):
         d, sun = torch.randn(8, 3), torch.tensor([0.0, 0.4, -0.9])
         torch.testing.assert_close(torch.compile(sky_radiance)(d, sun, 3.0), sky_radiance(d, sun, 3.0))
@@ -309,6 +310,7 @@ class TestCctToRgb:
         assert out.dtype == dt
         assert_close_dtype(out, cct_to_rgb(k.to(dt).to(F64)), dt)
 
+    @pytest.mark.slow  # torch.compile (Inductor): compiles, slow on a cold cache
     def test_compile(self):
         k = torch.tensor([3000.0, 5000.0])
         torch.testing.assert_close(torch.compile(cct_to_rgb)(k), cct_to_rgb(k))

@@ -1,4 +1,4 @@
-"""The shared input checks: Kornia's switch and the trusted block."""
+"""Tests of kornia_ilum.core.check: the shared input checks, Kornia's switch and the trusted block."""
 
 from __future__ import annotations
 

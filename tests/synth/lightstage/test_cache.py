@@ -1,4 +1,7 @@
-"""The reflectance-field cache (kornia_ilum.synth.lightstage.cache): files, manifest, resume, shards."""
+"""The reflectance-field cache (kornia_ilum.synth.lightstage.cache): files, manifest, resume, shards.
+
+The build_cache tests render with Mitsuba (slow).
+"""
 
 from __future__ import annotations
 
@@ -9,14 +12,20 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
+import safetensors.torch
 import torch
 from hypothesis import given
 from hypothesis import strategies as st
+from safetensors import safe_open
+from safetensors.torch import save_file
 
-from kornia_ilum.core.errors import HDRIOError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.errors import HDRIOError, IlumError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.lightstage import cache
 from kornia_ilum.synth.lightstage.cache import (
+    FixedViews,
+    SampledViews,
+    Workers,
     build_cache,
     field_path,
     read_field,
@@ -24,9 +33,10 @@ from kornia_ilum.synth.lightstage.cache import (
     shard,
     write_field,
 )
-from kornia_ilum.synth.lightstage.olat import ReflectanceField, _icosphere
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.scene import Camera
-
+from kornia_ilum.synth.lightstage.settings import Auto, OnePass, Reference
+from kornia_ilum.synth.lightstage.subjects.base import icosphere
 
 def synthetic_field(size: int = 16, s: int = 8, seed: int = 0) -> ReflectanceField:
     """A dense field like a render's: a disk of covered pixels, zero invalid lights, a soft edge."""
@@ -39,7 +49,6 @@ def synthetic_field(size: int = 16, s: int = 8, seed: int = 0) -> ReflectanceFie
     meta = {"lighting_size": s, "variant": "test", "render_seconds": 1.5}
     return ReflectanceField(field.to(torch.bfloat16), alpha, torch.tensor([2.0, 3.0, 12.0, 13.0]),
                             Camera(30.0, 0.5, 10.0, -5.0, size=size), seed, meta)
-
 
 class TestWriteReadField:
     def test_roundtrip(self, tmp_path: Path) -> None:
@@ -79,7 +88,6 @@ class TestWriteReadField:
 
     def test_atomic(self, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
         """A failing write leaves neither the file nor a temporary one."""
-        import safetensors.torch
 
         def broken(tensors: dict, path: str, metadata: dict) -> None:
             Path(path).write_bytes(b"partial")
@@ -98,12 +106,9 @@ class TestWriteReadField:
         (tmp_path / "junk.safetensors").write_bytes(b"not a safetensors file")
         with pytest.raises(HDRIOError, match="junk.safetensors"):
             read_field(tmp_path / "junk.safetensors")
-        from safetensors.torch import save_file
-
         save_file({"x": torch.zeros(2)}, str(tmp_path / "other.safetensors"), metadata={"format": "other"})
         with pytest.raises(HDRIOError, match="is not a reflectance field"):
             read_field(tmp_path / "other.safetensors")
-
 
 class TestShard:
     @given(st.integers(0, 40), st.integers(1, 7))
@@ -119,9 +124,7 @@ class TestShard:
         with pytest.raises(ValueCheckError, match="worker_count must be positive"):
             shard([1, 2], 0, 0)
 
-
 VIEWS = (Camera(40.0, 4.0, 0.0, 0.0), Camera(40.0, 4.0, 30.0, 10.0))
-
 
 class SphereSource:
     """Subjects that are spheres (picklable, for the worker processes): the cache must not depend on the subject
@@ -130,7 +133,7 @@ class SphereSource:
     name = "spheres"
 
     def sample(self, seed: int) -> SimpleNamespace:
-        v, f = _icosphere(2)
+        v, f = icosphere(2)
         v = (0.1 * v).astype(np.float32)
         mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5), roughness=0.5, specular=0.5)
         ball = SimpleNamespace(name="ball", vertices=v, faces=f, material=mat, normals=None, uvs=None)
@@ -138,7 +141,6 @@ class SphereSource:
         return SimpleNamespace(seed=seed, split="train" if seed % 2 else "eval", skin_tone=1 + seed % 10,
                                parts=[ball], face_landmarks=lm, params={"radius": 0.1, "kind": "ball", "v": [1]},
                                face_albedo=(0.5, 0.5, 0.5), source="spheres")
-
 
 @pytest.fixture()
 def rendered(monkeypatch: pytest.MonkeyPatch) -> list[int]:
@@ -153,16 +155,19 @@ def rendered(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     monkeypatch.setattr(cache, "render_olat", counting_render)
     return seen
 
-
+@pytest.mark.slow
 class TestBuildCache:
-    kw: ClassVar[dict] = {"size": 16, "spp": 1, "lighting_size": 4, "workers": 1, "progress": False}
+    kw: ClassVar[dict] = {"renderer": Auto(spp=1, lighting_size=4), "workers": Workers(processes=1),
+                          "progress": False}
 
     def test_random_views_sharded_and_resumed(self, tmp_path: Path, rendered: list[int]) -> None:
         src = SphereSource()
-        m0 = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, worker_index=0, worker_count=2, **self.kw)
+        views = SampledViews(2, size=16)
+        m0 = build_cache(src, [3, 4, 5], tmp_path, renderer=self.kw["renderer"], views=views,
+                         workers=Workers(processes=1, index=0, count=2), progress=False)
         assert len(m0["entries"]) == 4 and rendered == [3, 3, 5, 5]  # a subject's views in one go
-        manifest = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, worker_index=1, worker_count=2,
-                               **self.kw)
+        manifest = build_cache(src, [3, 4, 5], tmp_path, renderer=self.kw["renderer"], views=views,
+                               workers=Workers(processes=1, index=1, count=2), progress=False)
         assert [(e["subject_seed"], e["view_index"]) for e in manifest["entries"]] == [
             (3, 0), (3, 1), (4, 0), (4, 1), (5, 0), (5, 1)]
         on_disk = json.loads((tmp_path / "manifest.json").read_text())
@@ -184,25 +189,26 @@ class TestBuildCache:
         assert not list(tmp_path.rglob("*.tmp"))
 
         rendered.clear()  # resume: everything is intact, nothing renders
-        again = build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, **self.kw)
+        again = build_cache(src, [3, 4, 5], tmp_path, views=views, **self.kw)
         assert rendered == [] and again["run"]["rendered"] == 0
 
         victim = tmp_path / field_path(4, 1)
         victim.write_bytes(victim.read_bytes()[:-1] + b"x")  # corrupt one file: only it renders again
-        build_cache(src, [3, 4, 5], tmp_path, views_per_subject=2, **self.kw)
+        build_cache(src, [3, 4, 5], tmp_path, views=views, **self.kw)
         assert rendered == [4]
         assert read_field(victim).subject_seed == 4
 
         rendered.clear()  # other settings: rendered again
-        build_cache(src, [3], tmp_path, views_per_subject=2, **{**self.kw, "spp": 4})
+        build_cache(src, [3], tmp_path, views=views, **{**self.kw, "renderer": Auto(spp=4, lighting_size=4)})
         assert rendered == [3, 3]
         entries = {(e["subject_seed"], e["view_index"]): e for e in read_manifest(tmp_path)["entries"]}
         assert entries[(3, 0)]["spp_requested"] == 4 and entries[(4, 0)]["spp_requested"] == 1
 
     def test_two_worker_processes(self, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
         """workers=2 spawns two processes; their manifests merge; the summary and progress are printed."""
-        manifest = build_cache(SphereSource(), [0, 1, 2], tmp_path, views_per_subject=2, size=16, spp=1,
-                               lighting_size=4, workers=2, progress=True, summary=True)
+        manifest = build_cache(SphereSource(), [0, 1, 2], tmp_path, renderer=Auto(spp=1, lighting_size=4),
+                               views=SampledViews(2, size=16), workers=Workers(processes=2), progress=True,
+                               summary=True)
         assert len(manifest["entries"]) == 6 and manifest["run"]["rendered"] == 6
         assert sorted(p.name for p in tmp_path.glob("manifest.w*")) == ["manifest.w000of002.json",
                                                                         "manifest.w001of002.json"]
@@ -213,27 +219,22 @@ class TestBuildCache:
         assert "6 subject-views of 3 subjects" in captured.out and "MB on disk" in captured.out
 
     def test_worker_failure(self, tmp_path: Path) -> None:
-        from kornia_ilum.core.errors import IlumError
-
         with pytest.raises(IlumError, match="cache worker process failed: AttributeError"):
-            build_cache(BrokenSource(), [0, 1], tmp_path, views_per_subject=1, size=16, spp=1, lighting_size=4,
-                        workers=2, progress=False)
+            build_cache(BrokenSource(), [0, 1], tmp_path, renderer=Auto(spp=1, lighting_size=4),
+                        views=SampledViews(1, size=16), workers=Workers(processes=2), progress=False)
 
-    def test_fixed_views_and_the_v1_call(self, tmp_path: Path, rendered: list[int], monkeypatch) -> None:
-        monkeypatch.setattr("kornia_ilum.synth.lightstage.subjects.make_subject", SphereSource().sample)
-        manifest = build_cache(tmp_path, [3], VIEWS, size=16, spp=1, lighting_size=4, threads=1, progress=False)
+    def test_fixed_views(self, tmp_path: Path, rendered: list[int], monkeypatch) -> None:
+        monkeypatch.setattr("kornia_ilum.synth.lightstage.subjects.mannequin.make_subject",
+                            SphereSource().sample)
+        manifest = build_cache("mannequin", [3], tmp_path, views=FixedViews(VIEWS, size=16), **self.kw)
         assert [Camera(**e["camera"]) for e in manifest["entries"]] == [
             Camera(40.0, 4.0, 0.0, 0.0, size=16), Camera(40.0, 4.0, 30.0, 10.0, size=16)]
         assert manifest["entries"][0]["source"] == "mannequin" and manifest["entries"][0]["views"] == "fixed"
         rendered.clear()
-        build_cache("mannequin", [3], tmp_path, views=VIEWS, size=16, spp=1, lighting_size=4, workers=1,
-                    progress=False)
+        build_cache("mannequin", [3], tmp_path, views=FixedViews(VIEWS, size=16), **self.kw)
         assert rendered == []  # the same settings: resumed
 
     def test_read_v1_field(self, tmp_path: Path) -> None:
-        from safetensors import safe_open
-        from safetensors.torch import save_file
-
         write_field(tmp_path / "a.safetensors", synthetic_field())
         with safe_open(str(tmp_path / "a.safetensors"), framework="pt") as fh:
             meta, tensors = fh.metadata(), {k: fh.get_tensor(k) for k in fh.keys()}  # noqa: SIM118
@@ -248,19 +249,80 @@ class TestBuildCache:
 
     def test_exception(self, tmp_path: Path) -> None:
         with pytest.raises(TypeCheckError, match="views must be a non-empty sequence of Camera"):
-            build_cache(tmp_path, [1], [(30.0, 1.0, 0.0, 0.0)], progress=False)
-        with pytest.raises(ValueCheckError, match=r"worker_index must be an int in \[0, 2\)"):
-            build_cache("mannequin", [1], tmp_path, worker_index=5, worker_count=2, progress=False)
+            build_cache("mannequin", [1], tmp_path, views=FixedViews([(30.0, 1.0, 0.0, 0.0)]), progress=False)
+        with pytest.raises(ValueCheckError, match=r"index must be an int in \[0, 2\)"):
+            build_cache("mannequin", [1], tmp_path, workers=Workers(index=5, count=2), progress=False)
         with pytest.raises(TypeCheckError, match="source must be a SubjectSource"):
             build_cache(3, [1], tmp_path, progress=False)
-        with pytest.raises(ValueCheckError, match="workers must be positive"):
-            build_cache("mannequin", [1], tmp_path, workers=0, progress=False)
+        with pytest.raises(ValueCheckError, match="processes must be positive"):
+            build_cache("mannequin", [1], tmp_path, workers=Workers(processes=0), progress=False)
+        with pytest.raises(TypeCheckError, match="out_dir must be a folder path"):  # no cameras overload
+            build_cache(tmp_path, [1], list(VIEWS), progress=False)
+        with pytest.raises(TypeCheckError, match="renderer must be OnePass, Reference or Auto"):
+            build_cache("mannequin", [1], tmp_path, renderer={"spp": 1}, progress=False)
+        with pytest.raises(TypeCheckError, match="views must be FixedViews or SampledViews"):
+            build_cache("mannequin", [1], tmp_path, views=VIEWS, progress=False)
+        with pytest.raises(TypeCheckError, match="workers must be Workers"):
+            build_cache("mannequin", [1], tmp_path, workers=1, progress=False)
+
+    def test_renderer_settings_are_part_of_the_cache(self, tmp_path: Path, rendered: list[int]) -> None:
+        """Explicit renderer settings are recorded and matched on resume; Auto with seed 0 records none."""
+        views, workers = SampledViews(1, size=16), Workers(processes=1)
+        onepass = OnePass(lighting_size=4, spp=2, subsurface=False)
+        build_cache(SphereSource(), [1], tmp_path, renderer=onepass, views=views, workers=workers,
+                    progress=False)
+        entry = read_manifest(tmp_path)["entries"][0]
+        assert entry["renderer"] == onepass.to_dict() and entry["spp_requested"] == 2
+        assert read_field(tmp_path / entry["path"]).meta["post"] == []
+        rendered.clear()
+        build_cache(SphereSource(), [1], tmp_path, renderer=onepass, views=views, workers=workers,
+                    progress=False)
+        assert rendered == []
+        build_cache(SphereSource(), [1], tmp_path, renderer=OnePass(lighting_size=4, spp=2), views=views,
+                    workers=workers, progress=False)
+        assert rendered == [1]  # subsurface on: another render
+        build_cache(SphereSource(), [1], tmp_path, renderer=Reference(lighting_size=4, spp=1), views=views,
+                    workers=workers, progress=False)
+        assert "renderer" in read_manifest(tmp_path)["entries"][0] and rendered == [1, 1]
+        build_cache(SphereSource(), [1], tmp_path, renderer=Auto(lighting_size=4, spp=1), views=views,
+                    workers=workers, progress=False)
+        assert "renderer" not in read_manifest(tmp_path)["entries"][0] and rendered == [1, 1, 1]
 
     def test_default_views(self) -> None:
         assert len(cache.DEFAULT_VIEWS) == 3 and cache.DEFAULT_VIEWS[0].yaw_deg == 0.0
         assert {v.yaw_deg for v in cache.DEFAULT_VIEWS} == {0.0, 25.0, -25.0}
         assert np.ptp([v.fov_deg for v in cache.DEFAULT_VIEWS]) > 0
 
+class TestViewsAndWorkers:
+    def test_fixed_views(self) -> None:
+        views = FixedViews(list(VIEWS), size=24)
+        assert views.count == 2 and views.label == "fixed" and all(c.size == 24 for c in views.cameras)
+        assert views.cameras[1] == Camera(40.0, 4.0, 30.0, 10.0, size=24) and isinstance(views.cameras, tuple)
+        defaults = tuple(Camera(**{**c.to_dict(), "size": 192}) for c in cache.DEFAULT_VIEWS)
+        assert FixedViews().cameras == defaults
+
+    def test_sampled_views_and_workers(self) -> None:
+        assert SampledViews().count == 4 and SampledViews(2).label == "sample_views(n=2)"
+        workers = Workers()
+        assert (workers.processes, workers.index, workers.count, workers.threads) == (2, 0, 1, 1)
+
+    @pytest.mark.parametrize(
+        ("make", "error", "match"),
+        [
+            (lambda: FixedViews(()), TypeCheckError, "views must be a non-empty sequence of Camera"),
+            (lambda: FixedViews("front"), TypeCheckError, "views must be a non-empty sequence of Camera"),
+            (lambda: FixedViews(size=0), ValueCheckError, "size must be positive"),
+            (lambda: SampledViews(0), ValueCheckError, "views_per_subject must be positive"),
+            (lambda: SampledViews(size=-1), ValueCheckError, "size must be positive"),
+            (lambda: Workers(processes=0), ValueCheckError, "processes must be positive"),
+            (lambda: Workers(count=0), ValueCheckError, "count must be positive"),
+            (lambda: Workers(index=1), ValueCheckError, r"index must be an int in \[0, 1\)"),
+            (lambda: Workers(threads=0), ValueCheckError, "threads must be positive"),
+        ],
+    )
+    def test_exception(self, make, error: type, match: str) -> None:
+        with pytest.raises(error, match=match):
+            make()
 
 class BrokenSource:
     name = "broken"

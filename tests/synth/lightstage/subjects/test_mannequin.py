@@ -1,17 +1,12 @@
-"""Synthetic subjects (kornia_ilum.synth.lightstage.subjects) and their SDF toolkit (sdf.py)."""
+"""The signed-distance mannequins (kornia_ilum.synth.lightstage.subjects.mannequin)."""
 
 from __future__ import annotations
 
-import itertools
 import json
 
 import numpy as np
 import pytest
-import torch
-from hypothesis import given
-from hypothesis import strategies as st
 
-from kornia_ilum.color import srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.synth.lightstage import (
     LANDMARK_NAMES,
@@ -23,37 +18,15 @@ from kornia_ilum.synth.lightstage import (
     subject_params,
     subject_split,
 )
-from kornia_ilum.synth.lightstage.sdf import (
-    bounded,
-    capsule,
-    edit_in_box,
-    ellipsoid,
-    mesh_sdf,
-    smax,
-    smin,
-    sphere,
-)
-from kornia_ilum.synth.lightstage.subjects import MONK_SKIN_TONES_SRGB, SKIN_ALBEDO_SCALE
+from tests.synth.lightstage.meshes import edge_counts, signed_volume
 
 KINDS = {"skin", "diffuse", "glossy", "cornea", "hair"}
-#: Seeds that between them cover every hair style, facial hair, hat, glasses, earrings, open mouths and shirts.
-SEEDS = (0, 5, 6, 8)
 
+SEEDS = (0, 5, 6, 8)
 
 @pytest.fixture(scope="module")
 def subjects() -> dict[int, Subject]:
     return {s: make_subject(s) for s in SEEDS}
-
-
-def _edge_counts(faces: np.ndarray) -> np.ndarray:
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    return np.unique(e, axis=0, return_counts=True)[1]
-
-
-def _signed_volume(v: np.ndarray, f: np.ndarray) -> float:
-    a, b, c = (v[f[:, i]].astype(np.float64) for i in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
-
 
 def _weld(parts: list[MeshPart]) -> tuple[np.ndarray, np.ndarray]:
     """Concatenate parts and merge vertices at the same position (split parts share their seams)."""
@@ -62,7 +35,6 @@ def _weld(parts: list[MeshPart]) -> tuple[np.ndarray, np.ndarray]:
     f = np.concatenate([p.faces + o for p, o in zip(parts, off)])
     u, inv = np.unique(np.round(v.astype(np.float64) * 1e6).astype(np.int64), axis=0, return_inverse=True)
     return u.astype(np.float64) * 1e-6, inv.reshape(-1)[f]
-
 
 class TestMakeSubject:
     def test_smoke(self, subjects):
@@ -142,10 +114,10 @@ class TestMakeSubject:
                                                                          "iris", "pupil")})  # fmt: skip
         for name, parts in groups.items():
             v, f = _weld(parts)
-            counts = _edge_counts(f)
+            counts = edge_counts(f)
             # Marching cubes' meshes are closed up to a few vertices that land exactly on grid nodes.
             assert (counts == 1).mean() < 1e-3, name
-            assert _signed_volume(v, f) > 0.0, name  # outward normals
+            assert signed_volume(v, f) > 0.0, name  # outward normals
 
     def test_culling_keeps_the_visible_surface(self):
         full = make_subject(6, cull_hidden=False)
@@ -207,18 +179,7 @@ class TestMakeSubject:
         cornea, iris = s.part("cornea").vertices, s.part("iris").vertices
         assert cornea[:, 2].max() > iris[:, 2].max()  # the cornea bulges in front of the iris
 
-
 class TestSkinTones:
-    def test_table(self):
-        assert len(MONK_SKIN_TONES_SRGB) == len(SKIN_ALBEDO) == 10
-        for code, albedo in zip(MONK_SKIN_TONES_SRGB, SKIN_ALBEDO):
-            srgb = torch.tensor([int(code[i : i + 2], 16) / 255 for i in (0, 2, 4)], dtype=torch.float64)
-            lin = srgb_to_linear(srgb.view(3, 1, 1)).flatten().numpy()
-            np.testing.assert_allclose(albedo, SKIN_ALBEDO_SCALE * lin, atol=1e-4)
-        lum = [0.2126 * r + 0.7152 * g + 0.0722 * b for r, g, b in SKIN_ALBEDO]
-        # Tones 1 to 3 are equally light (3 is yellower), then every tone is darker than the one before.
-        assert min(lum[:3]) > 0.6 and all(a > b for a, b in itertools.pairwise(lum[2:])) and lum[9] < 0.02
-
     def test_coverage(self):
         tones = [subject_params(s)["skin_tone"] for s in range(300)]
         counts = np.bincount(tones, minlength=11)[1:]
@@ -230,91 +191,3 @@ class TestSkinTones:
             base = np.array(SKIN_ALBEDO[p["skin_tone"] - 1])
             ratio = np.array(p["skin_albedo"]) / base
             assert ((ratio > 0.6) & (ratio < 1.6)).all()
-
-
-class TestSubjectSplit:
-    def test_stable(self):
-        # Pinned: changing the rule would move subjects between training and evaluation.
-        evals = [s for s in range(200) if subject_split(s) == "eval"]
-        assert evals[:5] == _FIRST_EVAL_SEEDS
-        assert all(subject_split(s) == subject_split(s) for s in range(50))
-
-    def test_fraction_and_disjoint(self):
-        split = {s: subject_split(s) for s in range(3000)}
-        train = {s for s, v in split.items() if v == "train"}
-        ev = {s for s, v in split.items() if v == "eval"}
-        assert not train & ev and len(train) + len(ev) == 3000
-        assert 0.08 < len(ev) / 3000 < 0.12
-
-    def test_subject_carries_split(self):
-        seed = _FIRST_EVAL_SEEDS[0]
-        assert subject_split(seed) == "eval"
-        assert subject_split(-seed - 1) in ("train", "eval")  # any int
-
-    @given(st.integers(min_value=-(2**62), max_value=2**62))
-    def test_values(self, seed):
-        assert subject_split(seed) in ("train", "eval")
-
-
-_FIRST_EVAL_SEEDS = [s for s in range(200) if subject_split(s) == "eval"][:5]
-
-
-class TestSdf:
-    def test_mesh_sphere(self):
-        v, f, n = mesh_sdf(
-            lambda x, y, z: sphere(x, y, z, (0.01, 0.0, 0.0), 0.1), (-0.12,) * 3, (0.13,) * 3, 0.004
-        )
-        np.testing.assert_allclose(np.linalg.norm(v - [0.01, 0, 0], axis=1), 0.1, atol=5e-4)
-        assert (_edge_counts(f) == 2).all()
-        assert _signed_volume(v, f) == pytest.approx(4 / 3 * np.pi * 0.1**3, rel=0.01)
-        assert ((n * (v - [0.01, 0, 0])).sum(1) > 0).all()  # outward normals
-
-    def test_mesh_closed_at_box(self):
-        # A slab cut by the box: the outer layer is outside, so the mesh is still closed.
-        v, f, _ = mesh_sdf(lambda x, y, z: np.abs(y) - 0.02, (-0.05,) * 3, (0.05,) * 3, 0.005)
-        assert (_edge_counts(f) == 2).all() and _signed_volume(v, f) > 0
-
-    def test_mesh_empty(self):
-        v, f, n = mesh_sdf(
-            lambda x, y, z: sphere(x, y, z, (1.0, 0.0, 0.0), 0.1), (-0.1,) * 3, (0.1,) * 3, 0.01
-        )
-        assert v.shape == (0, 3) and f.shape == (0, 3) and n.shape == (0, 3)
-
-    def test_narrow_band_matches_full(self):
-        def fn(x, y, z):
-            d = smin(
-                ellipsoid(x, y, z, (0, 0, 0), (0.05, 0.03, 0.04)),
-                capsule(x, y, z, (0, 0, 0), (0.05, 0.05, 0), 0.01),
-                0.01,
-            )
-            return smax(d, -sphere(x, y, z, (0.0, 0.0, 0.04), 0.02), 0.005)
-
-        v1, f1, _ = mesh_sdf(fn, (-0.07,) * 3, (0.08,) * 3, 0.0025)
-        v2, f2, _ = mesh_sdf(fn, (-0.07,) * 3, (0.08,) * 3, 0.0025, coarse=1)  # every node evaluated
-        assert len(f1) == len(f2)
-        np.testing.assert_allclose(np.sort(v1, axis=0), np.sort(v2, axis=0), atol=1e-6)
-
-    @given(st.floats(-1, 1), st.floats(-1, 1), st.floats(0.001, 0.5))
-    def test_smooth_min_max(self, a, b, k):
-        a_, b_ = np.float32(a), np.float32(b)
-        assert smin(a_, b_, k) <= min(a_, b_) + 1e-6 and smin(a_, b_, k) >= min(a_, b_) - k / 4 - 1e-6
-        assert smax(a_, b_, k) >= max(a_, b_) - 1e-6
-
-    def test_bounded_is_exact_near_and_lower_bound_far(self):
-        rng = np.random.default_rng(0)
-        x, y, z = (rng.uniform(-0.5, 0.5, 5000).astype(np.float32) for _ in range(3))
-
-        def fn(a, b, c):
-            return sphere(a, b, c, (0.1, 0, 0), 0.04)
-
-        exact = fn(x, y, z)
-        d = bounded(fn, x, y, z, (0.06, -0.04, -0.04), (0.14, 0.04, 0.04), 0.02)
-        assert (d <= exact + 1e-6).all() and (np.sign(d) == np.sign(exact)).all()
-        near = (np.abs(x - 0.1) < 0.06) & (np.abs(y) < 0.06) & (np.abs(z) < 0.06)
-        np.testing.assert_array_equal(d[near], exact[near])
-
-    def test_edit_in_box(self):
-        x = np.linspace(-1, 1, 5, dtype=np.float32)
-        o = np.zeros_like(x)
-        out = edit_in_box(x, x, o, o, (-0.6, -1, -1), (0.6, 1, 1), lambda d, *_: d + 10)
-        np.testing.assert_allclose(out, [-1.0, -0.5 + 10, 10.0, 0.5 + 10, 1.0])

@@ -1,0 +1,52 @@
+"""The small argument types of the ``kornia-ilum`` command line, shared by every sub-command.
+
+Each is an ``argparse`` ``type=`` callable: it turns the option's text into a value or raises
+:class:`argparse.ArgumentTypeError`, which ``argparse`` reports as a usage error naming the option. The
+top-level command line (:mod:`kornia_ilum.cli`) and the sub-commands that live in their packages
+(:mod:`kornia_ilum.synth.cli`, :mod:`kornia_ilum.train.cli`, :mod:`kornia_ilum.evaluation.cli`) import them
+from here, so that one option means the same everywhere and no sub-command imports the command line that
+imports it.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["nonnegative_int", "positive_int"]
+
+
+def positive_int(text: str) -> int:
+    """An integer ``> 0`` (``type=`` of options such as ``--steps`` or ``--size``).
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is no integer, or not positive.
+
+    Examples:
+        >>> positive_int("12")
+        12
+        >>> positive_int("0")
+        Traceback (most recent call last):
+        ...
+        argparse.ArgumentTypeError: must be a positive integer, got '0'
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """``0`` (which turns something off, e.g. ``--sheet 0``) or a :func:`positive_int`.
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is neither ``0`` nor a positive integer (the message is
+            :func:`positive_int`'s).
+
+    Examples:
+        >>> nonnegative_int(" 0"), nonnegative_int("48")
+        (0, 48)
+    """
+    return 0 if text.strip() == "0" else positive_int(text)

@@ -1,0 +1,153 @@
+r"""The settings of a training run: :class:`TrainConfig` (what is asked for) and :class:`RuntimeSettings`.
+
+:class:`TrainConfig` is what a run depends on, as given: it is stored in the run's checkpoint and summary,
+and a checkpoint resumes only under the same settings (:meth:`TrainConfig.data_key`). Three of its fields
+may be ``None``, "decide for this device": ``bf16``, ``channels_last`` and ``workers``.
+:func:`resolve_runtime` makes that decision once, at the start of :func:`~kornia_ilum.train.train`, into a
+separate :class:`RuntimeSettings`, so the configuration itself (and with it the checkpoint's key) stays as
+given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.train.losses import BRDF_WEIGHTS
+
+__all__ = ["RuntimeSettings", "TrainConfig", "resolve_runtime"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    r"""Everything a training run depends on (stored in its checkpoint and summary).
+
+    Args:
+        out: the run's folder (created; a checkpoint there is resumed).
+        cache: light-stage cache folders (:func:`~kornia_ilum.synth.lightstage.build_cache`); the ``"train"``
+            subjects of all of them are used.
+        hdri: folders of real lat-long maps; only each folder's ``"train"`` maps
+            (:class:`~kornia_ilum.synth.environments.HDRFolderSource` ``split="train"``) join the procedural
+            skies and rooms.
+        estimator: the registry name of the estimator to train (``"ours"``).
+        steps: generator steps in all.
+        batch: samples per step, over all processes (the paper's 32).
+        lr: the generator's Adam learning rate (1.5e-4); the discriminator's is ``lr * disc_lr_ratio``
+            (1/100).
+        betas: Adam's betas (0.9, 0.999).
+        lambda_scale, lambda_adv: the weights of each scale's ``L_rec`` (1) and of the adversarial term
+            (0.004).
+        seed: the seed of the data and of the initialisation.
+        workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (there
+            the data is a small part of a step), ``min(8, cores - 1)`` on CUDA, where one worker cannot keep
+            the GPU fed (docs/training.rst, "Measured").
+        threads: torch threads of the training process (``None``: torch's default).
+        device: ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (under ``torchrun`` each rank takes its local GPU).
+        bf16: run the networks under bfloat16 autocast (losses stay float32); ``None``: on CUDA, and on CPUs
+            with native bfloat16 (AVX-512 BF16 or AMX, oneDNN's check), where it shortens a step, more so
+            together with ``channels_last`` (``benchmarks/bench_train.py``; docs/training.rst, "Measured").
+        channels_last: the networks and crops in channels-last memory format; ``None``: on (it shortens a step
+            without bfloat16 too).
+        checkpoint_every, log_every: in steps.
+        data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
+            example ``{"fields_per_chunk": 8}``), over :data:`~kornia_ilum.train.data.TRAINING_PORTRAITS`;
+            ``split`` and ``environments`` are set by the trainer.
+    """
+
+    out: str
+    cache: tuple[str, ...]
+    hdri: tuple[str, ...] = ()
+    estimator: str = "ours"
+    steps: int = 3000
+    batch: int = 32
+    lr: float = 1.5e-4
+    disc_lr_ratio: float = 0.01
+    betas: tuple[float, float] = (0.9, 0.999)
+    lambda_scale: float = 1.0
+    lambda_adv: float = 0.004
+    seed: int = 0
+    workers: int | None = None
+    threads: int | None = None
+    device: str = "cpu"
+    bf16: bool | None = None
+    channels_last: bool | None = None
+    checkpoint_every: int = 100
+    log_every: int = 10
+    brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
+    data: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch", "checkpoint_every", "log_every"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
+        if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
+                                         or self.workers < 0):
+            raise ValueCheckError(f"workers must be a non-negative integer, got {self.workers!r}")
+        if not self.cache:
+            raise ValueCheckError("cache must name at least one light-stage cache folder")
+        if not (self.lr > 0 and self.disc_lr_ratio > 0 and self.lambda_adv >= 0 and self.lambda_scale > 0):
+            raise ValueCheckError(
+                "lr, disc_lr_ratio and lambda_scale must be positive, lambda_adv non-negative"
+            )
+        object.__setattr__(self, "cache", tuple(str(c) for c in self.cache))
+        object.__setattr__(self, "hdri", tuple(str(h) for h in self.hdri))
+        object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
+
+    def data_key(self) -> dict[str, Any]:
+        """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree."""
+        skip = {"out", "steps", "threads", "checkpoint_every", "log_every"}
+        return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
+
+
+@dataclass(frozen=True)
+class RuntimeSettings:
+    r"""How a run executes on its device: the ``None`` settings of :class:`TrainConfig`, decided.
+
+    Made by :func:`resolve_runtime`, once per run; the configuration keeps its ``None``.
+
+    Args:
+        bf16: the networks run under bfloat16 autocast (the losses stay float32).
+        channels_last: the networks and crops are in channels-last memory format.
+        workers: data-loader worker processes per rank (0: in the training process).
+
+    Examples:
+        >>> RuntimeSettings(bf16=False, channels_last=True, workers=1).memory_format
+        torch.channels_last
+    """
+
+    bf16: bool
+    channels_last: bool
+    workers: int
+
+    @property
+    def memory_format(self) -> torch.memory_format:
+        """``torch.channels_last`` or ``torch.contiguous_format``, after :attr:`channels_last`."""
+        return torch.channels_last if self.channels_last else torch.contiguous_format
+
+
+def resolve_runtime(config: TrainConfig, device: torch.device) -> RuntimeSettings:
+    r"""``config``'s ``bf16``, ``channels_last`` and ``workers``, decided for ``device`` where ``None``.
+
+    ``bf16``: on CUDA, and on CPUs with native bfloat16; ``channels_last``: on; ``workers``: 1 on CPU,
+    ``min(8, cores - 1)`` on CUDA (:class:`TrainConfig`). Settings that are given are kept.
+
+    Examples:
+        >>> config = TrainConfig(out="run", cache=("cache",), bf16=False, workers=0)
+        >>> resolve_runtime(config, torch.device("cpu"))
+        RuntimeSettings(bf16=False, channels_last=True, workers=0)
+    """
+    bf16 = config.bf16
+    if bf16 is None:
+        native = device.type == "cpu" and torch.ops.mkldnn._is_mkldnn_bf16_supported()
+        bf16 = device.type == "cuda" or native
+    channels_last = True if config.channels_last is None else config.channels_last
+    workers = config.workers
+    if workers is None:
+        workers = 1 if device.type == "cpu" else min(8, max(1, (os.cpu_count() or 2) - 1))
+    return RuntimeSettings(bf16=bool(bf16), channels_last=bool(channels_last), workers=workers)

@@ -1,0 +1,76 @@
+r"""The training losses of the lighting estimators (LeGendre et al. 2020, Sec. 3.4).
+
+- :func:`training_losses`: the multi-scale rendering loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)``, with
+  the training form of ``L_rec`` (:func:`~kornia_ilum.metrics.reconstruction_loss`, ``gamma="safe"``) and
+  the ground truth brought to each scale by the energy-keeping pyramid (docs/conventions.rst, "Multi-scale");
+- :func:`discriminator_images`: the clipped, gamma-encoded mirror spheres that the discriminator sees;
+- :data:`BRDF_WEIGHTS`: the paper's ``lambda_k``.
+
+The default step (:func:`~kornia_ilum.train.recipes.train_step`), the recipes of the plugins and the weight
+export (:func:`~kornia_ilum.train.export_weights`) all use them.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from kornia_ilum.metrics import reconstruction_loss
+from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
+
+__all__ = ["BRDF_WEIGHTS", "discriminator_images", "training_losses"]
+
+#: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
+BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
+
+
+def discriminator_images(lightings: dict[int, torch.Tensor]) -> dict[int, torch.Tensor]:
+    r"""The clipped, gamma-encoded mirror spheres that the discriminator sees, one per scale.
+
+    Args:
+        lightings: ``{size: (B, 3, size, size)}`` linear mirror-ball lighting per scale.
+
+    Returns:
+        ``{size: (B, 3, size, size)}``: the ``"mirror"`` sphere of each scale
+        (:func:`~kornia_ilum.render.sphere_pyramid`, ``gamma="safe"``).
+
+    Examples:
+        >>> images = discriminator_images({4: torch.ones(1, 3, 4, 4), 8: torch.ones(1, 3, 8, 8)})
+        >>> {s: tuple(x.shape) for s, x in images.items()}
+        {4: (1, 3, 4, 4), 8: (1, 3, 8, 8)}
+    """
+    return {s: sphere_pyramid(x, sizes=(s,), brdfs=("mirror",), gamma="safe")[f"mirror_{s}"]
+            for s, x in lightings.items()}
+
+
+def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_weights: dict[str, float],
+                    lambda_scale: float = 1.0, truth: dict[int, torch.Tensor] | None = None
+                    ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    r"""The multi-scale rendering loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` (training form).
+
+    Args:
+        pred: ``{size: (B, 3, size, size)}`` predicted linear lighting per scale.
+        target: ``(B, 3, 32, 32)`` ground-truth lighting; brought to each size by the energy-keeping pyramid.
+        brdf_weights: ``lambda_k`` per sphere.
+        lambda_scale: ``lambda_s``, the same for every scale.
+        truth: ``target``'s pyramid at the sizes of ``pred``, when the caller has it already.
+
+    Returns:
+        the loss and its parts: ``rec_<brdf>`` at 32 px (detached).
+
+    Examples:
+        >>> truth = torch.ones(1, 3, 32, 32)
+        >>> loss, parts = training_losses(mirror_ball_pyramid(truth, (4, 32)), truth, BRDF_WEIGHTS)
+        >>> round(loss.item(), 6), sorted(parts)
+        (0.0, ['rec_diffuse', 'rec_matte_silver', 'rec_mirror'])
+    """
+    if truth is None:
+        truth = mirror_ball_pyramid(target, tuple(pred))
+    total = target.new_zeros(())
+    parts = {}
+    for s, x in pred.items():
+        for brdf, weight in brdf_weights.items():
+            term = reconstruction_loss(x, truth[s], brdf, size=s, gamma="safe")
+            total = total + lambda_scale * weight * term
+            if s == max(pred):
+                parts[f"rec_{brdf}"] = term.detach()
+    return total, parts

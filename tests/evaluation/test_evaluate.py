@@ -1,0 +1,112 @@
+"""kornia_ilum.evaluation.evaluate: the eval set, the oracles, the scores and the estimators' weights."""
+
+from __future__ import annotations
+
+import pytest
+import safetensors.torch
+import torch
+
+from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
+from kornia_ilum.core.files import sha256_file
+from kornia_ilum.estimators import create_estimator
+from kornia_ilum.evaluation import (
+    BRDF_NAMES,
+    EVAL_SEED,
+    ORACLES,
+    build_eval_set,
+    evaluate,
+    load_checkpoint,
+    load_estimator,
+    oracle_predictions,
+    score,
+)
+from kornia_ilum.metrics import relative_radiance
+from kornia_ilum.sh import sh_project
+from kornia_ilum.synth.lightstage import subject_split
+from tests.evaluation.helpers import N
+
+
+class TestEvalSet:
+    def test_contents(self, eval_set, hdri) -> None:
+        assert eval_set.images.shape == (N, 3, 256, 256) and eval_set.images.dtype == torch.uint8
+        assert eval_set.mirror_ball.shape == (N, 3, 32, 32)
+        assert all(subject_split(s) == "eval" for s in eval_set.subject_seed)
+        assert "real:interior.exr" not in eval_set.source  # a train map never shows up
+        d = eval_set.description
+        assert d["samples"] == N and d["seed"] == EVAL_SEED and sum(d["labels"].values()) == N
+        assert d["eval_maps"] == {str(hdri): {"forest.exr": "outdoor", "studio.exr": "indoor"}}
+        assert set(d["skin_tones"]) <= {"3", "6", "9"} and len(d["subjects"]) == 3
+
+    def test_deterministic(self, eval_set, caches, hdri) -> None:
+        again = build_eval_set(caches, [hdri], samples=N, fields_per_chunk=2, lightings_per_field=4)
+        assert torch.equal(again.images, eval_set.images) and torch.equal(again.mirror_ball, eval_set.mirror_ball)
+        assert again.label == eval_set.label and again.source == eval_set.source
+
+    def test_black_background_variant_is_the_same_portraits(self, eval_set, caches, hdri) -> None:
+        black = build_eval_set(caches, [hdri], samples=N, fields_per_chunk=2, lightings_per_field=4,
+                               background="black")
+        assert black.description["background"] == "black" and eval_set.description["background"] == "environment"
+        assert black.label == eval_set.label and black.subject_seed == eval_set.subject_seed
+        assert black.source == eval_set.source
+        assert not torch.equal(black.images, eval_set.images)
+        # the same lighting up to the exposure, which meters the (now black) background too
+        ratio = black.mirror_ball.sum((1, 2, 3)) / eval_set.mirror_ball.sum((1, 2, 3))
+        rescaled = eval_set.mirror_ball * ratio[:, None, None, None]
+        torch.testing.assert_close(black.mirror_ball, rescaled, rtol=1e-3, atol=1e-6)
+
+
+class TestScores:
+    def test_oracles(self) -> None:
+        gt = torch.rand(3, 3, 32, 32) * 2
+        out = oracle_predictions(gt)
+        assert set(out) == set(ORACLES)
+        assert relative_radiance(out["mean of GT"], gt).abs().max() < 1e-5
+        assert relative_radiance(out["SH of GT"], gt).abs().max() < 1e-3
+        torch.testing.assert_close(sh_project(out["SH of GT"]), sh_project(gt), atol=1e-4, rtol=1e-4)
+        sun = torch.zeros(1, 3, 32, 32)
+        sun[..., 16, 5] = 1000.0
+        assert oracle_predictions(sun)["SH of GT"].min() < 0  # unclamped: the ringing stays negative
+
+    def test_score_shapes(self) -> None:
+        gt = torch.rand(4, 3, 32, 32)
+        s = score(gt * 0.5, gt)
+        assert all(s[b].shape == (4,) for b in BRDF_NAMES) and s["relative_radiance"].shape == (4, 3)
+        torch.testing.assert_close(s["relative_radiance"], torch.full((4, 3), 0.5))
+
+
+def _checkpoint(path):
+    net = create_estimator("ours", pretrained=False)
+    safetensors.torch.save_file({k: v.contiguous() for k, v in net.state_dict().items()}, str(path))
+    return net
+
+
+class TestWeights:
+    def test_weights_checkpoint(self, tmp_path) -> None:
+        path = tmp_path / "ckpt.safetensors"
+        _checkpoint(path)
+        loaded = load_estimator("ours", path)
+        assert not loaded.training
+        with pytest.raises(MissingWeightsError):
+            load_estimator("ours", tmp_path / "missing.safetensors")
+        with pytest.raises(ValueCheckError, match="safetensors"):
+            load_estimator("ours", tmp_path / "ckpt.pt")
+
+    def test_a_checkpoint_is_loaded_with_its_sha256(self, tmp_path) -> None:
+        """A user's file goes through the SHA-256 path of the shipped weights, which returns its digest."""
+        path = tmp_path / "ckpt.safetensors"
+        net = _checkpoint(path)
+        loaded, digest = load_checkpoint("ours", path)
+        assert digest == sha256_file(path) and not loaded.training
+        assert all(torch.equal(a, b) for a, b in zip(net.state_dict().values(), loaded.state_dict().values(),
+                                                       strict=True))
+        with pytest.raises(ValueError, match="unknown estimator 'nope'"):
+            load_checkpoint("nope", path)
+
+    def test_evaluate_records_the_sha256_of_a_weight_file(self, eval_set, tmp_path) -> None:
+        path = tmp_path / "ckpt.safetensors"
+        _checkpoint(path)
+        results = evaluate(eval_set, ["uniform"], {"ours": path}, oracles=False)
+        assert set(results["methods"]) == {"uniform", "ours@ckpt.safetensors"}
+        assert results["methods"]["ours@ckpt.safetensors"]["sha256"] == sha256_file(path)
+        assert "sha256" not in results["methods"]["uniform"]  # nothing to record: no weight file
+        assert results["skipped"] == {}

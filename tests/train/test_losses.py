@@ -1,0 +1,58 @@
+"""kornia_ilum.train.losses: the multi-scale rendering loss and the discriminator's images."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
+from kornia_ilum.train import BRDF_WEIGHTS, SCALES, training_losses
+from kornia_ilum.train.losses import discriminator_images
+
+
+class TestLosses:
+    def test_zero_at_the_truth_and_sensitive_at_every_scale(self) -> None:
+        valid = mirror_ball_valid(32)
+        truth = (torch.rand(2, 3, 32, 32) + 0.1) * valid
+        pred = mirror_ball_pyramid(truth, SCALES)
+        loss, parts = training_losses(pred, truth, BRDF_WEIGHTS)
+        assert loss.item() < 1e-6 and set(parts) == {f"rec_{b}" for b in BRDF_WEIGHTS}
+        for s in SCALES:  # one bright pixel in the lighting of one scale: the loss sees it
+            bumped = {k: v.clone() for k, v in pred.items()}
+            i = s // 2
+            bumped[s][:, :, i, i] += 50.0
+            assert training_losses(bumped, truth, BRDF_WEIGHTS)[0].item() > 1e-3, s
+
+    def test_gradients_are_finite_on_black(self) -> None:
+        pred = {s: torch.zeros(1, 3, s, s, requires_grad=True) for s in SCALES}
+        loss, _ = training_losses(pred, torch.zeros(1, 3, 32, 32), BRDF_WEIGHTS)
+        loss.backward()
+        assert all(torch.isfinite(pred[s].grad).all() for s in SCALES)
+
+    def test_given_truth_is_the_pyramid_of_the_target(self) -> None:
+        """Passing the target's pyramid (as train_step does) gives the loss of computing it, bit for bit."""
+        valid = mirror_ball_valid(32)
+        gen = torch.Generator().manual_seed(0)
+        target = torch.rand(2, 3, 32, 32, generator=gen) * valid
+        pred = {s: torch.rand(2, 3, s, s, generator=gen) * mirror_ball_valid(s) for s in SCALES}
+        plain, parts = training_losses(pred, target, BRDF_WEIGHTS, 0.5)
+        truth = mirror_ball_pyramid(target, SCALES)
+        given, given_parts = training_losses(pred, target, BRDF_WEIGHTS, 0.5, truth)
+        assert torch.equal(plain, given) and all(torch.equal(parts[k], given_parts[k]) for k in parts)
+
+    def test_brdf_weights_are_the_papers(self) -> None:
+        assert BRDF_WEIGHTS == {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
+        assert math.isclose(sum(BRDF_WEIGHTS.values()), 1.0)
+
+
+class TestDiscriminatorImages:
+    def test_the_mirror_sphere_of_each_scale(self) -> None:
+        lighting = mirror_ball_pyramid(torch.rand(2, 3, 32, 32) * 3 * mirror_ball_valid(32), SCALES)
+        images = discriminator_images(lighting)
+        assert sorted(images) == list(SCALES)
+        for s in SCALES:
+            want = sphere_pyramid(lighting[s], sizes=(s,), brdfs=("mirror",), gamma="safe")[f"mirror_{s}"]
+            assert images[s].shape == (2, 3, s, s) and torch.equal(images[s], want)
+            assert images[s].min() >= 0 and images[s].max() <= 1  # clipped and gamma-encoded

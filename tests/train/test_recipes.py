@@ -1,0 +1,162 @@
+"""kornia_ilum.train.recipes: recipes by entry point, the default step, and the one-way loop -> recipe."""
+
+from __future__ import annotations
+
+import ast
+import importlib.metadata
+import inspect
+import subprocess
+import sys
+from pathlib import Path
+
+import kornia_ilum_sh.recipe
+import kornia_ilum_sipr.recipe
+import pytest
+import torch
+from torch import nn
+
+import kornia_ilum.train.recipes as recipes
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.train import (
+    SCALES,
+    MSGDiscriminator,
+    MultiScaleOurs,
+    Recipe,
+    RuntimeSettings,
+    TrainConfig,
+    get_recipe,
+    list_recipes,
+    train_step,
+)
+from kornia_ilum.train.recipes import RECIPE_ENTRY_POINT_GROUP, OursRecipe, batch_images
+
+
+class TestDiscovery:
+    def test_recipes_by_entry_point(self) -> None:
+        assert RECIPE_ENTRY_POINT_GROUP == "kornia_ilum.recipes"
+        eps = importlib.metadata.entry_points(group=RECIPE_ENTRY_POINT_GROUP)
+        declared = {ep.name: ep.value for ep in eps}
+        assert declared["ours"] == "kornia_ilum.train.recipes:OursRecipe"
+        assert list_recipes() == ["ours", "sh", "sipr"]
+        recipe = get_recipe("ours")
+        assert isinstance(recipe, OursRecipe) and recipe.name == "ours" and recipe.log_fields == ()
+
+    def test_unknown_name(self) -> None:
+        message = r"no training recipe for estimator 'uniform'; trainable: ours, sh, sipr"
+        with pytest.raises(ValueCheckError, match=message):
+            get_recipe("uniform")
+
+    def test_broken_entry_points_warn_and_are_skipped(self, monkeypatch) -> None:
+        group = RECIPE_ENTRY_POINT_GROUP
+        eps = [importlib.metadata.EntryPoint("ours", "kornia_ilum.train.recipes:OursRecipe", group),
+               importlib.metadata.EntryPoint("gone", "kornia_ilum_no_such_module:Recipe", group),
+               importlib.metadata.EntryPoint("model", "kornia_ilum.train.models:MSGDiscriminator", group),
+               importlib.metadata.EntryPoint("ours", "kornia_ilum.train.recipes:Recipe", group)]
+        monkeypatch.setattr(recipes.importlib.metadata, "entry_points", lambda group: eps)
+        with pytest.warns(RuntimeWarning) as caught:
+            assert list_recipes() == ["ours"]
+        messages = " ".join(str(w.message) for w in caught)
+        assert "'gone = kornia_ilum_no_such_module:Recipe'" in messages and "not a subclass" in messages
+        with pytest.warns(RuntimeWarning):
+            assert type(get_recipe("ours")) is OursRecipe  # the first 'ours' wins
+
+    def test_ours_builds_the_multi_scale_generator_and_the_discriminator(self) -> None:
+        recipe = get_recipe("ours")
+        model, disc = recipe.build()
+        assert isinstance(model, MultiScaleOurs) and isinstance(disc, MSGDiscriminator)
+        assert recipe.estimator(model) is model.estimator
+
+
+class TestOneWay:
+    def test_recipes_never_import_the_loop(self) -> None:
+        """The loop calls the recipe; no recipe module imports the loop, at the top or in a function."""
+        for module in (recipes, kornia_ilum_sh.recipe, kornia_ilum_sipr.recipe):
+            tree = ast.parse(Path(module.__file__).read_text())
+            imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+            imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+            assert not {m for m in imported if m and m.startswith("kornia_ilum.train.loop")}, module.__name__
+            assert "kornia_ilum.train" not in imported, module.__name__  # the package imports the loop
+
+    def test_train_step_takes_keywords_and_a_typed_recipe(self) -> None:
+        params = inspect.signature(train_step).parameters
+        assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params.values())
+        assert params["recipe"].annotation == "Recipe | None" and params["recipe"].default is None
+        step = inspect.signature(Recipe.step).parameters
+        assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for n, p in step.items() if n != "self")
+        assert {"config", "runtime"} <= set(step)
+
+    @pytest.mark.slow  # subprocesses
+    @pytest.mark.parametrize("name, pretrained",
+                             [("ours", True), ("sh", True), ("sipr", False), ("uniform", True)])
+    def test_creating_an_estimator_never_imports_training(self, name, pretrained) -> None:
+        code = (f"import sys, kornia_ilum; kornia_ilum.create_estimator({name!r}, pretrained={pretrained}); "
+                "print(sorted(m for m in sys.modules "
+                "if m.startswith('kornia_ilum.train') or m.endswith('.recipe')))")
+        r = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+        assert r.stdout.strip() == "[]"
+
+
+class _Tiny(nn.Module):
+    """A two-scale generator of constant lighting, for steps that take no time."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.level = nn.Parameter(torch.tensor(0.5))
+
+    def forward(self, crops: torch.Tensor) -> dict[int, torch.Tensor]:
+        brightness = self.level.exp() * crops.mean((1, 2, 3))[:, None, None, None]  # (B, 1, 1, 1)
+        return {s: (brightness * mirror_ball_valid(s)).expand(-1, 3, -1, -1) for s in (16, 32)}
+
+
+class _Penalised(Recipe):
+    def extra_losses(self, pred: dict[int, torch.Tensor]) -> dict[str, torch.Tensor]:
+        return {"bright": 0.25 * pred[32].mean()}
+
+
+class TestTrainStep:
+    def _run(self, recipe: Recipe | None, disc: nn.Module | None = None) -> tuple[dict, nn.Module]:
+        torch.manual_seed(0)
+        model = _Tiny()
+        opt_g = torch.optim.Adam(model.parameters(), lr=1e-2)
+        opt_d = torch.optim.Adam(disc.parameters(), lr=1e-4) if disc is not None else None
+        crops = torch.rand(2, 3, 8, 8)
+        target = torch.rand(2, 3, 32, 32) * mirror_ball_valid(32)
+        config = TrainConfig(out="-", cache=("-",))
+        runtime = RuntimeSettings(bf16=False, channels_last=False, workers=0)
+        losses = train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
+                            config=config, runtime=runtime, recipe=recipe)
+        return losses, model
+
+    def test_the_generator_steps_on_rec_plus_the_recipes_extra_terms(self) -> None:
+        plain, moved = self._run(None)
+        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "rec_diffuse", "rec_matte_silver",
+                              "rec_mirror"}
+        assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0
+        assert torch.equal(plain["loss"], plain["rec"]) and moved.level.item() != 0.5
+        penalised, _ = self._run(_Penalised())
+        assert penalised["extra"] > 0
+        assert torch.isclose(penalised["loss"], penalised["rec"] + penalised["extra"])
+        assert all(not v.requires_grad for v in penalised.values())
+
+    def test_the_discriminator_steps_first(self) -> None:
+        disc = MSGDiscriminator()
+
+        class TwoScales(nn.Module):  # MSGDiscriminator wants all four scales
+            def __init__(self) -> None:
+                super().__init__()
+                self.disc = disc
+
+            def forward(self, images):
+                return self.disc({s: images[max(images)][..., :: 32 // s, :: 32 // s] for s in SCALES})
+
+        before = [p.detach().clone() for p in disc.parameters()]
+        losses, _ = self._run(None, TwoScales())
+        assert losses["disc"] > 0 and losses["adv"] > 0
+        assert any(not torch.equal(a, b) for a, b in zip(before, disc.parameters(), strict=True))
+
+    def test_batch_images(self) -> None:
+        batch = {"image": torch.full((1, 3, 2, 2), 255, dtype=torch.uint8)}
+        x = batch_images(batch, "image", torch.device("cpu"), torch.channels_last)
+        assert x.dtype == torch.float32 and bool((x == 1).all())
+        assert x.is_contiguous(memory_format=torch.channels_last)
