@@ -33,7 +33,10 @@ def main(argv: list[str] | None = None) -> None:
     from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    print(f"cpu: {platform.processor() or platform.machine()}")
+    cpuinfo = Path("/proc/cpuinfo")
+    names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
+             if line.startswith("model name")] if cpuinfo.is_file() else []
+    print(f"cpu: {names[0] if names else platform.processor() or platform.machine()}")
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
         build_cache("mannequin", [0, 2], cache, renderer=Auto(spp=4), views=SampledViews(1, size=48),

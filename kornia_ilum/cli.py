@@ -37,10 +37,8 @@ from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import BaseError, HDRIOError
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
-from kornia_ilum.evaluation.cli import add_evaluate_parser
 from kornia_ilum.io import read_ldr
 from kornia_ilum.synth.cli import add_synth_environments_parser, add_synth_subjects_parser
-from kornia_ilum.train.cli import add_train_parser
 
 PROG = "kornia-ilum"
 _SAMPLE = "astronaut"
@@ -82,8 +80,35 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(f"{message} (see '{self.prog} --help')")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``kornia-ilum`` (used by :func:`main` and the docs)."""
+def _add_train_parser(sub: argparse._SubParsersAction) -> None:
+    from kornia_ilum.train.cli import add_train_parser  # lazy: the training package loads the light stage
+
+    add_train_parser(sub)
+
+
+def _add_evaluate_parser(sub: argparse._SubParsersAction) -> None:
+    from kornia_ilum.evaluation.cli import add_evaluate_parser  # lazy: evaluation loads the light stage
+
+    add_evaluate_parser(sub)
+
+
+#: The sub-commands whose packages load the light stage when imported: name -> (adds the real parser, its
+#: help line). A command line that does not name one gets a placeholder with the same help line instead, so
+#: that ``estimate``, ``list`` and ``--help`` start without the light stage (``tests/test_cli.py`` checks that
+#: the help lines agree).
+LAZY_COMMANDS = {
+    "train": (_add_train_parser, "train an estimator on the light stage"),
+    "evaluate": (_add_evaluate_parser, "score the estimators and two oracles on the held-out eval set"),
+}
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser of ``kornia-ilum`` (used by :func:`main` and the docs).
+
+    Args:
+        command: the sub-command that the command line names (``""``: none): of :data:`LAZY_COMMANDS`, only
+            its parser is built for real. ``None`` builds every parser (the docs).
+    """
     parser = _Parser(
         prog=PROG,
         description="HDR lighting from one LDR portrait (LeGendre et al. 2020, 'Learning Illumination from "
@@ -127,8 +152,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "with their metadata.")
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)
-    add_train_parser(sub)
-    add_evaluate_parser(sub)
+    for name, (add_parser, help_line) in LAZY_COMMANDS.items():
+        if command is None or command == name:
+            add_parser(sub)
+        else:
+            sub.add_parser(name, help=help_line)
     return parser
 
 
@@ -308,7 +336,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         >>> main(["estimate", "--faces", "many"])
         2
     """
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), ""))
     debug = bool(os.environ.get("KORNIA_ILUM_DEBUG"))
     with warnings.catch_warnings():
         warnings.showwarning = _warn

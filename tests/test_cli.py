@@ -13,7 +13,7 @@ import skimage.data
 import torch
 
 from kornia_ilum.api import estimate_lighting
-from kornia_ilum.cli import main
+from kornia_ilum.cli import LAZY_COMMANDS, build_parser, main
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
 
 REPO = Path(__file__).resolve().parents[1]
@@ -146,6 +146,17 @@ class TestErrors:
         assert main(["estimate", "--help"]) == 0
         out = capsys.readouterr().out
         assert "{stem}" in out and "{face}" in out and "--latlong H" in out
+
+    def test_lazy_commands_show_their_real_help_line(self, capsys):
+        """A command line that does not name ``train``/``evaluate`` gets a placeholder parser for each: its
+        help line is the real parser's, and naming the command builds the real one."""
+        def help_lines(parser):
+            sub = next(a for a in parser._actions if a.dest == "command")
+            return {c.dest: c.help for c in sub._choices_actions}
+
+        full, light = help_lines(build_parser()), help_lines(build_parser(""))
+        assert light == full and set(LAZY_COMMANDS) <= set(full)
+        assert main(["train", "--help"]) == 0 and "--checkpoint-every" in capsys.readouterr().out
 
     @pytest.mark.slow  # subprocesses
     def test_subprocess(self, tmp_path):
