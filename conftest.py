@@ -15,29 +15,22 @@ import os
 import shutil
 import tempfile
 
-_ENV = ("TMPDIR", "TORCHINDUCTOR_CACHE_DIR")
-_saved: dict[str, str | None] = {}
+import pytest
+
+_session = pytest.MonkeyPatch()  # undone when the session ends
 _session_dir: str | None = None
 
 
 def pytest_configure(config) -> None:
     global _session_dir
     _session_dir = tempfile.mkdtemp(prefix="kornia_ilum_tests_")
-    _saved.update({key: os.environ.get(key) for key in _ENV})
-    os.environ["TMPDIR"] = _session_dir  # subprocesses (torchrun, the CLI tests) and their children
-    os.environ["TORCHINDUCTOR_CACHE_DIR"] = os.path.join(_session_dir, "torchinductor")
-    _saved["tempdir"] = tempfile.tempdir
-    tempfile.tempdir = _session_dir  # this process: tempfile, multiprocessing and pytest's tmp_path
+    _session.setenv("TMPDIR", _session_dir)  # subprocesses (torchrun, the CLI tests) and their children
+    _session.setenv("TORCHINDUCTOR_CACHE_DIR", os.path.join(_session_dir, "torchinductor"))
+    _session.setattr(tempfile, "tempdir", _session_dir)  # this process: tempfile, multiprocessing, tmp_path
 
 
 def pytest_unconfigure(config) -> None:
-    tempfile.tempdir = _saved.pop("tempdir", None)
-    for key in _ENV:
-        value = _saved.pop(key, None)
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
+    _session.undo()
     if _session_dir is None:
         return
     if os.environ.get("KORNIA_ILUM_KEEP_TEST_TMP"):

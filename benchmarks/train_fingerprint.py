@@ -4,7 +4,8 @@ Run: ``python benchmarks/train_fingerprint.py [--estimators ours sh sipr] [--ste
 
 Builds the cache of the training tests (two train mannequins, one 48 px view each; the ``tiny_cache``
 fixture of ``tests/conftest.py``) in a temporary folder, trains each estimator for ``--steps`` steps with
-the training tests' small data settings on one thread, and prints each weight file's SHA-256. A refactor
+the training tests' small data settings on one thread, and prints each weight file's SHA-256 (and the CPU),
+as the run's own ``summary.json`` records them. A refactor
 that must not change training is checked by running this before and after it on the same machine: the
 hashes must be identical. (They differ between CPUs: float summation order depends on the SIMD width.)
 """
@@ -12,9 +13,8 @@ hashes must be identical. (They differ between CPUs: float summation order depen
 from __future__ import annotations
 
 import argparse
-import hashlib
+import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -33,10 +33,6 @@ def main(argv: list[str] | None = None) -> None:
     from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    cpuinfo = Path("/proc/cpuinfo")
-    names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
-             if line.startswith("model name")] if cpuinfo.is_file() else []
-    print(f"cpu: {names[0] if names else platform.processor() or platform.machine()}")
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
         build_cache("mannequin", [0, 2], cache, renderer=Auto(spp=4), views=SampledViews(1, size=48),
@@ -49,8 +45,8 @@ def main(argv: list[str] | None = None) -> None:
                  "--workers", "1", "--checkpoint-every", "3", "--log-every", "1", "--data", *SMALL],
                 check=True, env=env, capture_output=True, text=True,
             )
-            weights = out / f"{name}.safetensors"
-            print(f"{name:5s} {args.steps} steps  sha256 {hashlib.sha256(weights.read_bytes()).hexdigest()}")
+            summary = json.loads((out / "summary.json").read_text())
+            print(f"{name:5s} {args.steps} steps  sha256 {summary['weights']['sha256']}  cpu: {summary['cpu']}")
 
 
 if __name__ == "__main__":
