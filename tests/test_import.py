@@ -34,17 +34,21 @@ def _assert_nothing_written(tmp_path: Path) -> None:
     assert sorted(os.listdir(tmp_path / "cwd")) == [], "CWD"
 
 
-@pytest.mark.slow  # a subprocess
-def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
-    probe = (
-        "import sys, kornia_ilum\n"
-        "heavy = ('torch._dynamo', 'torch._inductor', 'sympy', 'scipy', 'matplotlib', 'mitsuba', 'cv2',\n"
-        "         'OpenImageIO', 'safetensors', 'skimage')\n"
-        "print(','.join(m for m in heavy if m in sys.modules))\n"
-    )
+def _heavy_loaded(setup: str, heavy: tuple[str, ...], tmp_path: Path) -> str:
+    """Run ``setup`` in a fresh process (:func:`_run`); return the modules of ``heavy`` it loaded, joined
+    by commas (``""``: none)."""
+    probe = f"import sys\n{setup}\nprint(','.join(m for m in {heavy!r} if m in sys.modules))\n"
     result = _run(["-c", probe], tmp_path)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "", f"import kornia_ilum loaded {result.stdout.strip()}"
+    return result.stdout.strip()
+
+
+@pytest.mark.slow  # a subprocess
+def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
+    heavy = ("torch._dynamo", "torch._inductor", "sympy", "scipy", "matplotlib", "mitsuba", "cv2",
+             "OpenImageIO", "safetensors", "skimage")
+    loaded = _heavy_loaded("import kornia_ilum", heavy, tmp_path)
+    assert loaded == "", f"import kornia_ilum loaded {loaded}"
     _assert_nothing_written(tmp_path)
 
 
@@ -61,16 +65,11 @@ def test_cli_import_stays_light(tmp_path):
     """``kornia-ilum --help``, ``list`` and ``estimate`` start without what only other sub-commands need
     (Mitsuba, matplotlib, the light stage, the environments' statistics): ``train`` and ``evaluate``, whose
     packages load the light stage, get their real parser only when the command line names them."""
-    probe = (
-        "import sys, kornia_ilum.cli\n"
-        "kornia_ilum.cli.build_parser('estimate')\n"
-        "heavy = ('torch._dynamo', 'matplotlib', 'mitsuba', 'onnxruntime', 'OpenImageIO',\n"
-        "         'kornia_ilum.synth.lightstage', 'kornia_ilum.synth.stats')\n"
-        "print(','.join(m for m in heavy if m in sys.modules))\n"
-    )
-    result = _run(["-c", probe], tmp_path)
-    assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "", f"import kornia_ilum.cli loaded {result.stdout.strip()}"
+    heavy = ("torch._dynamo", "matplotlib", "mitsuba", "onnxruntime", "OpenImageIO",
+             "kornia_ilum.synth.lightstage", "kornia_ilum.synth.stats")
+    setup = "import kornia_ilum.cli\nkornia_ilum.cli.build_parser('estimate')"
+    loaded = _heavy_loaded(setup, heavy, tmp_path)
+    assert loaded == "", f"import kornia_ilum.cli loaded {loaded}"
     _assert_nothing_written(tmp_path)
 
 

@@ -4,8 +4,8 @@ Used to composite portraits over a background that matches their lighting: the v
 that the portrait's camera would see behind the subject.
 
 Convention:
-    The camera is the one of docs/conventions.rst ("Frames"): a pinhole at the origin looking along -Z, +X to the right of the
-    image, +Y up. ``yaw_deg``, ``pitch_deg`` and ``roll_deg`` turn it by
+    The camera is the one of docs/conventions.rst ("Frames"): a pinhole at the origin looking along -Z, +X
+    to the right of the image, +Y up. ``yaw_deg``, ``pitch_deg`` and ``roll_deg`` turn it by
     ``R = R_y(yaw) R_x(pitch) R_z(roll)`` (right-handed rotations about the frame's axes, applied to the
     camera's rays: a ray ``r`` of the unrotated camera looks along ``R r``). So positive yaw turns the
     camera to its left (yaw +90 deg looks along -X), positive pitch looks up (+90 deg looks along +Y), and
@@ -105,9 +105,9 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
         the values ``(C, ...)`` (``(B, C, ...)`` for a batch) in the dtype and on the device of ``latlong``.
 
     Convention:
-        Lat-long grid of docs/conventions.rst; interpolation as in :func:`kornia_ilum.geometry.latlong_to_mirror_ball`
-        ``(mode="bilinear")``. Point sampling: it does not conserve energy (use it for pictures, not for
-        lighting that is integrated).
+        Lat-long grid of docs/conventions.rst; interpolation as in
+        :func:`kornia_ilum.geometry.latlong_to_mirror_ball` ``(mode="bilinear")``. Point sampling: it does not
+        conserve energy (use it for pictures, not for lighting that is integrated).
 
     Examples:
         >>> env = torch.zeros(1, 2, 4)
@@ -251,8 +251,8 @@ def render_background(
         - Output: :math:`(3, h, w)`
 
     Convention:
-        Camera (looks along -Z, +X right, +Y up) and lat-long grid of docs/conventions.rst; the rotation convention is in
-        the module docstring: with ``yaw_deg=90`` the centre pixel sees -X.
+        Camera (looks along -Z, +X right, +Y up) and lat-long grid of docs/conventions.rst; the rotation
+        convention is in the module docstring: with ``yaw_deg=90`` the centre pixel sees -X.
 
     Raises:
         ShapeError: ``latlong`` is not ``(3, H, 2H)``.

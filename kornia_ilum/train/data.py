@@ -3,7 +3,7 @@ resumed run sees the same data.
 
 :func:`training_dataset` builds the portraits of a :class:`~kornia_ilum.train.TrainConfig`: the ``"train"``
 subjects of its caches, relit under procedural skies and rooms plus the ``"train"`` maps of its ``hdri``
-folders (:func:`training_environments`), with :data:`TRAINING_PORTRAITS` and the run's ``data`` settings.
+folders, with :data:`TRAINING_PORTRAITS` and the run's ``data`` settings.
 
 Batch ``t`` of rank ``r`` with ``W`` loader workers is batch ``t // W`` of the stream
 ``r * W + t % W`` of a :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`: each stream is the
@@ -27,15 +27,14 @@ from kornia_ilum.synth.environments import EnvironmentSampler, HDRFolderSource, 
 from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
 from kornia_ilum.train.config import TrainConfig
 
-__all__ = ["TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset",
-           "training_environments"]
+__all__ = ["TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset"]
 
 #: What training changes in the :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` defaults
 #: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own).
 TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": ()}
 
 
-def training_environments(config: TrainConfig) -> EnvironmentSampler:
+def _training_environments(config: TrainConfig) -> EnvironmentSampler:
     """The run's environments: the procedural sources plus the ``"train"`` maps of each folder of
     ``config.hdri``, drawn with ``config.seed``."""
     sources = default_sources() + [HDRFolderSource(folder, split="train") for folder in config.hdri]
@@ -60,7 +59,7 @@ def training_dataset(config: TrainConfig) -> PortraitDataset:
     # them would take a good part of the data's time (docs/training.rst, "Measured"). The images and
     # lightings are the same either way.
     return PortraitDataset(fields, PortraitConfig(**{**TRAINING_PORTRAITS, **overrides, "split": "train",
-                                                     "environments": training_environments(config)}),
+                                                     "environments": _training_environments(config)}),
                            seed=config.seed)
 
 

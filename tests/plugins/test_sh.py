@@ -27,7 +27,7 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_project, sh_reconstruct
 from kornia_ilum.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
 from kornia_ilum.train.recipes import get_recipe, list_recipes
-from tests.train.helpers import SMALL
+from tests.train.helpers import small_data
 
 VALID = mirror_ball_valid(32)
 
@@ -205,7 +205,7 @@ class TestTraining:
     @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path):
         threads = torch.get_num_threads()
-        data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}
+        data = small_data()
         config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sh", steps=2, batch=2,
                              workers=0, threads=1, checkpoint_every=3, log_every=1, data=data)
         try:

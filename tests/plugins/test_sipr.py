@@ -33,7 +33,7 @@ from kornia_ilum.train import TrainConfig, read_log, train
 from kornia_ilum.train.data import collate
 import kornia_ilum.train.recipes
 from kornia_ilum.train.recipes import get_recipe, list_recipes
-from tests.train.helpers import SMALL
+from tests.train.helpers import small_data
 
 
 @pytest.fixture(scope="module")
@@ -179,8 +179,7 @@ class TestData:
     def test_pairs_give_the_matte_and_a_second_lighting(self, tiny_cache):
         fields = load_fields(tiny_cache, split=None)
         config = PortraitConfig(split=None, background="black", pairs=True, camera=CameraEffects.off(),
-                                flip_probability=0.5, length=8, **{k: int(v) for k, v in
-                                                                   (s.split("=") for s in SMALL)})
+                                flip_probability=0.5, length=8, **small_data())
         samples = list(PortraitDataset(fields, config, seed=3))
         for s in samples:
             alpha = s["alpha"]
@@ -209,7 +208,7 @@ class TestTraining:
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path, monkeypatch):
         monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)  # the float16 probe: 4 crops, not 32
         threads = torch.get_num_threads()
-        data = {k: int(v) for k, v in (s.split("=") for s in SMALL)}
+        data = small_data()
         config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sipr", steps=2,
                              batch=2, workers=0, threads=2, checkpoint_every=3, log_every=1, data=data)
         try:

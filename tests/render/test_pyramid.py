@@ -10,6 +10,7 @@ import torch
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
+from kornia_ilum.geometry.mirror_ball import _rim_pixels
 from kornia_ilum.metrics import (
     MultiscaleReconstructionLoss,
     ReconstructionLoss,
@@ -30,14 +31,6 @@ from kornia_ilum.render import (
 from tests.conftest import hdr_lighting
 
 F64 = torch.float64
-
-
-def _rim_pixels(size: int) -> torch.Tensor:
-    """``(S, S)`` mask of the valid pixels whose square crosses the unit circle (the owners of slivers)."""
-    edges = torch.linspace(-1.0, 1.0, size + 1, dtype=F64)
-    far = torch.maximum(edges[:-1].abs(), edges[1:].abs())
-    fully_inside = far[None, :].square() + far.flip(0)[:, None].square() <= 1.0
-    return mirror_ball_valid(size) & ~fully_inside
 
 
 def _energy(x: torch.Tensor) -> torch.Tensor:

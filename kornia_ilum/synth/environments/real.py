@@ -334,8 +334,8 @@ class HDRFolderSource:
 
     Convention:
         The files' orientation (centre column = forward) is the lat-long of docs/conventions.rst: no
-        rotation is applied (module docstring). ``Environment.params`` holds ``{"map": name, "index": i}``; ``source`` is
-        ``"real:<name>"``.
+        rotation is applied (module docstring). ``Environment.params`` holds ``{"map": name, "index": i}``;
+        ``source`` is ``"real:<name>"``.
 
     Examples:
         >>> import tempfile

@@ -46,21 +46,13 @@ from kornia_ilum.synth.lightstage.materials import (
 from kornia_ilum.synth.lightstage.onepass import OnePassResult, render_olat_onepass
 from kornia_ilum.synth.lightstage.reference import render_olat_reference
 from kornia_ilum.synth.lightstage.scene import Camera, camera_transform, project_points, subject_pivot
-from kornia_ilum.synth.lightstage.settings import (
-    ONEPASS_EDGE_SPP,
-    ONEPASS_SHADE_SPP,
-    ONEPASS_SPP,
-    Auto,
-    OnePass,
-    Reference,
-    is_vectorised,
-)
+from kornia_ilum.synth.lightstage.settings import Auto, OnePass, Reference, is_vectorised
 from kornia_ilum.synth.lightstage.subsurface import subsurface_scatter
 
 if TYPE_CHECKING:  # the subjects module is only needed for the annotation
     from kornia_ilum.synth.lightstage.subjects import Subject
 
-__all__ = ["ONEPASS_EDGE_SPP", "ONEPASS_SHADE_SPP", "ONEPASS_SPP", "render_olat"]
+__all__ = ["render_olat"]
 
 
 def render_olat(
