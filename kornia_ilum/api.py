@@ -18,15 +18,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import os
 from typing import Any, Literal
 
 import numpy as np
 import torch
 
-from kornia_ilum.core.check import check_choice, check_tensor, checks_active
-from kornia_ilum.core.errors import NoFaceError, NonFiniteError, ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.check import check_choice, check_tensor, value_range
+from kornia_ilum.core.errors import NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import (
     DEFAULT_DETECTOR,
     FaceDetector,
@@ -96,21 +95,11 @@ def _numpy_to_tensor(array: np.ndarray, bgr: bool) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(pixels.transpose(2, 0, 1)))
 
 
-def _value_range(image: torch.Tensor) -> tuple[float, float] | None:
-    """``(min, max)`` of the image in one pass, or ``None`` when checks are off; NaN or Inf raise."""
-    if not checks_active() or torch.compiler.is_compiling():
-        return None
-    lo, hi = (float(v) for v in torch.aminmax(image.detach()))  # NaN propagates into both
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise NonFiniteError("image must be finite, but it holds NaN or Inf")
-    return lo, hi
-
-
 def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
     """Any accepted input -> ``(B, 3, H, W)`` float tensor in [0, 1], and a name for messages.
 
     This is the one scan of the image's values in :func:`estimate_lighting` (NaN/Inf and the ``[0, 1]``
-    range, one :func:`torch.aminmax`); the detector, the crop and the estimator are then called with
+    range, one :func:`~kornia_ilum.core.check.value_range`); the detector, the crop and the estimator are then called with
     ``check_values=False``, as their input is made from this checked image.
     """
     values = None
@@ -126,7 +115,7 @@ def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
                 "bgr=True applies to NumPy arrays only; tensors are RGB (flip them yourself)"
             )
         check_tensor(image, "image", ["*", "3", "H", "W"], finite=False)
-        values = _value_range(image)  # NaN / Inf -> NonFiniteError before the shape's upper bound
+        values = value_range(image, "image")  # NaN / Inf -> NonFiniteError before the shape's upper bound
         if image.dim() > 4:
             raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
         batch, what = (image[None] if image.dim() == 3 else image), "image"
@@ -134,7 +123,7 @@ def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
         raise TypeCheckError(f"image must be {_ACCEPTED}; got {type(image).__name__}")
     check_tensor(batch, "image", ["B", "3", "H", "W"], finite=False)  # empty -> typed error
     if values is None:
-        values = _value_range(batch)  # NaN / Inf -> NonFiniteError
+        values = value_range(batch, "image")  # NaN / Inf -> NonFiniteError
     if values is not None:
         lo, hi = values
         if lo < 0.0 or hi > 1.0:

@@ -73,7 +73,8 @@ def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
              for flag in (False, True)]
     out = STATIC / "subsurface_pair.png"
     write_grid(tiles, ["without subsurface", "with subsurface (screen-space diffusion)"],
-                f"MakeHuman subject {seed} relit by {Path(hdri).name}", out, 2, (3.0, 3.1), 8, 100, True)
+               f"MakeHuman subject {seed} relit by {Path(hdri).name}", out, columns=2, cell=(3.0, 3.1),
+               fontsize=8, dpi=100, palette=True)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
@@ -103,7 +104,8 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
     tiles[0] = torch.cat([tiles[0], torch.ones(3, 6 + tiles[1].shape[1] - 262, 256)], dim=1)
     png = STATIC / "lightstage_contact_sheet.png"
     write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
-                "matte silver, mirror", png, columns, (1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), 5.0, 72, False)
+               "matte silver, mirror", png, columns=columns,
+               cell=(1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), fontsize=5.0, dpi=72, palette=False)
     # 64 portraits do not fit a 300 KB PNG; the portraits are JPEG-compressed photographs anyway
     out = png.with_suffix(".jpg")
     Image.open(png).convert("RGB").save(out, quality=80, optimize=True)

@@ -7,6 +7,7 @@ from kornia_ilum.core.check import (
     check_tensor,
     checks_active,
     trusted,
+    value_range,
 )
 from kornia_ilum.core.errors import (
     BaseError,
@@ -30,6 +31,7 @@ __all__ = [
     "check_positive_int",
     "checks_active",
     "trusted",
+    "value_range",
     "BaseError",
     "EmptyTensorError",
     "HDRIOError",

@@ -32,6 +32,7 @@ __all__ = [
     "check_tensor",
     "checks_active",
     "trusted",
+    "value_range",
 ]
 
 _TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_trusted", default=False)
@@ -146,6 +147,33 @@ def check_tensor(
         raise NonFiniteError(f"{name} must be finite, but it holds NaN or Inf")
     if nonnegative and lo < 0:
         raise ValueCheckError(f"{name} must be non-negative (lighting is never negative), got min {lo:g}")
+
+
+def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
+    """The ``(min, max)`` of a floating-point tensor in one pass over it, which also finds NaN and Inf: for a
+    caller that checks a range of its own (an image in ``[0, 1]``) without scanning the data twice.
+
+    Returns:
+        ``(min, max)`` as floats; ``None`` when checks are off (:func:`checks_active`), while compiling, or for
+        an empty or integer tensor.
+
+    Raises:
+        NonFiniteError: ``x`` holds NaN or Inf.
+
+    Examples:
+        >>> value_range(torch.tensor([0.25, 0.5, 1.0]), "image")
+        (0.25, 1.0)
+        >>> value_range(torch.tensor([0.5, float("nan")]), "image")
+        Traceback (most recent call last):
+        ...
+        kornia_ilum.core.errors.NonFiniteError: image must be finite, but it holds NaN or Inf
+    """
+    if not checks_active() or torch.compiler.is_compiling() or not x.is_floating_point() or x.numel() == 0:
+        return None
+    lo, hi = (float(v) for v in torch.aminmax(x.detach()))  # one pass; NaN propagates into both
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise NonFiniteError(f"{name} must be finite, but it holds NaN or Inf")
+    return lo, hi
 
 
 def check_same_device(*named: tuple[str, torch.Tensor]) -> None:

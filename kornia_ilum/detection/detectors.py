@@ -27,10 +27,9 @@ from kornia.geometry.bbox import nms
 from kornia.models.yunet import YuNet
 from torch import nn
 
-from kornia_ilum.core.check import check_tensor, checks_active
+from kornia_ilum.core.check import check_tensor, value_range
 from kornia_ilum.core.errors import (
     MissingWeightsError,
-    NonFiniteError,
     ShapeError,
     ValueCheckError,
     WeightsChecksumError,
@@ -118,10 +117,9 @@ class FaceDetector(nn.Module):
         if isinstance(image, torch.Tensor) and image.dim() not in (3, 4):
             raise ShapeError(f"image must have shape (3, H, W) or (B, 3, H, W), got {tuple(image.shape)}")
         check_tensor(image, "image", ["*", "3", "H", "W"], finite=False)
-        if check_values and checks_active() and not torch.compiler.is_compiling():
-            lo, hi = (float(v) for v in torch.aminmax(image.detach()))  # one pass: NaN propagates into both
-            if not (math.isfinite(lo) and math.isfinite(hi)):
-                raise NonFiniteError("image must be finite, but it holds NaN or Inf")
+        values = value_range(image, "image") if check_values else None
+        if values is not None:
+            lo, hi = values
             if lo < 0 or hi > 1:
                 raise ValueCheckError(
                     f"image must be sRGB in [0, 1], got values in [{lo:g}, {hi:g}]"

@@ -90,7 +90,8 @@ def write_contact_sheet(
     """
     tiles = [tone_map_tile(env.mirror_ball) for env in envs]
     title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
-    write_grid(tiles, [_caption(env) for env in envs], title, path, columns, (2.9, 1.15), 6, dpi, palette)
+    write_grid(tiles, [_caption(env) for env in envs], title, path, columns=columns, cell=(2.9, 1.15),
+               fontsize=6, dpi=dpi, palette=palette)
 
 
 def write_grid(
@@ -98,6 +99,7 @@ def write_grid(
     captions: Sequence[str],
     title: str,
     path: str | Path,
+    *,
     columns: int,
     cell: tuple[float, float],
     fontsize: float,

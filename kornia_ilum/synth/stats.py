@@ -51,6 +51,7 @@ from kornia_ilum.geometry import latlong_solid_angles, mirror_ball_solid_angles
 from kornia_ilum.synth.background import LUMINANCE
 from kornia_ilum.synth.environments.augment import weighted_quantile
 from kornia_ilum.synth.environments.base import Environment
+from kornia_ilum.synth.sheets import save_figure
 
 __all__ = [
     "GROUP_ORDER",
@@ -339,7 +340,4 @@ def plot_histograms(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
     ncol = max(1, len(groups))
     fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
     fig.suptitle("Lighting statistics (32 x 32 mirror balls): generated vs real", fontsize=11)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    save_figure(fig, path, dpi, palette=False)

@@ -370,6 +370,6 @@ def training_sheet(
                         f"yaw {entry['camera']['yaw_deg']:+.0f}\n{env.label}: {env.source.split(':')[-1]}")
     title = (f"light-stage training portraits (face crop 1.25 x, shown at {size}) | ground truth: diffuse, "
              "matte silver, mirror")
-    write_grid(tiles, captions, title, path, columns, (1.45, 1.45 * (size + 3 + side) / size + 0.3), 5.5, 100,
-               True)
+    cell = (1.45, 1.45 * (size + 3 + side) / size + 0.3)
+    write_grid(tiles, captions, title, path, columns=columns, cell=cell, fontsize=5.5, dpi=100, palette=True)
     return count
