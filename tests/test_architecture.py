@@ -153,6 +153,29 @@ def test_the_conventions_page_is_the_one_reference() -> None:
     assert citing == []
 
 
+#: Modules without a test module of their own, and why.
+_UNTESTED_ALONE = {
+    "kornia_ilum/core/errors.py": "exception classes only; every error is raised and caught by the other tests",
+    "kornia_ilum/synth/lightstage/gbuffer.py": "a dataclass; its one property has a doctest",
+}
+
+
+def test_tests_mirror_the_package() -> None:
+    """``kornia_ilum/a/b.py`` is tested in ``tests/a/test_b.py`` (a private ``_b.py`` in ``test_b.py``); the
+    plugins, one package each, in ``tests/plugins/test_<plugin>.py``."""
+    missing = []
+    for path in sorted((ROOT / "kornia_ilum").rglob("*.py")):
+        rel = path.relative_to(ROOT)
+        if path.stem in ("__init__", "__main__") or str(rel) in _UNTESTED_ALONE:
+            continue
+        test = ROOT / "tests" / rel.parent.relative_to("kornia_ilum") / f"test_{path.stem.lstrip('_')}.py"
+        if not test.is_file():
+            missing.append(f"{rel} -> {test.relative_to(ROOT)}")
+    missing += [f"plugins/{name} -> tests/plugins/test_{name}.py" for name in ("sh", "sipr", "uniform")
+                if not (ROOT / "tests" / "plugins" / f"test_{name}.py").is_file()]
+    assert missing == []
+
+
 # ------------------------------------------------------------------------------------------ conventions page
 def _shared_spec() -> Path | None:
     candidates = [SHARED_DATA.parent / ("SPEC" + ".md"), ROOT.parent / "shared" / ("SPEC" + ".md")]

@@ -5,13 +5,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from functools import lru_cache
 from pathlib import Path
 
 import pytest
-import torch
-
-from kornia_ilum.core.compiler import compiler_disable
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -71,26 +67,3 @@ def test_cli_import_stays_light(tmp_path):
     loaded = _heavy_loaded(setup, heavy, tmp_path)
     assert loaded == "", f"import kornia_ilum.cli loaded {loaded}"
     _assert_nothing_written(tmp_path)
-
-
-@compiler_disable
-@lru_cache(maxsize=4)
-def _table(n: int) -> torch.Tensor:
-    x = torch.arange(n, dtype=torch.float64)
-    return x + float(x.sum())  # a host sync: a graph break if Dynamo traced it
-
-
-def test_compiler_disable_keeps_the_function():
-    assert _table.__name__ == "_table" and hasattr(_table, "cache_info")  # functools.wraps
-    assert _table._torchdynamo_disable  # what Dynamo reads: never inlined
-    assert torch.equal(_table(3), torch.tensor([3.0, 4.0, 5.0], dtype=torch.float64))
-
-
-def test_compiler_disable_under_compile():
-    def f(x: torch.Tensor, n: int) -> torch.Tensor:
-        return x * _table(n).to(x.dtype) + 1
-
-    compiled = torch.compile(f, backend="eager")
-    for n in (4, 4, 5):
-        x = torch.rand(n)
-        torch.testing.assert_close(compiled(x, n), f(x, n))
