@@ -11,7 +11,9 @@ from __future__ import annotations
 import ast
 import copy
 import difflib
+import io
 import re
+import tokenize
 import tomllib
 from pathlib import Path
 
@@ -151,6 +153,28 @@ def test_the_conventions_page_is_the_one_reference() -> None:
     files += [ROOT / "README.md"]
     citing = [str(p.relative_to(ROOT)) for p in files if "_build" not in p.parts and old_name in p.read_text()]
     assert citing == []
+
+
+#: A measured time or speed: "0.3 ms", "24 min", "2.1 s", "200 samples/s", "7x faster", "120 GFLOP/s" (not
+#: a rate unit such as "s/view", nor a progress line's "ETA 1 min").
+_TIMING = re.compile(r"\b\d+(?:\.\d+)?\s?(?:ms|µs|us)\b|(?<!ETA )\b\d+(?:\.\d+)?\s?(?:min|s)\b(?! ?/)|samples/s"
+                     r"|\d+(?:\.\d+)?\s?(?:x|times) (?:faster|slower)|[GM]FLOP/s|[GM]B/s")
+
+
+def test_docstrings_and_comments_quote_no_timings() -> None:
+    """Measured times live in docs/ and the benchmarks, where they are measured again; docstrings and comments
+    keep the complexity and the reason for a choice."""
+    quoted = []
+    for path in _modules().values():
+        source = path.read_text()
+        texts = [(node.lineno if hasattr(node, "lineno") else 1, ast.get_docstring(node, clean=False) or "")
+                 for node in ast.walk(ast.parse(source))
+                 if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))]
+        texts += [(tok.start[0], tok.string) for tok in tokenize.generate_tokens(io.StringIO(source).readline)
+                  if tok.type == tokenize.COMMENT]
+        quoted += [f"{path.relative_to(ROOT)}:{line}: {m.group()!r}" for line, text in texts
+                   for m in _TIMING.finditer(text)]
+    assert quoted == []
 
 
 #: Modules without a test module of their own, and why.
