@@ -1,5 +1,15 @@
-"""Colour transfer functions: exact sRGB, gamma 2.2 (finite slope at 0), quantisation and 8-bit sRGB codes."""
+"""Colour transfer functions (exact sRGB, gamma 2.2 with a finite slope at 0, quantisation, 8-bit sRGB codes) and
+exposure (centre-weighted metering, exposure normalisation)."""
 
+from kornia_ilum.color.exposure import (
+    EXPOSURE_KEY,
+    LUMINANCE,
+    METERING_SIGMA,
+    NormalizeExposure,
+    centre_weights,
+    metered_luminance,
+    normalize_exposure,
+)
 from kornia_ilum.color.transfer import (
     GAMMA_KNEE,
     SRGB8_TABLE_SIZE,
@@ -18,6 +28,13 @@ from kornia_ilum.color.transfer import (
 )
 
 __all__ = [
+    "EXPOSURE_KEY",
+    "LUMINANCE",
+    "METERING_SIGMA",
+    "NormalizeExposure",
+    "centre_weights",
+    "metered_luminance",
+    "normalize_exposure",
     "GAMMA_KNEE",
     "SRGB8_TABLE_SIZE",
     "GammaEncode",

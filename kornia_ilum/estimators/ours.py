@@ -8,7 +8,10 @@ the light stage; its model card is ``weights/MODEL_CARD.md``): ``create_estimato
 Architecture (9,219,779 parameters at the default ``latent_dim=1024``, the paper's network size of
 about 9.2 M). From the paper's description:
 
-- input: the sRGB crop, shifted to ``[-0.5, 0.5]``;
+- input: the sRGB crop, shifted to ``[-0.5, 0.5]``; our addition (``normalize_exposure=True``, the default):
+  the crop is first re-exposed so that its centre-weighted mean luminance is 0.18
+  (:func:`kornia_ilum.color.normalize_exposure`) and the estimate is scaled back by the same factor, so the
+  lighting follows the photo's exposure by design, not by what the training data happened to cover;
 - encoder: five 3 x 3 convolutions of depths 16, 32, 64, 128, 256, each followed by blur-pooling
   (Zhang 2019, "Making convolutional networks shift-invariant again";
   :class:`kornia_ilum.filters.BlurPool2D`), 256 -> 8 pixels; then one 8 x 8 convolution of depth 256
@@ -40,6 +43,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.filters import BlurPool2D
@@ -93,6 +97,9 @@ class OursEstimator(LightingEstimator):
 
     Args:
         latent_dim: size of the fully-connected bottleneck (1024 in the paper).
+        normalize_exposure: re-expose each crop to a centre-weighted mean luminance of 0.18 before the network
+            and scale the estimate back (:func:`~kornia_ilum.color.normalize_exposure`), so the estimate scales
+            exactly with the photo's exposure wherever nothing clips; ``False`` is the paper's network as is.
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
@@ -134,10 +141,11 @@ class OursEstimator(LightingEstimator):
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
     )
 
-    def __init__(self, latent_dim: int = 1024) -> None:
+    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True) -> None:
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
+        self.normalize_exposure = bool(normalize_exposure)
         self.encoder, self.to_latent = build_encoder(latent_dim)
         self.from_latent = nn.Sequential(
             nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.ReLU()
@@ -152,20 +160,32 @@ class OursEstimator(LightingEstimator):
         self.head = nn.Conv2d(depth_in, 3, 3, padding=1)
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
-    def decode(self, crops: Tensor) -> tuple[Tensor, list[Tensor]]:
-        r"""The raw network: natural-log radiance at 32 px and the decoder's feature maps at 4, 8, 16 px.
+    def decode(self, crops: Tensor) -> tuple[Tensor, list[Tensor], Tensor]:
+        r"""The raw network: natural-log radiance at 32 px, the decoder's feature maps at 4, 8, 16 px, and the
+        log of the exposure factor.
 
         No input checks, no masking: this is the training path (:mod:`kornia_ilum.train`), whose side
-        branches read the feature maps. Inference goes through ``forward``.
+        branches read the feature maps (and add ``log_scale`` to their log radiance). Inference goes through
+        ``forward``.
 
         Args:
             crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
 
         Returns:
-            ``(log_radiance, features)``: :math:`(B, 3, 32, 32)` and the decoder's activations
-            :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`, :math:`(B, 16, 16, 16)` (before each upsampling).
+            ``(log_radiance, features, log_scale)``: :math:`(B, 3, 32, 32)` in the units of ``crops``, the
+            decoder's activations :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`, :math:`(B, 16, 16, 16)` (before
+            each upsampling), and :math:`(B, 1, 1, 1)` float32: ``log(scale)`` of
+            :func:`~kornia_ilum.color.normalize_exposure` (0 without ``normalize_exposure``), already added to
+            ``log_radiance``. Both are float32 (float64 for a float64 model), also under autocast.
         """
         dtype = self.head.weight.dtype
+        work = torch.promote_types(dtype, torch.float32)  # the exposure and its log: never in bfloat16
+        with torch.autocast(crops.device.type, enabled=False):
+            if self.normalize_exposure:
+                crops, scale = normalize_exposure(crops.to(work))
+                log_scale = torch.log(scale)[:, None, None, None]
+            else:
+                log_scale = crops.new_zeros(len(crops), 1, 1, 1, dtype=work)
         latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
         x = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
         features = []
@@ -173,11 +193,13 @@ class OursEstimator(LightingEstimator):
             x = block(x)
             features.append(x)
             x = self.upsample(x)
-        return self.head(x), features
+        log_radiance = self.head(x)
+        with torch.autocast(log_radiance.device.type, enabled=False):
+            return log_radiance.to(work) + log_scale, features, log_scale
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
-        log_radiance, _ = self.decode(crops)
+        log_radiance, _, _ = self.decode(crops)
         with torch.autocast(log_radiance.device.type, enabled=False):
             y = log_radiance.float()
             mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)

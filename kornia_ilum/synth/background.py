@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from kornia_ilum.color import encode_srgb8
+from kornia_ilum.color import LUMINANCE, encode_srgb8
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import angles_to_latlong_pixel, direction_to_latlong
@@ -43,7 +43,6 @@ __all__ = [
 ]
 
 #: Luminance ``Y`` of linear sRGB (Rec. 709 primaries, D65): the middle row of Kornia's RGB -> XYZ matrix.
-LUMINANCE: tuple[float, float, float] = (0.212671, 0.715160, 0.072169)
 
 _HALF = (torch.float16, torch.bfloat16)
 

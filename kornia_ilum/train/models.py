@@ -60,8 +60,8 @@ class MultiScaleOurs(nn.Module):
             self.register_buffer(f"valid_{s}", mirror_ball_valid(s), persistent=False)
 
     def forward(self, crops: Tensor) -> dict[int, Tensor]:
-        log_32, features = self.estimator.decode(crops)
-        logs = [side(f) for side, f in zip(self.sides, features, strict=True)] + [log_32]
+        log_32, features, log_scale = self.estimator.decode(crops)  # log_scale: the crops' exposure factor
+        logs = [side(f) + log_scale for side, f in zip(self.sides, features, strict=True)] + [log_32]
         out = {}
         for s, y in zip(SCALES, logs, strict=True):
             radiance = torch.exp(y.float().clamp(-LOG_RANGE, LOG_RANGE))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+from kornia_ilum.color import linear_to_srgb, normalize_exposure, srgb_to_linear
 from kornia_ilum.core.errors import MissingWeightsError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.estimators import LightingEstimator, OursEstimator, create_estimator
 from kornia_ilum.filters import BlurPool2D
@@ -131,12 +132,14 @@ class TestOursEstimator:
         """forward = check + predict: the estimate is the network's exp(head output) on the ball."""
         x = crops(1)
         with torch.no_grad():
-            h = net.from_latent(net.to_latent(net.encoder(x - 0.5))).reshape(1, 256, 4, 4)
+            normalised, scale = normalize_exposure(x)
+            h = net.from_latent(net.to_latent(net.encoder(normalised - 0.5))).reshape(1, 256, 4, 4)
             for block in net.decoder:
                 h = net.upsample(block(h))
-            y = net.head(h)
-            y2, features = net.decode(x)
+            y = net.head(h) + torch.log(scale)
+            y2, features, log_scale = net.decode(x)
             torch.testing.assert_close(y2, y, atol=0, rtol=0)
+            torch.testing.assert_close(log_scale.flatten(), torch.log(scale), atol=0, rtol=0)
             assert [tuple(f.shape[1:]) for f in features] == [(64, 4, 4), (32, 8, 8), (16, 16, 16)]
             torch.testing.assert_close(net(x).mirror_ball, torch.exp(y) * VALID)
             torch.testing.assert_close(net.predict(x).log_mirror_ball, net(x).log_mirror_ball, atol=0, rtol=0)
@@ -185,3 +188,27 @@ class TestOursEstimator:
         compiled = torch.compile(net)
         with torch.no_grad():
             torch.testing.assert_close(compiled(x).mirror_ball, net(x).mirror_ball, rtol=1e-4, atol=1e-6)
+
+
+class TestExposure:
+    """normalize_exposure=True (the default): the estimate follows the photo's exposure by design."""
+
+    @pytest.mark.parametrize("k", [0.5, 0.25])
+    def test_equivariant(self, net, k):
+        x = 0.05 + 0.9 * crops(2)
+        dark = linear_to_srgb(k * srgb_to_linear(x))  # k times less light, nothing clips anew
+        with torch.no_grad():
+            ratio = net(dark).mirror_ball.sum((1, 2, 3)) / (k * net(x).mirror_ball.sum((1, 2, 3)))
+        torch.testing.assert_close(ratio, torch.ones(2), atol=2e-3, rtol=0)
+
+    def test_off_is_the_papers_network(self):
+        torch.manual_seed(0)
+        net = OursEstimator(latent_dim=32, normalize_exposure=False).eval()
+        x = crops(1)
+        with torch.no_grad():
+            y, _, log_scale = net.decode(x)
+            assert float(log_scale.abs().max()) == 0.0
+            h = net.from_latent(net.to_latent(net.encoder(x - 0.5))).reshape(1, 256, 4, 4)
+            for block in net.decoder:
+                h = net.upsample(block(h))
+            torch.testing.assert_close(y, net.head(h), atol=0, rtol=0)

@@ -18,6 +18,7 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
+from kornia_ilum.color import centre_weights
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
@@ -366,8 +367,8 @@ def auto_exposure(
     r"""A camera's centre-weighted metering of what its sensor records: the gain ``g`` that maps the weighted
     mean of ``min(g Y, white)`` to ``key``.
 
-    The weights are a Gaussian of standard deviation 0.25 of the image side around its centre (where the
-    face is); the luminance is Rec. 709 ``Y``. A sensor saturates, so a pixel at or above ``white`` after the
+    The weights are :func:`kornia_ilum.color.centre_weights`, a Gaussian of standard deviation 0.25 of the image
+    side around its centre (where the face is); the luminance is Rec. 709 ``Y``. A sensor saturates, so a pixel at or above ``white`` after the
     gain counts as ``white``, however bright the scene is there: a sun or a window in the metered area
     darkens the exposure no more than a white wall would (a plain mean of the HDR values lets a sun of a few
     pixels expose a backlit face as a black silhouette). ``sum w min(g Y, white)`` is concave, increasing
@@ -397,10 +398,7 @@ def auto_exposure(
     if white is not None and not (math.isfinite(white) and white > 0):
         raise ValueCheckError(f"white must be a positive finite float or None, got {white!r}")
     h, w = linear.shape[-2:]
-    yy = (torch.arange(h, dtype=torch.float64) + 0.5) / h - 0.5
-    xx = (torch.arange(w, dtype=torch.float64) + 0.5) / w - 0.5
-    weight = torch.exp(-(yy[:, None] ** 2 + xx[None] ** 2) / (2 * 0.25**2)).flatten()
-    weight = weight / weight.sum()
+    weight = centre_weights(h, w).flatten()
     lum = torch.einsum("bchw,c->bhw", linear.double(), torch.tensor(LUMINANCE, dtype=torch.float64)).flatten(1)
     mean = lum @ weight
     key = torch.as_tensor(key, dtype=torch.float64).expand_as(mean)

@@ -7,10 +7,9 @@ A *subject source* turns a seed into a :class:`Subject` (:class:`SubjectSource`)
 
 Skin tones (Monk Skin Tone scale):
     The 10 tones of the Monk Skin Tone (MST) scale (Monk 2019; Google's published swatches
-    ``#f6ede4 #f3e7db #f7ead0 #eadaba #d7bd96 #a07e56 #825c43 #604134 #3a312a #292420``). The swatches are sRGB
-    colours of skin as photographed; :data:`SKIN_ALBEDO` decodes them to linear RGB and scales them by
-    :data:`SKIN_ALBEDO_SCALE` = 0.8, so that the lightest tone's red albedo (0.74) stays within measured
-    diffuse skin albedos. This is an approximation: a swatch is a display colour, not a reflectance.
+    :data:`MONK_SKIN_TONES_SRGB`). The swatches are display colours, not reflectances; each tone's albedo
+    :data:`SKIN_ALBEDO` comes from measured facial skin colour instead (:mod:`.skin`, docs/lightstage.rst,
+    "Skin").
 
 Train / evaluation split:
     :func:`subject_split` is ``"eval"`` when the first 8 bytes of
@@ -36,6 +35,7 @@ import torch
 from kornia_ilum.color import srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.core.seeding import hashed_seed
+from kornia_ilum.synth.lightstage.subjects.skin import SKIN_ALBEDO
 
 __all__ = [
     "FABRIC_NEUTRALS",
@@ -44,7 +44,6 @@ __all__ = [
     "LANDMARK_NAMES",
     "MONK_SKIN_TONES_SRGB",
     "SKIN_ALBEDO",
-    "SKIN_ALBEDO_SCALE",
     "Material",
     "MeshPart",
     "Subject",
@@ -61,22 +60,6 @@ __all__ = [
 MONK_SKIN_TONES_SRGB: tuple[str, ...] = (
     "f6ede4", "f3e7db", "f7ead0", "eadaba", "d7bd96", "a07e56", "825c43", "604134", "3a312a", "292420",
 )  # fmt: skip
-
-#: The factor from a decoded MST swatch to a diffuse albedo.
-SKIN_ALBEDO_SCALE = 0.8
-
-
-def _srgb_hex_to_linear(code: str) -> tuple[float, float, float]:
-    srgb = torch.tensor([int(code[i : i + 2], 16) / 255.0 for i in (0, 2, 4)], dtype=torch.float64)
-    lin = srgb_to_linear(srgb.view(3, 1, 1)).flatten().tolist()
-    return (lin[0], lin[1], lin[2])
-
-
-#: Linear-RGB skin albedo of each MST tone (index 0 is tone 1): ``SKIN_ALBEDO_SCALE * srgb_to_linear(swatch)``.
-SKIN_ALBEDO: tuple[tuple[float, float, float], ...] = tuple(
-    tuple(round(SKIN_ALBEDO_SCALE * c, 4) for c in _srgb_hex_to_linear(code))  # type: ignore[misc]
-    for code in MONK_SKIN_TONES_SRGB
-)
 
 #: Linear RGB of neutral fabrics (shirts, hats).
 FABRIC_NEUTRALS = {

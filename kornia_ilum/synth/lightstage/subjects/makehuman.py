@@ -13,8 +13,8 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
    unsplit mesh, so seams do not show.
 4. Skin: one of the 18 albedo maps (age and sex matched, of the tone family nearer the target), decoded to
    linear RGB and re-tinted by a per-channel scale so that its mean over the face's UV area is the subject's
-   tone (:data:`SKIN_ALBEDO` of an MST tone drawn uniformly over 1..10, times ``exp(N(0, 0.08))`` brightness and
-   ``exp(N(0, 0.03))`` per channel), clipped to 0.95. Kind ``"skin"`` with ``subsurface=True``, GGX roughness
+   tone (:data:`SKIN_ALBEDO` of an MST tone drawn uniformly over 1..10, times ``exp(N(0, 0.08))`` brightness,
+   the draw clipped to +-0.12, and ``exp(N(0, 0.03))`` per channel), clipped to 0.95. Kind ``"skin"`` with ``subsurface=True``, GGX roughness
    0.3 to 0.5, F0 0.025 to 0.035 and a ``roughness_texture`` that makes the T-zone (forehead and nose) oilier.
 5. Proxies bound to the morphed mesh: high-poly eyes (the eyeball, diffuse, textured with one of 9 iris
    colours drawn by skin tone (:func:`iris_probabilities`; the ``brown`` map's irises re-tinted medium to
@@ -600,7 +600,7 @@ class MakeHumanSource:
                 nm, _, mx = _EXPRESSIONS[j]
                 expression[nm] = round(float(rng.uniform(0.15, 1.0) * mx), 4)
         tone = int(rng.integers(1, 11))
-        bright = float(np.exp(rng.normal(0, 0.08)))
+        bright = float(np.exp(np.clip(rng.normal(0, 0.08), -0.12, 0.12)))  # within the tone's measured range
         chan = np.exp(rng.normal(0, 0.03, 3))
         target = np.clip(np.asarray(SKIN_ALBEDO[tone - 1]) * bright * chan, 0.005, 0.95)
         p_bald = 0.05 + (0.35 if male and years > 40 else 0.08 if male else 0.0)

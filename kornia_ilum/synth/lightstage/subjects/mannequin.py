@@ -35,29 +35,12 @@ Construction:
     Size: 140k triangles on average (100k to 190k); the build time is in docs/lightstage.rst, "Measured".
 
 Skin tones (Monk Skin Tone scale):
-    The skin's albedo follows the 10 tones of the Monk Skin Tone (MST) scale (Monk 2019; Google's published
-    swatches ``#f6ede4 #f3e7db #f7ead0 #eadaba #d7bd96 #a07e56 #825c43 #604134 #3a312a #292420``). The
-    swatches are sRGB colours of skin as photographed; :data:`SKIN_ALBEDO` decodes them to linear RGB and
-    scales them by :data:`SKIN_ALBEDO_SCALE` = 0.8, so that the lightest tone's red albedo (0.74) stays within
-    measured diffuse skin albedos. This is an approximation: a swatch is a display colour, not a reflectance.
-
-    ====  ==========  ==========================
-    MST   swatch      linear albedo (R, G, B)
-    ====  ==========  ==========================
-    1     ``f6ede4``  (0.737, 0.678, 0.621)
-    2     ``f3e7db``  (0.717, 0.639, 0.567)
-    3     ``f7ead0``  (0.744, 0.658, 0.505)
-    4     ``eadaba``  (0.658, 0.561, 0.393)
-    5     ``d7bd96``  (0.544, 0.407, 0.244)
-    6     ``a07e56``  (0.281, 0.167, 0.074)
-    7     ``825c43``  (0.179, 0.086, 0.045)
-    8     ``604134``  (0.094, 0.042, 0.028)
-    9     ``3a312a``  (0.034, 0.025, 0.019)
-    10    ``292420``  (0.018, 0.014, 0.012)
-    ====  ==========  ==========================
+    The skin's albedo follows the 10 tones of the Monk Skin Tone (MST) scale: :data:`SKIN_ALBEDO`, calibrated
+    against measured facial skin colour (:mod:`~kornia_ilum.synth.lightstage.subjects.skin`).
 
     A subject's tone is uniform over 1..10 (every tone equally often), and its albedo is the tone's, times a
-    brightness factor ``exp(N(0, 0.08))`` and a per-channel factor ``exp(N(0, 0.03))`` (clipped to 0.95).
+    brightness factor ``exp(N(0, 0.08))`` (the normal draw clipped to +-0.12, so a subject stays
+    within its tone's measured range) and a per-channel factor ``exp(N(0, 0.03))`` (clipped to 0.95).
 
 Materials:
     :class:`Material` ``kind`` says how a renderer should shade a part:
@@ -221,7 +204,7 @@ def subject_params(seed: int) -> dict:
     )
     # Skin and lips.
     base = np.array(SKIN_ALBEDO[tone - 1])
-    skin = base * math.exp(rng.normal(0.0, 0.08)) * np.exp(rng.normal(0.0, 0.03, 3))
+    skin = base * math.exp(float(np.clip(rng.normal(0.0, 0.08), -0.12, 0.12))) * np.exp(rng.normal(0.0, 0.03, 3))
     p["skin_albedo"] = [round(float(c), 4) for c in np.clip(skin, 0.003, 0.95)]
     p["skin_roughness"] = u(0.35, 0.5)
     p["skin_specular"] = u(0.30, 0.40)

@@ -7,26 +7,21 @@ import itertools
 
 import numpy as np
 import pytest
-import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kornia_ilum.color import srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.synth.lightstage import SKIN_ALBEDO, subject_split
-from kornia_ilum.synth.lightstage.subjects import MONK_SKIN_TONES_SRGB, SKIN_ALBEDO_SCALE
+from kornia_ilum.synth.lightstage.subjects import MONK_SKIN_TONES_SRGB
 from kornia_ilum.synth.lightstage.subjects.base import icosphere, seed_digest
 
 class TestSkinTones:
     def test_table(self):
+        """One albedo per MST swatch (the calibration itself is tested in test_skin.py)."""
         assert len(MONK_SKIN_TONES_SRGB) == len(SKIN_ALBEDO) == 10
-        for code, albedo in zip(MONK_SKIN_TONES_SRGB, SKIN_ALBEDO):
-            srgb = torch.tensor([int(code[i : i + 2], 16) / 255 for i in (0, 2, 4)], dtype=torch.float64)
-            lin = srgb_to_linear(srgb.view(3, 1, 1)).flatten().numpy()
-            np.testing.assert_allclose(albedo, SKIN_ALBEDO_SCALE * lin, atol=1e-4)
         lum = [0.2126 * r + 0.7152 * g + 0.0722 * b for r, g, b in SKIN_ALBEDO]
-        # Tones 1 to 3 are equally light (3 is yellower), then every tone is darker than the one before.
-        assert min(lum[:3]) > 0.6 and all(a > b for a, b in itertools.pairwise(lum[2:])) and lum[9] < 0.02
+        assert all(a > b for a, b in itertools.pairwise(lum))  # every tone darker than the one before
+
 
 class TestSubjectSplit:
     def test_stable(self):
