@@ -25,7 +25,8 @@ settings (``source``, ``spp_requested``, ``spp``, ``lighting_size``, ``size``, `
 other keys describe), the costs (``render_seconds`` of the view, ``subject_seconds`` to build
 the subject, counted on its first view, ``peak_rss_mb`` of the worker process so far), and the subject's
 ``split``, ``skin_tone``, ``face_albedo`` and ``params`` (its scalar parameters). v2 field files equal v1's
-plus ``meta["source"]``; :func:`read_field` reads both. :func:`read_manifest` returns the union of ``manifest.json`` and
+plus ``meta["source"]``, and (one-pass renders, since issue 21) ``albedo`` and ``skin``, the G-buffer's diffuse
+albedo and skin coverage for the uniform-white check; :func:`read_field` reads both. :func:`read_manifest` returns the union of ``manifest.json`` and
 the workers' manifests, so an entry is never lost to two workers merging at the same time.
 
 Every file is written atomically (to a temporary name in the same folder, flushed, then renamed), so a killed
@@ -252,6 +253,11 @@ def write_field(path: str | os.PathLike, field: ReflectanceField) -> dict[str, A
         "alpha": field.alpha.to(torch.float16).contiguous(),
         "face_box": field.face_box.to(torch.float32).contiguous(),
     }
+    albedo = field.albedo if field.gbuffer is None else field.gbuffer.albedo
+    skin = field.skin if field.gbuffer is None else field.gbuffer.subsurface
+    if albedo is not None and skin is not None:  # for the uniform-white check (calibration.py)
+        tensors["albedo"] = albedo.to(torch.float16).contiguous()
+        tensors["skin"] = skin.to(torch.float16).contiguous()
     metadata = {
         "format": FORMAT,
         "camera": json.dumps(field.camera.to_dict()),
@@ -311,6 +317,8 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
         meta,
         tensors["pixel_index"].long(),
         tensors["light_index"].long(),
+        albedo=tensors["albedo"].float() if "albedo" in tensors else None,
+        skin=tensors["skin"].float() if "skin" in tensors else None,
     )
     return field.to_dense() if dense else field
 

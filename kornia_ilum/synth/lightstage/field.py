@@ -49,6 +49,11 @@ class ReflectanceField:
             valid ones).
         gbuffer: the renderer's :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer` (one-pass renders), or
             ``None`` (not cached).
+        albedo: ``None``, or ``(3, size, size)`` float32: the linear diffuse albedo of what each pixel sees (the
+            G-buffer's, kept by the cache), for the uniform-white check
+            (:mod:`~kornia_ilum.synth.lightstage.calibration`).
+        skin: ``None``, or ``(1, size, size)`` float32: the fraction of each pixel that is skin (the G-buffer's
+            ``subsurface``, kept by the cache).
 
     Examples:
         >>> rf = ReflectanceField(torch.zeros(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
@@ -66,6 +71,8 @@ class ReflectanceField:
     pixel_index: torch.Tensor | None = None
     light_index: torch.Tensor | None = None
     gbuffer: Any = dataclass_field(default=None, repr=False, compare=False)
+    albedo: torch.Tensor | None = dataclass_field(default=None, repr=False)
+    skin: torch.Tensor | None = dataclass_field(default=None, repr=False)
 
     @property
     def size(self) -> int:
@@ -96,7 +103,7 @@ class ReflectanceField:
         dense = torch.zeros(3, p, n, dtype=self.field.dtype)
         dense[:, rows[:, None], cols] = self.field
         return ReflectanceField(dense, self.alpha, self.face_box, self.camera, self.subject_seed,
-                                dict(self.meta))
+                                dict(self.meta), albedo=self.albedo, skin=self.skin)
 
     def to_compact(self) -> ReflectanceField:
         """Only the pixels with coverage or any response, and only the valid lights (lossless)."""
@@ -107,4 +114,4 @@ class ReflectanceField:
         rows = torch.nonzero(keep).flatten()
         compact = self.field[:, rows[:, None], cols]
         return ReflectanceField(compact, self.alpha, self.face_box, self.camera, self.subject_seed,
-                                dict(self.meta), rows, cols)
+                                dict(self.meta), rows, cols, albedo=self.albedo, skin=self.skin)
