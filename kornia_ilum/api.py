@@ -24,7 +24,7 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from kornia_ilum.core.check import check_choice, check_tensor, value_range
+from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, value_range
 from kornia_ilum.core.errors import NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import (
     DEFAULT_DETECTOR,
@@ -33,7 +33,13 @@ from kornia_ilum.detection import (
     crop_faces,
     square_crop_boxes,
 )
-from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, create_estimator
+from kornia_ilum.estimators import (
+    DEFAULT_ESTIMATOR,
+    LightingEstimate,
+    LightingEstimator,
+    TestTimeAugmented,
+    create_estimator,
+)
 from kornia_ilum.io import read_ldr
 
 __all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box"]
@@ -217,6 +223,7 @@ def estimate_lighting(
     fallback: Literal["full_image"] | None = None,
     bgr: bool = False,
     device: str | torch.device | None = None,
+    tta: int | None = None,
 ) -> LightingEstimate:
     r"""Estimate HDR lighting from portrait photograph(s): detect the faces, crop them, run an estimator.
 
@@ -246,6 +253,12 @@ def estimate_lighting(
             Applies to NumPy arrays only.
         device: where detection cropping and estimation run. Default: the tensor's device, the CPU for
             arrays and paths.
+        tta: test-time augmentation, off by default (``None``). ``N`` averages each face's estimate over
+            ``N`` windows of its crop (the crop itself, then sub-crops zoomed in and shifted a little) and
+            their mirror images: the estimator wrapped in
+            :class:`~kornia_ilum.estimators.TestTimeAugmented` (``jitters=N``, its default zoom and shift),
+            ``2N`` passes of the estimator per face, in one batch (``benchmarks/bench_tta.py`` measures
+            the cost). The estimate of a mirrored crop is then exactly the mirrored estimate.
 
     Returns:
         A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``
@@ -256,12 +269,13 @@ def estimate_lighting(
 
     Raises:
         TypeCheckError: ``image`` is of no accepted type or dtype (the message lists the accepted
-            ones), or ``estimator`` / ``detector`` is of a wrong type.
+            ones), or ``estimator`` / ``detector`` / ``tta`` is of a wrong type.
         ShapeError: ``image`` has a wrong shape; :class:`~kornia_ilum.core.errors.EmptyTensorError`
             if it is empty.
         NonFiniteError: ``image`` holds NaN or Inf.
-        ValueCheckError: a float ``image`` has values outside ``[0, 1]``; ``faces``, ``fallback`` or
-            ``bgr`` has an invalid value; an estimator instance is on another device.
+        ValueCheckError: a float ``image`` has values outside ``[0, 1]``; ``faces``, ``fallback``,
+            ``bgr`` or ``tta`` has an invalid value (``tta`` is an int that is not positive); an estimator
+            instance is on another device.
         ValueError: ``estimator`` or ``detector`` is an unknown name (the message lists the valid ones).
         HDRIOError: the image file is missing or unreadable (the message names the path); its subclass
             :class:`~kornia_ilum.core.errors.TruncatedImageError` when the file ends before its image data do.
@@ -302,10 +316,14 @@ def estimate_lighting(
         raise ValueCheckError(f"fallback must be None or 'full_image', got {fallback!r}")
     if not isinstance(bgr, bool):
         raise TypeCheckError(f"bgr must be a bool, got {type(bgr).__name__}")
+    if tta is not None:
+        check_positive_int(tta, "tta")
     batch, what = _as_batch(image, bgr)
     dev = torch.device(device) if device is not None else batch.device
     batch = batch.to(dev)
     est = _resolve_estimator(estimator, dev)
+    if tta is not None:
+        est = TestTimeAugmented(est, jitters=tta)  # no state of its own: cheap to build per call
     det = _resolve_detector(detector, dev)
     size = est.info.input_size
     height, width = batch.shape[-2:]

@@ -66,6 +66,7 @@ examples:
   kornia-ilum estimate photo.jpg --latlong 64 -o light.hdr             # lat-long 64x128 Radiance HDR
   kornia-ilum estimate *.jpg -o out/ --preview out/ --faces all        # out/<stem>_face<i>.exr + .png
   kornia-ilum estimate group.png -o 'light_{stem}_{face}.exr' --faces all --detector yunet
+  kornia-ilum estimate photo.jpg --tta 4                               # 4 jittered crops + mirrors, averaged
 """
 
 
@@ -146,6 +147,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
     est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
     est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
+    est.add_argument("--tta", type=positive_int, metavar="N", default=None,
+                     help="average each face's estimate over N jittered crops and their mirror images "
+                     "(2N estimator passes; more stable under the crop; default: off)")
 
     sub.add_parser("list", help="list the estimators and face detectors",
                    description="List the registered lighting estimators and face detectors, "
@@ -284,7 +288,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         t1 = time.perf_counter()
         light = estimate_lighting(
             image, estimator=estimator, detector=args.detector, faces=args.faces, fallback=args.fallback,
-            device=device,
+            device=device, tta=args.tta,
         )
         t2 = time.perf_counter()
         for face in range(len(light)):
@@ -309,7 +313,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
                     print(f"wrote {target} (preview {3 * n}x{n}: diffuse, matte silver, mirror spheres)")
         print(
             f"{stem}: {len(light)} face{'s' if len(light) != 1 else ''}, read {1e3 * (t1 - t0):.0f} ms, "
-            f"estimate_lighting {1e3 * (t2 - t1):.0f} ms (detector {args.detector}, estimator {estimator}), "
+            f"estimate_lighting {1e3 * (t2 - t1):.0f} ms (detector {args.detector}, estimator {estimator}"
+            f"{f', tta {args.tta}' if args.tta else ''}), "
             f"total {_ms(t0)}"
         )
     return 0

@@ -25,7 +25,7 @@ from kornia_ilum.core.errors import (
     ValueCheckError,
 )
 from kornia_ilum.detection import create_detector, crop_faces
-from kornia_ilum.estimators import LightingEstimate, create_estimator
+from kornia_ilum.estimators import LightingEstimate, TestTimeAugmented, create_estimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
 from kornia_ilum_uniform import SKIN_ALBEDO
@@ -446,3 +446,40 @@ class TestOutputs:
             assert (tile[:, ~disk] == 0).all(), k
         diffuse = image[:, :, :size][:, disk]
         assert 0.5 < diffuse.amax() <= 1.0  # exposed so the diffuse sphere's 99th percentile is near 0.9
+
+
+class TestTTA:
+    """``tta=N``: the estimator wrapped in TestTimeAugmented(jitters=N), 2N passes per face."""
+
+    def test_tta(self, astronaut, astronaut_estimate):
+        est = estimate_lighting(astronaut, tta=2)
+        assert est.mirror_ball.shape == (1, 3, 32, 32) and est.log_mirror_ball is not None
+        torch.testing.assert_close(est.boxes, astronaut_estimate.boxes)  # the same face, the same crop
+        assert est.image_index.tolist() == [0]
+        wrapped = TestTimeAugmented(create_estimator("ours"), jitters=2)
+        torch.testing.assert_close(est.mirror_ball, estimate_lighting(astronaut, estimator=wrapped).mirror_ball)
+        assert not torch.equal(est.mirror_ball, astronaut_estimate.mirror_ball)
+        ratio = est.mirror_ball.sum() / astronaut_estimate.mirror_ball.sum()
+        assert 0.5 < ratio < 2.0, ratio  # an average of views of the same face: the same light, roughly
+
+    def test_tta_one_pass_per_view(self, astronaut, monkeypatch):
+        estimator = create_estimator("uniform")
+        sizes, real = [], type(estimator).predict
+
+        def counting(self, crops):
+            sizes.append(len(crops))
+            return real(self, crops)
+
+        monkeypatch.setattr(type(estimator), "predict", counting)
+        estimator.train()
+        est = estimate_lighting(astronaut, estimator=estimator, tta=3)
+        assert sizes == [6] and len(est) == 1  # 3 windows and their mirrors, one batch
+        assert estimator.training  # the caller's mode is restored
+
+    def test_tta_exception(self, astronaut):
+        with pytest.raises(ValueCheckError, match=r"tta must be positive, got 0"):
+            estimate_lighting(astronaut, tta=0)
+        with pytest.raises(TypeCheckError, match=r"tta must be an int, got str"):
+            estimate_lighting(astronaut, tta="4")
+        with pytest.raises(TypeCheckError, match=r"tta must be an int, got bool"):
+            estimate_lighting(astronaut, tta=True)

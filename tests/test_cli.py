@@ -94,6 +94,18 @@ class TestEstimate:
         assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr"), "--fallback", "full_image"]) == 0
         assert "box [16, 0, 80, 64]" in capsys.readouterr().out
 
+    def test_tta(self, tmp_path, capsys, astronaut):
+        exr = tmp_path / "tta.exr"
+        assert main(["estimate", "-o", str(exr), "--tta", "2"]) == 0
+        assert "estimator ours, tta 2)" in capsys.readouterr().out
+        torch.testing.assert_close(read_hdr(exr), estimate_lighting(astronaut, tta=2).mirror_ball[0])
+
+    def test_tta_usage(self, capsys):
+        assert main(["estimate", "--tta", "0"]) == 2
+        assert "argument --tta: must be a positive integer" in _error_line(capsys)
+        assert main(["estimate", "--help"]) == 0
+        assert "--tta N" in capsys.readouterr().out
+
 
 class TestList:
     def test_list(self, capsys):

@@ -2,7 +2,8 @@
 
 Estimators come from entry points of the group ``kornia_ilum.estimators`` (the built-in ``ours`` and
 plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estimator`. Weight files load only
-through :func:`read_weights`, which checks their SHA-256.
+through :func:`read_weights`, which checks their SHA-256. :class:`TestTimeAugmented` wraps any estimator to
+average its estimate over jittered sub-crops and the mirror of each crop.
 """
 
 from kornia_ilum.estimators.base import (
@@ -23,6 +24,13 @@ from kornia_ilum.estimators.registry import (
     list_estimators,
     register_estimator,
 )
+from kornia_ilum.estimators.tta import (
+    TestTimeAugmented,
+    average_estimates,
+    crop_windows,
+    jitter_windows,
+    mirror_sh,
+)
 
 __all__ = [
     "LightingEstimate",
@@ -39,4 +47,9 @@ __all__ = [
     "estimator_registry",
     "list_estimators",
     "register_estimator",
+    "TestTimeAugmented",
+    "jitter_windows",
+    "crop_windows",
+    "mirror_sh",
+    "average_estimates",
 ]

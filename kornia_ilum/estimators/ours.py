@@ -39,6 +39,8 @@ training model, never run at inference and are not in the shipped weights.
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
@@ -100,6 +102,8 @@ class OursEstimator(LightingEstimator):
         normalize_exposure: re-expose each crop to a centre-weighted mean luminance of 0.18 before the network
             and scale the estimate back (:func:`~kornia_ilum.color.normalize_exposure`), so the estimate scales
             exactly with the photo's exposure wherever nothing clips; ``False`` is the paper's network as is.
+            The choice is saved with the weights (the buffer ``exposure_normalized``) and loading a state dict
+            sets it; a file without that buffer is the paper's network (``False``).
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
@@ -146,6 +150,8 @@ class OursEstimator(LightingEstimator):
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
         self.normalize_exposure = bool(normalize_exposure)
+        # saved with the weights, so a file says how it was trained (files without it predate the option: off)
+        self.register_buffer("exposure_normalized", torch.tensor(float(self.normalize_exposure)))
         self.encoder, self.to_latent = build_encoder(latent_dim)
         self.from_latent = nn.Sequential(
             nn.Linear(latent_dim, _BOTTLENECK_DEPTH * _BOTTLENECK_SIDE**2), nn.ReLU()
@@ -159,6 +165,13 @@ class OursEstimator(LightingEstimator):
         self.upsample = nn.Upsample(scale_factor=2, mode="bilinear", align_corners=False)
         self.head = nn.Conv2d(depth_in, 3, 3, padding=1)
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
+
+    def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
+        key = prefix + "exposure_normalized"
+        if key not in state_dict:  # a weight file of the paper's network, written before the option existed
+            state_dict[key] = torch.tensor(0.0)
+        self.normalize_exposure = bool(state_dict[key] > 0.5)
+        super()._load_from_state_dict(state_dict, prefix, *args)
 
     def decode(self, crops: Tensor) -> tuple[Tensor, list[Tensor], Tensor]:
         r"""The raw network: natural-log radiance at 32 px, the decoder's feature maps at 4, 8, 16 px, and the

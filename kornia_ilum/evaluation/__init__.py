@@ -5,12 +5,32 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
 - :mod:`~kornia_ilum.evaluation.evaluate`: the deterministic eval set (:func:`build_eval_set`), the oracles,
   the estimators (:func:`load_estimator`; a run's weight file through :func:`load_checkpoint`, which records
   its SHA-256) and the per-sample scores (:func:`evaluate`).
+- :mod:`~kornia_ilum.evaluation.checks`: the checks kept running for every estimator: the label-free transfer
+  check (:func:`transfer_check`), exposure equivariance (:func:`exposure_equivariance`) and crop stability
+  (:func:`crop_stability`), with the lighting's energy and dominant direction they compare.
 - :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
   :func:`write_report`).
 - :mod:`~kornia_ilum.evaluation.cli`: :func:`~kornia_ilum.evaluation.cli.add_evaluate_parser` and
   :func:`~kornia_ilum.evaluation.cli.run_evaluate`.
 """
 
+from kornia_ilum.evaluation.checks import (
+    BACKGROUNDS,
+    CHECKS,
+    EXPOSURE_FACTORS,
+    check_runner,
+    composite_background,
+    crop_stability,
+    darken,
+    default_photos,
+    dominant_direction,
+    exposure_equivariance,
+    face_crops,
+    jitter_boxes,
+    lighting_energy,
+    run_checks,
+    transfer_check,
+)
 from kornia_ilum.evaluation.evaluate import (
     BRDF_NAMES,
     DEFAULT_SAMPLES,
@@ -28,22 +48,37 @@ from kornia_ilum.evaluation.report import format_markdown, summarize, write_repo
 from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields, heldout_maps
 
 __all__ = [
+    "BACKGROUNDS",
     "BRDF_NAMES",
+    "CHECKS",
     "DEFAULT_SAMPLES",
     "EVAL_SEED",
+    "EXPOSURE_FACTORS",
     "ORACLES",
     "EvalSet",
     "build_eval_set",
+    "check_runner",
+    "composite_background",
+    "crop_stability",
+    "darken",
+    "default_photos",
+    "dominant_direction",
     "eval_environment_sources",
     "eval_fields",
     "evaluate",
+    "exposure_equivariance",
+    "face_crops",
     "format_markdown",
     "heldout_maps",
+    "jitter_boxes",
+    "lighting_energy",
     "load_checkpoint",
     "load_estimator",
     "oracle_predictions",
     "predict",
+    "run_checks",
     "score",
     "summarize",
+    "transfer_check",
     "write_report",
 ]

@@ -2,8 +2,9 @@ r"""``kornia-ilum evaluate``: the held-out evaluation of the registered estimato
 
 :func:`add_evaluate_parser` adds the command to the subparsers of ``kornia-ilum``; :func:`run_evaluate` runs
 it: build the eval set (:func:`~kornia_ilum.evaluation.build_eval_set`), score every registered estimator (or
-the ``--estimator`` ones, and ``--weights`` checkpoints) and the oracles, print the tables and write them as
-Markdown and JSON.
+the ``--estimator`` ones, and ``--weights`` checkpoints) and the oracles, run the checks
+(:mod:`~kornia_ilum.evaluation.checks`, ``--checks``) on every scored estimator, print the tables and write
+them as Markdown and JSON.
 """
 
 from __future__ import annotations
@@ -13,10 +14,15 @@ import time
 from pathlib import Path
 
 from kornia_ilum.core.cli import positive_int
+from kornia_ilum.detection import DEFAULT_DETECTOR
+from kornia_ilum.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
 from kornia_ilum.evaluation.evaluate import build_eval_set, evaluate
 from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
-__all__ = ["add_evaluate_parser", "parse_weights", "run_evaluate"]
+__all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "run_evaluate"]
+
+#: The checks run unless ``--checks`` says otherwise.
+DEFAULT_CHECKS: tuple[str, ...] = CHECKS
 
 _HELP = """\
 Evaluate lighting estimators on the project's held-out eval set, which no training uses: the eval subjects
@@ -27,12 +33,52 @@ estimator (an estimator without weights is reported as skipped) and two oracles,
 the ground truth, unclamped) and "mean of GT" (constant lighting with the true energy). Tables: L_rec per
 sphere for indoor / outdoor / all, relative radiance per channel, and both per skin tone.
 
+Checks (--checks, default all three; "none" for none), on every scored estimator: "transfer", the label-free
+transfer check (energy estimated with the background, over black and over grey, and the truth, per skin tone);
+"exposure", E(k x) / (k E(x)) for k = 0.5 and 0.25 on the eval crops and on real photos (--photos, default
+scikit-image's astronaut, cut by --detector); "crop", the spread of the estimate over --jitters crops jittered
+as a detector's boxes are, on the first --jitter-samples portraits rendered again as wider context crops.
+
 examples:
   kornia-ilum evaluate --cache lightstage/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out eval/
   kornia-ilum evaluate --cache lightstage/ --cache eval_subjects/ --estimator uniform --samples 128
   kornia-ilum evaluate --cache lightstage/ --weights ours=runs/a/best.safetensors --json eval.json
   kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
+  kornia-ilum evaluate --cache lightstage/ --checks transfer,exposure --photos me.jpg group.png --out eval/
 """
+
+
+def parse_checks(text: str) -> tuple[str, ...]:
+    """A comma list of checks (``transfer,exposure,crop``), or ``none`` / ``all``.
+
+    Examples:
+        >>> parse_checks("crop,transfer"), parse_checks("none"), parse_checks("all")
+        (('transfer', 'crop'), (), ('transfer', 'exposure', 'crop'))
+    """
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if names in (["none"], []):
+        return ()
+    if names == ["all"]:
+        return CHECKS
+    unknown = [n for n in names if n not in CHECKS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown checks {unknown}; choose from {', '.join(CHECKS)}, all or "
+                                         "none")
+    return tuple(c for c in CHECKS if c in names)
+
+
+def _jitters(text: str) -> int:
+    value = positive_int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"must be at least 2 (a spread), got {text!r}")
+    return value
+
+
+def _factor(text: str) -> float:
+    value = float(text)
+    if not value >= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a number >= 1, got {text!r}")
+    return value
 
 
 def parse_weights(text: str) -> tuple[str, str]:
@@ -77,6 +123,19 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--weights", action="append", type=parse_weights, default=[], metavar="NAME=PATH",
                      help="also score a .safetensors checkpoint of the registered estimator class NAME "
                      "(its SHA-256 is printed and recorded)")
+    cmd.add_argument("--checks", type=parse_checks, default=DEFAULT_CHECKS, metavar="LIST",
+                     help="checks on every scored estimator: a comma list of transfer, exposure, crop, or "
+                     "all, or none (default: all)")
+    cmd.add_argument("--jitter-samples", type=positive_int, default=256, metavar="N",
+                     help="portraits of the crop check: the first N of the eval set (256, at most --samples)")
+    cmd.add_argument("--jitters", type=_jitters, default=8, metavar="J",
+                     help="jittered crops per portrait in the crop check (at least 2; 8)")
+    cmd.add_argument("--context", type=_factor, default=1.5, metavar="F",
+                     help="the crop check's context crops: F times the nominal face crop (1.5)")
+    cmd.add_argument("--photos", nargs="+", default=None, metavar="FILE",
+                     help="real photos of the exposure check (default: scikit-image's astronaut)")
+    cmd.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME",
+                     help=f"the detector that cuts the real photos' face crops ({DEFAULT_DETECTOR})")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -96,11 +155,33 @@ def run_evaluate(args: argparse.Namespace) -> int:
         HDRIOError: a ``--hdri`` folder is missing or holds no eval map.
     """
     t0 = time.perf_counter()
-    eval_set = build_eval_set(args.cache, getattr(args, "hdri", None) or [], getattr(args, "samples", 512),
-                              background=getattr(args, "background", "environment"), progress=True)
+    hdri, samples = getattr(args, "hdri", None) or [], getattr(args, "samples", 512)
+    background = getattr(args, "background", "environment")
+    eval_set = build_eval_set(args.cache, hdri, samples, background=background, progress=True)
+    checks = tuple(getattr(args, "checks", DEFAULT_CHECKS))
+    options = {"ks": list(EXPOSURE_FACTORS), "jitters": getattr(args, "jitters", 8), "position": 0.10,
+               "extent": 0.15, "seed": 0}
+    context_set, photos, about_photos = None, None, {}
+    if "crop" in checks:
+        subset = min(getattr(args, "jitter_samples", 256), samples)
+        context_set = build_eval_set(args.cache, hdri, subset, background=background,
+                                     context=getattr(args, "context", 1.5), progress=True)
+    if "exposure" in checks:
+        listed = getattr(args, "photos", None)
+        detector = getattr(args, "detector", DEFAULT_DETECTOR)
+        photos, names, no_face = face_crops(listed or default_photos(), detector)
+        about_photos = {"photo_names": names, "photos_left_out": no_face, "detector": detector}
+        for name, reason in no_face.items():
+            print(f"exposure check: {name} left out: {reason}")
     weights = dict(getattr(args, "weights", None) or [])
+    batch_size = getattr(args, "batch_size", 32)
+    runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, batch_size=batch_size,
+                          **options) if checks else None
     results = evaluate(eval_set, getattr(args, "estimator", None), weights,
-                       oracles=not getattr(args, "no_oracles", False), batch_size=getattr(args, "batch_size", 32))
+                       oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner)
+    if checks:
+        results["checks"] = {"names": list(checks), **options, **about_photos,
+                             "context_set": None if context_set is None else context_set.description}
     summary = summarize(results, eval_set)
     summary["seconds"]["total"] = round(time.perf_counter() - t0, 2)
     print(format_markdown(summary), end="")

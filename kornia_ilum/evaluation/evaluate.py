@@ -32,6 +32,7 @@ import torch
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
 from kornia_ilum.core.progress import progress as bar
+from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.estimators import (
     LightingEstimator,
     create_estimator,
@@ -45,7 +46,7 @@ from kornia_ilum.metrics import reconstruction_loss, relative_radiance
 from kornia_ilum.sh import sh_project, sh_reconstruct
 from kornia_ilum.synth.environments import EnvironmentSampler
 from kornia_ilum.synth.environments.real import HDRFolderSource
-from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset
+from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, face_crop_boxes
 
 __all__ = [
     "BRDF_NAMES",
@@ -80,6 +81,10 @@ class EvalSet:
         skin_tone: the subject's Monk skin tone per sample (``-1`` unknown).
         subject_seed: the subject's seed per sample.
         source: the environment's source per sample (``"real:<name>"``, ``"sky"``, ...).
+        alpha: ``(N, 1, S, S)`` uint8, the subject's matte in each crop (255: subject), or ``None``.
+        nominal_boxes: for a set of context crops (:func:`build_eval_set` with ``context``), ``(N, 4)``
+            float64 ``(x0, y0, x1, y1)``: where the nominal face crop (side 1.25 times the face box, no
+            jitter) lies in each crop's pixels; ``None`` for the usual crops.
         description: JSON-ready facts: counts, subjects, maps, seeds, settings, build time.
     """
 
@@ -89,6 +94,8 @@ class EvalSet:
     skin_tone: list[int]
     subject_seed: list[int]
     source: list[str]
+    alpha: torch.Tensor | None = None
+    nominal_boxes: torch.Tensor | None = None
     description: dict[str, Any] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -106,11 +113,23 @@ def build_eval_set(
     fields_per_chunk: int = 4,
     lightings_per_field: int = 8,
     background: str = "environment",
+    context: float | None = None,
     progress: bool = False,
 ) -> EvalSet:
     r"""The held-out eval set: ``samples`` portraits of the eval subjects under eval environments.
 
-    Deterministic: the same arguments give the same samples, bit for bit, in any run.
+    Deterministic: the same arguments give the same samples, bit for bit, in any run. Every sample comes with
+    its subject's matte (``alpha``; :class:`PortraitConfig` ``matte=True``, which changes no other value).
+
+    With ``context`` the same portraits (subjects, views, flips, lightings, backgrounds, camera-effect draws)
+    are cropped wider, for :func:`~kornia_ilum.evaluation.checks.crop_stability`: a square of ``context``
+    times the nominal face crop (1.25 times the face box) around the same centre, without the crop jitter, at
+    ``round(size * context)`` pixels, so that the nominal crop spans ``size`` of them. As every crop of the
+    dataset, a context crop that leaves the render is shifted back inside it (and shrunk to the render if
+    larger: the light-stage renders frame the face so that the nominal crop is about 0.7 of the side), so the
+    nominal crop is not always the central square: ``nominal_boxes`` says where it is. The exposure meters the
+    context crop (the camera's exposure does not depend on a face detector), so the gain, and with it the
+    ground truth, differ a little from those of the usual set; the camera effects apply to the context crop.
 
     Args:
         caches: light-stage cache folders; their eval subjects are used (:func:`eval_fields`).
@@ -124,35 +143,50 @@ def build_eval_set(
             draws ``fields_per_chunk * lightings_per_field`` new environments (``env_pool = env_refresh``).
         background: ``"environment"`` (the matching background, as in training ``ours``) or ``"black"``
             (the same portraits, subjects, lightings and crops over black, the variant SIPR was trained on).
+        context: ``None`` for the usual face crops, or a factor of at least 1: the context crops above.
         progress: show a progress bar.
 
     Returns:
-        the :class:`EvalSet`, with ``description`` filled.
+        the :class:`EvalSet`, with ``alpha`` and ``description`` filled (and ``nominal_boxes`` with
+        ``context``).
 
     Raises:
-        ValueCheckError: no eval subject, a lighting size other than 32.
+        ValueCheckError: no eval subject, a lighting size other than 32, ``context`` below 1.
         HDRIOError: a folder of ``hdri`` is missing or holds no eval map.
     """
     check_positive_int(samples, "samples")
+    if context is not None and not (isinstance(context, (int, float)) and math.isfinite(context)
+                                    and context >= 1):
+        raise ValueCheckError(f"context must be None or a finite number >= 1, got {context!r}")
     t0 = time.perf_counter()
     subjects = eval_fields(caches, fields)
     sources = eval_environment_sources(hdri)
     sampler = EnvironmentSampler(sources=sources, seed=seed)
     per_chunk = fields_per_chunk * lightings_per_field
+    crop: dict[str, Any] = {"size": size}
+    if context is not None:  # the same draws: a jitter of zero width still draws its numbers
+        crop = {"size": round(size * context), "crop_scale": CROP_SCALE * context, "crop_position": 0.0,
+                "crop_extent": 0.0}
     # sphere_sizes=(): the scores render their own spheres from the mirror ball (the samples' would go unread)
-    config = PortraitConfig(split="eval", environments=sampler, size=size, length=samples, sphere_sizes=(),
+    config = PortraitConfig(split="eval", environments=sampler, length=samples, sphere_sizes=(),
                             fields_per_chunk=fields_per_chunk, lightings_per_field=lightings_per_field,
-                            env_pool=per_chunk, env_refresh=per_chunk, shuffle=1, background=background)
+                            env_pool=per_chunk, env_refresh=per_chunk, shuffle=1, background=background,
+                            matte=True, **crop)
     dataset = PortraitDataset(subjects, config, seed=seed)
-    items = dataset if not progress else bar(dataset, samples, "eval set", "sample")
-    images, balls, label, tone, subject, source = [], [], [], [], [], []
+    render_size = {(f.subject_seed, int(f.meta.get("view_index", -1))): f.size for f in dataset.fields}
+    what = "eval set" if context is None else "context set"
+    items = dataset if not progress else bar(dataset, samples, what, "sample")
+    images, balls, alphas, label, tone, subject, source, nominal = [], [], [], [], [], [], [], []
     for s in items:
         images.append(s["image"])
         balls.append(s["mirror_ball"].float())
+        alphas.append(s["alpha"])
         label.append(s["label"])
         tone.append(int(s["skin_tone"]))
         subject.append(int(s["subject_seed"]))
         source.append(s["source"])
+        if context is not None:
+            nominal.append(_nominal_box(s, render_size[s["subject_seed"], s["view_index"]], config.size))
     seconds = time.perf_counter() - t0
     maps = {}
     for src in sources:
@@ -162,8 +196,9 @@ def build_eval_set(
     description = {
         "samples": len(images),
         "seed": seed,
-        "size": size,
+        "size": config.size,
         "background": background,
+        "context": context,
         "labels": {k: label.count(k) for k in ("indoor", "outdoor")},
         "subjects": sorted({f.subject_seed for f in subjects}),
         "fields": len(subjects),
@@ -179,7 +214,22 @@ def build_eval_set(
         "build_seconds": round(seconds, 2),
         "torch_threads": torch.get_num_threads(),
     }
-    return EvalSet(torch.stack(images), torch.stack(balls), label, tone, subject, source, description)
+    if context is not None:
+        description["crop"] = {"scale": config.crop_scale, "position": 0.0, "extent": 0.0,
+                               "nominal_size": size}
+    return EvalSet(torch.stack(images), torch.stack(balls), label, tone, subject, source,
+                   alpha=torch.stack(alphas), nominal_boxes=torch.stack(nominal) if nominal else None,
+                   description=description)
+
+
+def _nominal_box(sample: dict[str, Any], render_size: int, size: int) -> torch.Tensor:
+    """Where the nominal face crop (no jitter, kept inside the render as the dataset's crops are) lies in the
+    pixels of a sample's ``size x size`` crop; both boxes are in the (mirrored, where flipped) render's
+    pixels."""
+    box = sample["crop_box"].double()
+    nominal = face_crop_boxes(sample["face_box"].double()[None], render_size)[0]
+    origin = box[:2].repeat(2)
+    return (nominal - origin) * (size / (box[2] - box[0]))
 
 
 def _family(source: str) -> str:
@@ -303,8 +353,10 @@ def evaluate(
     weights: dict[str, str | os.PathLike[str]] | None = None,
     oracles: bool = True,
     batch_size: int = 32,
+    *,
+    checks: Callable[[LightingEstimator, torch.Tensor], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    r"""Score the estimators and the oracles on ``eval_set``.
+    r"""Score the estimators and the oracles on ``eval_set`` (and run ``checks`` on the estimators).
 
     Args:
         eval_set: from :func:`build_eval_set`.
@@ -313,12 +365,17 @@ def evaluate(
             :func:`load_checkpoint`).
         oracles: also score :data:`ORACLES`.
         batch_size: crops per forward pass.
+        checks: called as ``checks(estimator, prediction)`` for every scored estimator (not the oracles, which
+            see no image), with its lighting on the eval crops; what it returns is recorded as the method's
+            ``"checks"`` (:func:`~kornia_ilum.evaluation.checks.check_runner` makes one that runs
+            :func:`~kornia_ilum.evaluation.checks.run_checks`).
 
     Returns:
         ``{"methods": {name: {"scores": {key: tensor}, "seconds": float}}, "skipped": {name: reason}}``
         (:func:`score`'s per-sample tensors); a method scored from a file of ``weights`` also has
-        ``"sha256"``, the file's digest. An estimator without weights (:class:`MissingWeightsError`) is
-        skipped with the reason instead of failing the evaluation; other errors propagate.
+        ``"sha256"``, the file's digest, and with ``checks`` an estimator has ``"checks"``, what it returned.
+        An estimator without weights (:class:`MissingWeightsError`) is skipped with the reason instead of
+        failing the evaluation; other errors propagate.
     """
     names = list(list_estimators() if estimators is None else estimators)
     jobs: list[tuple[str, str, Any]] = [(n, n, None) for n in names]
@@ -337,6 +394,8 @@ def evaluate(
         methods[label] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
         if digest is not None:
             methods[label]["sha256"] = digest
+        if checks is not None:
+            methods[label]["checks"] = checks(model, pred)
     if oracles:
         t0 = time.perf_counter()
         preds = oracle_predictions(gt)

@@ -10,6 +10,10 @@ r"""The evaluation's tables: summaries of the per-sample scores, as Markdown and
   mean over samples of ``L_rec(method) - L_rec(reference)`` on the same portraits, its 95 % interval (normal
   approximation, ``1.96`` standard errors of the mean) and the fraction of samples where the method is better.
   The means of Table 1 can differ by less than their noise; this says whether an ordering holds.
+- **Checks** (:mod:`~kornia_ilum.evaluation.checks`, where they were run): the label-free transfer check
+  (medians per skin tone of the estimated energy with the background, over black and over grey, against each
+  other and the truth), exposure equivariance (``E(k x) / (k E(x))`` on the eval crops and on real photos) and
+  crop stability (the spread of the estimate over jittered crops, medians over portraits per skin tone).
 """
 
 from __future__ import annotations
@@ -52,7 +56,8 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
     r"""The tables as a JSON-ready dict.
 
     Args:
-        results: from :func:`~kornia_ilum.evaluation.evaluate`.
+        results: from :func:`~kornia_ilum.evaluation.evaluate` (with ``"checks"``, the checks' settings, where
+            the caller added them).
         eval_set: the set that was scored.
         reference: the method of the paired differences (none where it was not scored).
 
@@ -63,8 +68,11 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
         ``per_skin_tone`` (method, tone to ``count``, the mean per brdf, ``relative_radiance`` and
         ``relative_radiance_abs``); the groups are ``indoor``, ``outdoor`` and ``all`` (a group without
         samples holds ``None``); ``paired`` (``reference`` and, per other method and brdf, ``mean``, ``low``,
-        ``high`` and ``better``: the module docstring); and, where methods were scored from weight files
-        (``--weights``), ``weights`` (method to the file's SHA-256).
+        ``high`` and ``better``: the module docstring); where methods were scored from weight files
+        (``--weights``), ``weights`` (method to the file's SHA-256); and where checks were run,
+        ``checks`` (method to the tables of :func:`~kornia_ilum.evaluation.checks.run_checks`) and
+        ``check_settings`` (the checks, their options, the number of real photos, the context set's
+        description).
     """
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
@@ -83,6 +91,8 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
             t3[name][str(tone)] = {"count": int(m.sum()), **{b: _mean(s[b][m]) for b in BRDF_NAMES},
                                    "relative_radiance": _means(rr[m]), "relative_radiance_abs": _means(rr[m].abs())}
     digests = {n: m["sha256"] for n, m in results["methods"].items() if "sha256" in m}
+    checks = {n: m["checks"] for n, m in results["methods"].items() if "checks" in m}
+    extra = {"checks": checks, "check_settings": results.get("checks", {})} if checks else {}
     return {
         "eval_set": eval_set.description,
         "skipped": dict(results["skipped"]),
@@ -95,6 +105,7 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
                    "methods": {name: _paired(m["scores"], results["methods"][reference]["scores"])
                                for name, m in results["methods"].items() if name != reference}
                    if reference in results["methods"] else {}},
+        **extra,
     }
 
 
@@ -163,6 +174,7 @@ def format_markdown(summary: dict[str, Any]) -> str:
             cells = [f"{r['mean']:+.4f} [{r['low']:+.4f}, {r['high']:+.4f}], {100 * r['better']:.1f} %"
                      for r in (rows[b] for b in BRDF_NAMES)]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += _check_tables(summary)
     if summary["skipped"]:
         lines += ["", "Skipped:"] + [f"- {n}: {' '.join(r.split())}" for n, r in summary["skipped"].items()]
     if summary.get("weights"):
@@ -172,6 +184,72 @@ def format_markdown(summary: dict[str, Any]) -> str:
         for folder, maps in d["eval_maps"].items():
             lines.append(f"- {folder}: " + ", ".join(f"{n} ({v})" for n, v in maps.items()))
     return "\n".join(lines) + "\n"
+
+
+def _cell(row: dict[str, Any] | None) -> str:
+    if not row or row.get("median") is None:
+        return "-"
+    return f"{row['median']:.3f} [{row['q25']:.3f}, {row['q75']:.3f}]"
+
+
+def _check_tables(summary: dict[str, Any]) -> list[str]:
+    """The Markdown tables of the checks (none where none was run)."""
+    checks = summary.get("checks") or {}
+    lines: list[str] = []
+    transfer = {n: c["transfer"] for n, c in checks.items() if "transfer" in c}
+    if transfer:
+        keys = ("with/true", "black/true", "grey/true", "black/with", "grey/with")
+        lines += [
+            "",
+            "## Transfer check: estimated energy with the background, over black and over grey (sRGB 0.5), "
+            "and the truth; medians of the ratios",
+            "",
+            "| method | tone | samples | " + " | ".join(f"E {k}" for k in keys) + " |",
+            "|---|---:|---:|" + "---:|" * len(keys),
+        ]
+        for name, groups in transfer.items():
+            for tone, row in groups.items():
+                cells = " | ".join(_f(row[k], 3) for k in keys)
+                lines.append(f"| {name} | {tone} | {row['count']} | {cells} |")
+    exposure = {n: c["exposure"] for n, c in checks.items() if "exposure" in c}
+    if exposure:
+        ks = list(next(iter(exposure.values()))["eval"])
+        lines += [
+            "",
+            "## Exposure equivariance: E(k x) / (k E(x)), k in linear light without new clipping; median "
+            "[quartiles] (1: the estimate scales with the photo)",
+            "",
+            "| method | photos | count | " + " | ".join(f"k = {k}" for k in ks) + " |",
+            "|---|---|---:|" + "---:|" * len(ks),
+        ]
+        for name, sets in exposure.items():
+            for which, table in sets.items():
+                count = max((row["count"] for row in table.values()), default=0)
+                label = "eval crops" if which == "eval" else "real photos"
+                cells = " | ".join(_cell(table.get(k)) for k in ks)
+                lines.append(f"| {name} | {label} | {count} | {cells} |")
+    crop = {n: c["crop"] for n, c in checks.items() if "crop" in c}
+    if crop:
+        s = summary.get("check_settings", {})
+        how = (f"{s.get('jitters', 8)} crops per portrait, centre moved by up to "
+               f"{100 * s.get('position', 0.10):.0f} % of the side, side times "
+               f"e^(+-{s.get('extent', 0.15):g})")
+        lines += [
+            "",
+            f"## Crop stability: {how}; medians over portraits",
+            "",
+            "| method | tone | portraits | std log E | max / min E | angle to the mean direction (deg) |",
+            "|---|---:|---:|---:|---:|---:|",
+        ]
+        for name, groups in crop.items():
+            for tone, row in groups.items():
+                lines.append(f"| {name} | {tone} | {row['count']} | {_f(row['std_log_energy'], 3)} | "
+                             f"{_f(row['max_min_ratio'], 3)} | {_f(row['angle_deg'], 2)} |")
+    if checks:
+        spent = ("; ".join(f"{n}: " + ", ".join(f"{k} {v:.1f}" for k, v in c.get("seconds", {}).items())
+                           for n, c in checks.items()))
+        lines += ["", f"Checks' seconds: {spent}"]
+    return lines
 
 
 def write_report(summary: dict[str, Any], markdown: str | os.PathLike[str] | None = None,

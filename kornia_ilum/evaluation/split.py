@@ -10,7 +10,7 @@ Nothing here is trained on, as long as training keeps to the train side of each 
 - **Real maps**: the maps of split ``"eval"`` of :func:`~kornia_ilum.synth.environments.real.hdri_split`
   (about one file name in four, by a stable hash; training must use
   ``HDRFolderSource(folder, split="train")``). :func:`heldout_maps` lists them per folder.
-- **Procedural environments**: skies and rooms drawn by an
+- **Procedural environments**: skies, rooms and portrait lights drawn by an
   :class:`~kornia_ilum.synth.environments.EnvironmentSampler` with the seed :data:`EVAL_SEED`. A sampler draws
   environment ``index`` from ``blake2b(f"kornia_ilum.synth:{seed}:{index}")``, so a seed's stream shares no
   draw with another seed's; training uses the small seeds ``0..N`` (one per run), far from :data:`EVAL_SEED`.
@@ -29,6 +29,7 @@ from typing import Any
 
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.synth.environments.indoor import IndoorSource
+from kornia_ilum.synth.environments.portrait import PortraitLightSource
 from kornia_ilum.synth.environments.real import HDRFolderSource, folder_splits, guess_label
 from kornia_ilum.synth.environments.sky import SkySource
 from kornia_ilum.synth.lightstage.portraits import load_fields
@@ -64,19 +65,25 @@ def heldout_maps(folders: Sequence[str | os.PathLike[str]]) -> dict[str, dict[st
 
 
 def eval_environment_sources(hdri: Sequence[str | os.PathLike[str]] = (), height: int = 128) -> list:
-    r"""The eval set's environment sources: procedural skies and rooms, plus the eval maps of ``hdri``.
+    r"""The eval set's environment sources: procedural skies, rooms and portrait lights, plus the eval maps of
+    ``hdri``.
+
+    The procedural sources are those of training
+    (:func:`~kornia_ilum.synth.environments.default_sources`), drawn with another seed.
 
     Args:
         hdri: folders of real maps; each gives ``HDRFolderSource(folder, height, split="eval")``.
         height: the working height of the lat-long maps.
 
     Returns:
-        ``[SkySource, IndoorSource, HDRFolderSource(...), ...]`` (sample them with :data:`EVAL_SEED`).
+        ``[SkySource, IndoorSource, PortraitLightSource, HDRFolderSource(...), ...]`` (sample them with
+        :data:`EVAL_SEED`; the default weights give the portrait lights a quarter of the draws).
 
     Raises:
         HDRIOError: a folder does not exist or holds no map of split ``"eval"``.
     """
-    return [SkySource(height=height), IndoorSource(height=height)] + [
+    procedural = [SkySource(height=height), IndoorSource(height=height), PortraitLightSource(height=height)]
+    return procedural + [
         HDRFolderSource(folder, height=height, split="eval") for folder in hdri
     ]
 

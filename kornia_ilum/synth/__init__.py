@@ -1,7 +1,7 @@
 """Synthetic data: lighting environments, sphere promotion, backgrounds, camera effects, the light stage.
 
-- :mod:`~kornia_ilum.synth.environments`: lighting environments (real HDR maps, procedural skies and rooms),
-  their augmentation and the sampler that draws them reproducibly per ``(seed, index)``;
+- :mod:`~kornia_ilum.synth.environments`: lighting environments (real HDR maps, procedural skies, rooms and
+  portrait lights), their augmentation and the sampler that draws them reproducibly per ``(seed, index)``;
 - :mod:`~kornia_ilum.synth.promotion`: LDR-to-HDR promotion of three-sphere photographs (LeGendre et al.
   2020); :func:`promote_spheres` and :class:`PromoteSpheres` are re-exported here;
 - :mod:`~kornia_ilum.synth.background`: the view of an environment behind a portrait, tone-mapped to 8-bit

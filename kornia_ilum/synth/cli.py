@@ -1,15 +1,17 @@
 r"""``kornia-ilum synth``: lighting environments and the virtual light stage, with contact sheets.
 
 ``synth environments`` samples ``N`` environments with
-:class:`~kornia_ilum.synth.environments.EnvironmentSampler` (procedural skies and rooms, plus the real maps of
-``--folder``), with a progress bar (tqdm when it is installed, else a counter on stderr), and writes into
-``--out``:
+:class:`~kornia_ilum.synth.environments.EnvironmentSampler` (procedural skies, rooms and portrait lights, plus
+the real maps of ``--folder``), with a progress bar (tqdm when it is installed, else a counter on stderr),
+and writes into ``--out``:
 
 - ``contact_sheet.png``: for each environment its 32 x 32 mirror ball and the three reference spheres
   rendered from it (diffuse, matte silver, mirror; :func:`kornia_ilum.render.render_spheres`), tone-mapped
   (:func:`~kornia_ilum.synth.sheets.write_contact_sheet`);
 - ``stats.txt`` and ``stats.csv``: the statistics of :mod:`kornia_ilum.synth.stats`, per group (median and
-  10th / 90th percentiles) and per environment; with ``--folder`` the real maps, as captured, are a group;
+  10th / 90th percentiles; procedural outdoor and indoor, the portrait lights, with ``--folder`` the real maps
+  as captured and augmented), per source of the sampled environments (each sky condition, the rooms, each
+  kind of portrait light, the real maps; :func:`~kornia_ilum.synth.stats.source_group`) and per environment;
 - ``stats.png``: the four histograms.
 
 :func:`add_synth_environments_parser` adds the subcommand to an ``argparse`` subparsers action;
@@ -50,11 +52,12 @@ __all__ = [
 
 
 _HELP = """\
-Sample N lighting environments (procedural skies and rooms, plus the real maps of --folder, augmented by
-rotation, flip, exposure and white balance), and write into --out: contact_sheet.png (mirror balls with
-their diffuse, matte-silver and mirror reference spheres), stats.txt / stats.csv (dynamic range,
-peak-to-mean ratio, colour temperature, energy in the top 1 % of pixels, per group), and stats.png (their
-histograms). Environment i of seed S is always the same.
+Sample N lighting environments (procedural skies, rooms and portrait lights: flash, studio, window, street;
+plus the real maps of --folder; augmented by rotation, flip, exposure and white balance), and write into
+--out: contact_sheet.png (mirror balls with their diffuse, matte-silver and mirror reference spheres),
+stats.txt / stats.csv (dynamic range, peak-to-mean ratio, colour temperature, energy in the top 1 % of
+pixels, per group and per source), and stats.png (their histograms per group). Environment i of seed S is
+always the same.
 
 examples:
   kornia-ilum synth environments -n 48 --out envs/
@@ -127,7 +130,14 @@ def run_synth_environments(args: argparse.Namespace) -> int:
         IlumError: matplotlib (needed for the figures; in the ``docs`` extra) is not installed.
     """
     # lazy: the statistics import the environments, a heavy import that only this sub-command needs
-    from kornia_ilum.synth.stats import format_table, plot_histograms, stats_rows, summarize, write_csv
+    from kornia_ilum.synth.stats import (
+        format_table,
+        plot_histograms,
+        source_group,
+        stats_rows,
+        summarize,
+        write_csv,
+    )
 
     # lazy: as above
     from kornia_ilum.synth.environments import Augment, EnvironmentSampler, HDRFolderSource, default_sources
@@ -144,6 +154,9 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     real = [s.environment(i) for s in folders for i in range(len(s))]
     rows = stats_rows(real + envs)
     table = format_table(summarize(rows))
+    sampled = sorted(({**r, "group": source_group(e)} for r, e in zip(rows[len(real) :], envs, strict=True)),
+                     key=lambda r: r["group"])  # fmt: skip
+    per_source = format_table(summarize(sampled))
     note = (
         f"{args.n} environments (seed {args.seed}, height {args.height}, "
         f"{'no augmentation' if augment is None else 'augmented'}) sampled in {seconds:.2f} s "
@@ -154,7 +167,7 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     )
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "stats.txt", out / "stats.csv", out / "stats.png"]
-    written[0].write_text(f"{note}\n\n{table}\n")
+    written[0].write_text(f"{note}\n\n{table}\n\nPer source of the sampled environments:\n\n{per_source}\n")
     write_csv(rows, written[1])
     plot_histograms(rows, written[2])
     sheet = envs[: getattr(args, "sheet", 48)]
@@ -163,6 +176,8 @@ def run_synth_environments(args: argparse.Namespace) -> int:
         write_contact_sheet(sheet, written[0])
     print(note)
     print(table)
+    print("Per source of the sampled environments:")
+    print(per_source)
     for path in written:
         print(f"wrote {path}")
     return 0

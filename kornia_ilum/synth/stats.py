@@ -24,7 +24,8 @@ of :func:`kornia.color.rgb_to_xyz`) of every pixel and the pixel's exact solid a
     close to 1 when a sun dominates.
 
 :func:`summarize` gives the median and the 10th / 90th percentiles per group (real maps, procedural
-outdoor, procedural indoor, ...), :func:`format_table` prints them (as a reStructuredText table), and
+outdoor, procedural indoor, portrait lights, ...; or any other grouping, such as :func:`source_group`, one
+group per procedural kind), :func:`format_table` prints them (as a reStructuredText table), and
 :func:`plot_histograms` draws the four distributions (matplotlib).
 
 Convention:
@@ -62,6 +63,7 @@ __all__ = [
     "format_table",
     "lighting_stats",
     "plot_histograms",
+    "source_group",
     "stats_rows",
     "summarize",
     "weighted_quantile",
@@ -77,7 +79,13 @@ STATS: Mapping[str, str] = {
 }
 
 #: The order of the groups of :func:`environment_group` in tables and figures.
-GROUP_ORDER: tuple[str, ...] = ("real", "real, augmented", "procedural outdoor", "procedural indoor")
+GROUP_ORDER: tuple[str, ...] = (
+    "real",
+    "real, augmented",
+    "procedural outdoor",
+    "procedural indoor",
+    "portrait lights",
+)
 
 #: Linear sRGB -> CIE XYZ (D65), the matrix of :func:`kornia.color.rgb_to_xyz`; its middle row is luminance.
 RGB_TO_XYZ: tuple[tuple[float, float, float], ...] = (
@@ -175,17 +183,38 @@ def environment_group(env: Environment) -> str:
     """The comparison group of an environment.
 
     ``"real"`` for a real map as captured (``source`` ``"real:..."``, no augmentation), ``"real, augmented"``
-    for an augmented one, ``"procedural outdoor"`` / ``"procedural indoor"`` for the others (by label).
+    for an augmented one, ``"portrait lights"`` for the lights portraits are taken under (``source``
+    ``"portrait:..."``: flash, studio, window, street, whatever their label), ``"procedural outdoor"`` /
+    ``"procedural indoor"`` for the others (by label).
 
     Examples:
         >>> from kornia_ilum.synth.environments import Environment
         >>> env = Environment(torch.ones(3, 4, 8), torch.ones(3, 32, 32), "indoor", "indoor:room")
         >>> environment_group(env)
         'procedural indoor'
+        >>> environment_group(Environment(env.latlong, env.mirror_ball, "outdoor", "portrait:street"))
+        'portrait lights'
     """
     if env.source.startswith("real:"):
         return "real, augmented" if "augment" in env.params else "real"
+    if env.source.startswith("portrait:"):
+        return "portrait lights"
     return f"procedural {env.label}"
+
+
+def source_group(env: Environment) -> str:
+    """One group per procedural kind, its ``source`` (``"sky: clear"``, ``"portrait: flash"``, ...); the real
+    maps as :func:`environment_group` (``"real"``, ``"real, augmented"``): a finer grouping for tables.
+
+    Examples:
+        >>> from kornia_ilum.synth.environments import Environment
+        >>> env = Environment(torch.ones(3, 4, 8), torch.ones(3, 32, 32), "indoor", "portrait:flash")
+        >>> source_group(env)
+        'portrait: flash'
+    """
+    if env.source.startswith("real:"):
+        return environment_group(env)
+    return env.source.replace(":", ": ", 1)
 
 
 def stats_rows(

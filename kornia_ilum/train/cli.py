@@ -65,6 +65,8 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--log-every", type=positive_int, default=d.log_every, metavar="N")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
+    cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
+                     help="constructor arguments of the estimator, e.g. normalize_exposure=False")
     cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
                      help="PortraitConfig settings of the light-stage data, e.g. fields_per_chunk=8 shuffle=2")
     cmd.set_defaults(func=run_train, brdf_weights=dict(BRDF_WEIGHTS))
@@ -77,7 +79,8 @@ def run_train(args: argparse.Namespace) -> int:
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
-                         log_every=args.log_every, lambda_adv=args.lambda_adv, data=dict(args.data))
+                         log_every=args.log_every, lambda_adv=args.lambda_adv, model=dict(args.model),
+                         data=dict(args.data))
     summary = train(config)
     if "weights" in summary:
         w = summary["weights"]

@@ -54,6 +54,8 @@ class TrainConfig:
         channels_last: the networks and crops in channels-last memory format; ``None``: on (it shortens a step
             without bfloat16 too).
         checkpoint_every, log_every: in steps.
+        model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
+            passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
             example ``{"fields_per_chunk": 8}``), over :data:`~kornia_ilum.train.data.TRAINING_PORTRAITS`;
             ``split`` and ``environments`` are set by the trainer.
@@ -79,6 +81,7 @@ class TrainConfig:
     checkpoint_every: int = 100
     log_every: int = 10
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
+    model: dict[str, Any] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -166,7 +166,12 @@ def train(config: TrainConfig) -> dict[str, Any]:
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
-    model, disc = recipe.build()
+    try:
+        model, disc = recipe.build(**config.model)
+    except TypeError as exc:  # a recipe whose build takes no options
+        if not config.model:
+            raise
+        raise ValueCheckError(f"estimator {config.estimator!r} takes no model options {sorted(config.model)}") from exc
     state = _load_checkpoint(out, config)
     start, elapsed = 0, 0.0
     if state is not None:

@@ -31,6 +31,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.estimators import OursEstimator
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
@@ -71,8 +72,12 @@ class Recipe:
     #: Columns of ``log.csv`` beyond the common ones, taken from :meth:`step`'s result by name.
     log_fields: tuple[str, ...] = ()
 
-    def build(self) -> tuple[nn.Module, nn.Module | None]:
-        """The model to train (``forward(crops) -> {size: lighting}``) and the discriminator or ``None``."""
+    def build(self, **options: Any) -> tuple[nn.Module, nn.Module | None]:
+        """The model to train (``forward(crops) -> {size: lighting}``) and the discriminator or ``None``.
+
+        ``options`` are the estimator's constructor arguments (:attr:`TrainConfig.model`); a recipe whose
+        estimator takes none raises :class:`~kornia_ilum.core.errors.ValueCheckError` for any.
+        """
         raise NotImplementedError
 
     def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
@@ -121,8 +126,12 @@ class OursRecipe(Recipe):
 
     name = "ours"
 
-    def build(self) -> tuple[nn.Module, nn.Module | None]:
-        return MultiScaleOurs(), MSGDiscriminator()
+    def build(self, **options: Any) -> tuple[nn.Module, nn.Module | None]:
+        try:
+            estimator = OursEstimator(**options)
+        except TypeError as exc:
+            raise ValueCheckError(f"model options {sorted(options)} are not OursEstimator's: {exc}") from exc
+        return MultiScaleOurs(estimator), MSGDiscriminator()
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator

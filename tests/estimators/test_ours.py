@@ -54,7 +54,8 @@ class TestOursEstimator:
     def test_smoke(self, net):
         assert isinstance(net, LightingEstimator) and net.info.name == "ours"
         assert "LeGendre" in net.info.paper and net.info.input_size == 256 and len(net.info.weights) == 1
-        assert net.state_dict().keys() == {k for k, _ in net.named_parameters()}  # no persistent buffers
+        # the one persistent buffer: how the weights were trained (TestExposure)
+        assert net.state_dict().keys() == {k for k, _ in net.named_parameters()} | {"exposure_normalized"}
 
     def test_cardinality(self, net):
         with torch.no_grad():
@@ -212,3 +213,18 @@ class TestExposure:
             for block in net.decoder:
                 h = net.upsample(block(h))
             torch.testing.assert_close(y, net.head(h), atol=0, rtol=0)
+
+    def test_the_weights_say_how_they_were_trained(self):
+        """The flag travels in the state dict; a state dict without it (older files) loads as the paper's network."""
+        torch.manual_seed(0)
+        trained = OursEstimator(latent_dim=32, normalize_exposure=False).state_dict()
+        net = OursEstimator(latent_dim=32)
+        assert net.normalize_exposure
+        net.load_state_dict(trained, strict=True)
+        assert not net.normalize_exposure
+        legacy = {k: v for k, v in trained.items() if k != "exposure_normalized"}
+        net = OursEstimator(latent_dim=32)
+        net.load_state_dict(legacy, strict=True)
+        assert not net.normalize_exposure and float(net.exposure_normalized) == 0.0
+        net.load_state_dict(OursEstimator(latent_dim=32).state_dict(), strict=True)
+        assert net.normalize_exposure

@@ -35,3 +35,9 @@ def hdri(tmp_path_factory) -> Path:
 @pytest.fixture(scope="package")
 def eval_set(caches, hdri):
     return build_eval_set(caches, [hdri], samples=N, fields_per_chunk=2, lightings_per_field=4)
+
+
+@pytest.fixture(scope="package")
+def context_set(caches, hdri):
+    """The first 8 portraits of ``eval_set`` as context crops (1.5 times the nominal face crop)."""
+    return build_eval_set(caches, [hdri], samples=8, fields_per_chunk=2, lightings_per_field=4, context=1.5)

@@ -55,6 +55,41 @@ class TestEvalSet:
         torch.testing.assert_close(black.mirror_ball, rescaled, rtol=1e-3, atol=1e-6)
 
 
+    def test_matte(self, eval_set) -> None:
+        alpha = eval_set.alpha
+        assert alpha.shape == (N, 1, 256, 256) and alpha.dtype == torch.uint8
+        assert alpha.max() == 255 and alpha.min() == 0  # the subject, and background around it
+        assert eval_set.nominal_boxes is None and eval_set.description["context"] is None
+
+    def test_context_crops_are_the_same_portraits_wider(self, eval_set, context_set) -> None:
+        n = len(context_set)
+        assert context_set.images.shape == (n, 3, 384, 384) and context_set.alpha.shape == (n, 1, 384, 384)
+        assert context_set.label == eval_set.label[:n]
+        assert context_set.subject_seed == eval_set.subject_seed[:n]
+        assert context_set.source == eval_set.source[:n] and context_set.skin_tone == eval_set.skin_tone[:n]
+        d = context_set.description
+        assert d["context"] == 1.5 and d["size"] == 384 and d["crop"]["scale"] == 1.875
+        # the tiny renders are smaller than 1.5 nominal crops: the context crop is the render, the nominal
+        # crop a square inside it, larger than 256 pixels
+        boxes = context_set.nominal_boxes
+        side = boxes[:, 2] - boxes[:, 0]
+        torch.testing.assert_close(side, boxes[:, 3] - boxes[:, 1])
+        assert (side > 256).all() and (boxes[:, :2] >= -1e-4).all() and (boxes[:, 2:] <= 384 + 1e-4).all()
+        # the ground truth differs from the usual set's by the exposure alone (the context crop is metered)
+        ratio = context_set.mirror_ball.sum((1, 2, 3)) / eval_set.mirror_ball[:n].sum((1, 2, 3))
+        rescaled = eval_set.mirror_ball[:n] * ratio[:, None, None, None]
+        torch.testing.assert_close(context_set.mirror_ball, rescaled, rtol=1e-4, atol=1e-6)
+
+    def test_context_one_is_the_nominal_crop(self, caches, hdri) -> None:
+        one = build_eval_set(caches, [hdri], samples=4, fields_per_chunk=2, lightings_per_field=4,
+                             context=1.0)
+        assert one.images.shape[-1] == 256
+        torch.testing.assert_close(one.nominal_boxes, torch.tensor([[0.0, 0.0, 256.0, 256.0]] * 4,
+                                                                   dtype=torch.float64), atol=1e-3, rtol=0)
+        with pytest.raises(ValueCheckError, match="context"):
+            build_eval_set(caches, [hdri], samples=4, context=0.5)
+
+
 class TestScores:
     def test_oracles(self) -> None:
         gt = torch.rand(3, 3, 32, 32) * 2

@@ -64,8 +64,10 @@ class TestSplits:
 
     def test_eval_environment_sources(self, hdri) -> None:
         sources = eval_environment_sources([hdri], height=16)
-        assert [type(s).__name__ for s in sources] == ["SkySource", "IndoorSource", "HDRFolderSource"]
-        assert sources[2].names == ("forest.exr", "studio.exr")
+        names = [type(s).__name__ for s in sources]
+        assert names == ["SkySource", "IndoorSource", "PortraitLightSource", "HDRFolderSource"]
+        assert sources[3].names == ("forest.exr", "studio.exr") and sources[3].split == "eval"
+        assert sources[2].height == 16
         with pytest.raises(TypeCheckError, match="sequence of folders"):
             eval_fields(str(hdri))  # one folder, not a sequence of them
 

@@ -75,8 +75,10 @@ def test_writes_files_procedural(tmp_path, capsys):
     for name in ("contact_sheet.png", "stats.png"):
         assert (out / name).read_bytes()[:8] == PNG
     rows = read_csv(out / "stats.csv")
-    assert len(rows) == 4 and {r["group"] for r in rows} <= {"procedural outdoor", "procedural indoor"}
+    groups = {"procedural outdoor", "procedural indoor", "portrait lights"}  # the portrait lights: issue 21
+    assert len(rows) == 4 and {r["group"] for r in rows} <= groups
     text = (out / "stats.txt").read_text()
+    assert "Per source of the sampled environments" in text
     captured = capsys.readouterr()
     assert "environments/s" in text and "dynamic range (stops)" in text
     assert "dynamic range (stops)" in captured.out and f"wrote {out / 'stats.csv'}" in captured.out

@@ -20,6 +20,7 @@ from kornia_ilum.synth.stats import (
     format_table,
     lighting_stats,
     plot_histograms,
+    source_group,
     stats_rows,
     summarize,
     weighted_quantile,
@@ -108,18 +109,27 @@ def envs() -> list[Environment]:
         Environment(ones, sun, "outdoor", "sky:clear", {}),
         Environment(ones, sun * 2, "outdoor", "sky:hazy", {}),
         Environment(ones, torch.ones(3, 32, 32), "indoor", "indoor:room", {}),
+        Environment(ones, sun * 3, "indoor", "portrait:flash", {}),
+        Environment(ones, sun * 4, "outdoor", "portrait:street", {}),
     ]
 
 
 def test_groups_rows_summary_table_csv_figure(tmp_path):
     assert [environment_group(e) for e in envs()] == [
         "real", "real, augmented", "procedural outdoor", "procedural outdoor", "procedural indoor",
+        "portrait lights", "portrait lights",
+    ]  # fmt: skip
+    assert [source_group(e) for e in envs()] == [
+        "real", "real, augmented", "sky: clear", "sky: hazy", "indoor: room", "portrait: flash",
+        "portrait: street",
     ]  # fmt: skip
     rows = stats_rows(envs())
-    assert len(rows) == 5 and set(STATS) <= set(rows[0])
+    assert len(rows) == 7 and set(STATS) <= set(rows[0])
     summary = summarize(rows)
-    assert list(summary) == ["real", "real, augmented", "procedural outdoor", "procedural indoor"]
-    assert summary["procedural outdoor"]["n"] == 2
+    assert list(summary) == [
+        "real", "real, augmented", "procedural outdoor", "procedural indoor", "portrait lights",
+    ]  # fmt: skip
+    assert summary["procedural outdoor"]["n"] == 2 and summary["portrait lights"]["n"] == 2
     assert summary["real"]["top1_energy"] == pytest.approx((0.01, 0.01, 0.01))
     table = format_table(summary)
     lines = table.splitlines()

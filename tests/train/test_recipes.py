@@ -66,6 +66,13 @@ class TestDiscovery:
         model, disc = recipe.build()
         assert isinstance(model, MultiScaleOurs) and isinstance(disc, MSGDiscriminator)
         assert recipe.estimator(model) is model.estimator
+        assert model.estimator.normalize_exposure  # the default
+
+    def test_model_options_reach_the_estimator(self) -> None:
+        model, _ = get_recipe("ours").build(normalize_exposure=False)
+        assert not model.estimator.normalize_exposure
+        with pytest.raises(ValueCheckError, match="not OursEstimator's"):
+            get_recipe("ours").build(no_such_option=1)
 
 
 class TestOneWay:

@@ -1,4 +1,4 @@
-"""Lighting environments: real HDR maps with augmentation, procedural outdoor and indoor scenes."""
+"""Lighting environments: real HDR maps with augmentation, procedural skies, rooms and portrait lights."""
 
 from kornia_ilum.synth.environments.base import Environment, EnvironmentSource, Label
 from kornia_ilum.synth.environments.augment import (
@@ -19,6 +19,7 @@ from kornia_ilum.synth.environments.sky import (
     sky_radiance,
 )
 from kornia_ilum.synth.environments.indoor import IndoorSource, render_room
+from kornia_ilum.synth.environments.portrait import PortraitLightSource, key_direction, render_portrait
 
 __all__ = ["Environment", "EnvironmentSource", "Label"]
 __all__ += ["Augment", "RotateLatLong", "lighting_rotation", "rotate_latlong", "white_balance_gains"]
@@ -26,3 +27,4 @@ __all__ += ["HDRFolderSource", "ResizeLatLong", "guess_label", "resize_latlong"]
 __all__ += ["EnvironmentSampler", "default_sources", "default_weights"]
 __all__ += ["SkySource", "SkyRadiance", "sky_radiance", "CctToRgb", "cct_to_rgb", "render_outdoor"]
 __all__ += ["IndoorSource", "render_room"]
+__all__ += ["PortraitLightSource", "key_direction", "render_portrait"]

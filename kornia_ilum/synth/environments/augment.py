@@ -290,6 +290,11 @@ class Augment:
     - colour temperature uniform in mired within ``kelvin`` and tint uniform in ``tint`` (6500 K and 0 when
       ``white_balance=False``).
 
+    An environment whose lights are placed relative to the camera (``params["camera_anchored"]`` true: the
+    on-camera flash, studio lights and window of
+    :class:`~kornia_ilum.synth.environments.PortraitLightSource`) is not turned: its yaw and pitch are drawn
+    (the other draws stay the same) but set to 0; flip, exposure and white balance apply as to any other.
+
     Args:
         yaw: random yaw about +Y (the full turn).
         pitch_deg: largest pitch about +X in degrees (0 disables it), at most 90.
@@ -341,7 +346,10 @@ class Augment:
         }
 
     def __call__(self, env: Environment, generator: torch.Generator) -> Environment:
-        return self.apply(env, **self.draw(generator))
+        kwargs = self.draw(generator)
+        if isinstance(env, Environment) and env.params.get("camera_anchored"):
+            kwargs["yaw_deg"] = kwargs["pitch_deg"] = 0.0  # lights placed relative to the camera stay there
+        return self.apply(env, **kwargs)
 
     @staticmethod
     def apply(

@@ -227,6 +227,21 @@ class TestAugment:
         full.pop("flip"), no_flip.pop("flip")
         assert full == no_flip
 
+    def test_camera_anchored_is_not_turned(self):
+        """Lights placed relative to the camera (the portrait lights) keep their place: no yaw, no pitch; the
+        other draws are those of any environment."""
+        env = make_env(sun_map(16, 5, 9))
+        anchored = Environment(env.latlong, env.mirror_ball, env.label, env.source, {"camera_anchored": True})
+        out = Augment()(anchored, torch.Generator().manual_seed(3))
+        free = Augment()(env, torch.Generator().manual_seed(3))
+        assert out.params["augment"]["yaw_deg"] == out.params["augment"]["pitch_deg"] == 0.0
+        assert free.params["augment"]["yaw_deg"] != 0.0
+        for key in ("flip", "exposure_stops", "kelvin", "tint"):
+            assert out.params["augment"][key] == free.params["augment"][key]
+        kept = {k: free.params["augment"][k] for k in ("flip", "exposure_stops", "kelvin", "tint")}
+        expected = Augment.apply(env, **kept)
+        torch.testing.assert_close(out.latlong, expected.latlong)
+
     def test_exposure_scales_energy(self):
         env = make_env(sun_map(16, 5, 9))
         out = Augment.apply(env, exposure_stops=1.5)

@@ -16,6 +16,7 @@ from kornia_ilum.synth.environments import (
     default_weights,
 )
 from kornia_ilum.synth.environments.indoor import IndoorSource
+from kornia_ilum.synth.environments.portrait import PortraitLightSource
 from kornia_ilum.synth.environments.sampler import generator_for
 from kornia_ilum.synth.environments.sky import SkySource
 
@@ -74,20 +75,48 @@ class TestEnvironmentSampler:
         assert {e.label for e in envs} == {"indoor", "outdoor"}
 
     def test_default_sources(self, tmp_path):
-        sky, indoor = default_sources()
+        sky, indoor, portrait = default_sources()
         assert isinstance(sky, SkySource) and isinstance(indoor, IndoorSource)
-        assert all(isinstance(s, EnvironmentSource) for s in (sky, indoor))
+        assert isinstance(portrait, PortraitLightSource) and portrait.height == 128
+        assert all(isinstance(s, EnvironmentSource) for s in (sky, indoor, portrait))
         from kornia_ilum.io import write_hdr
 
         write_hdr(tmp_path / "field.exr", torch.ones(3, 8, 16))
         sources = default_sources(tmp_path, height=16)
-        assert isinstance(sources[-1], HDRFolderSource) and sources[-1].height == 16 and len(sources) == 3
-        assert EnvironmentSampler().weights == [0.5, 0.5]
-        assert EnvironmentSampler(sources).weights == [0.25, 0.5, 0.25]
+        assert isinstance(sources[-1], HDRFolderSource) and sources[-1].height == 16 and len(sources) == 4
+        assert sources[2].height == 16
+        # the portrait lights take a quarter; the rest is shared half indoor, half outdoor as before
+        # (it was [0.5, 0.5] and [0.25, 0.5, 0.25] without the portrait lights: the same ratios, times 0.75)
+        assert EnvironmentSampler().weights == [0.375, 0.375, 0.25]
+        assert EnvironmentSampler(sources).weights == [0.1875, 0.375, 0.25, 0.1875]
 
     def test_default_weights(self):
         assert default_weights([Flat("indoor")] * 3) == pytest.approx([1 / 3] * 3)
         assert default_weights([Flat("outdoor"), Flat("indoor"), Flat("indoor")]) == [0.5, 0.25, 0.25]
+
+    def test_default_weights_with_shares(self):
+        """A source with a default_share gets it whatever its label; the others share the rest by label."""
+        shared = Flat("outdoor")
+        shared.default_share = 0.25
+        assert default_weights([Flat("outdoor"), Flat("indoor"), shared]) == [0.375, 0.375, 0.25]
+        shared.label = "indoor"  # its label takes no part in the balance
+        assert default_weights([Flat("outdoor"), Flat("indoor"), shared]) == [0.375, 0.375, 0.25]
+        assert default_weights([Flat("indoor"), shared]) == [0.75, 0.25]
+        assert default_weights([shared]) == [0.25]  # alone: the sampler normalises it to 1
+        other = Flat("indoor")
+        other.default_share = 0.75
+        assert default_weights([Flat("outdoor"), shared, other]) == [0.0, 0.25, 0.75]
+        other.default_share = 1.5
+        with pytest.raises(ValueCheckError, match=r"sources\[1\].default_share must be a number in \[0, 1\]"):
+            default_weights([Flat("outdoor"), other])
+
+    def test_default_weights_pick_the_portrait_lights_a_quarter_of_the_time(self):
+        shared = Flat("indoor", "portrait")
+        shared.default_share = 0.25
+        sampler = EnvironmentSampler([Flat("outdoor", "sky"), Flat("indoor", "room"), shared], augment=None)
+        picks = [sampler.sample(i).source for i in range(800)]
+        assert abs(picks.count("portrait:flat") / 800 - 0.25) < 0.05
+        assert abs(picks.count("sky:flat") / 800 - 0.375) < 0.05
 
     def test_weights_pick_sources(self):
         sources = [Flat("outdoor", "a"), Flat("outdoor", "b")]

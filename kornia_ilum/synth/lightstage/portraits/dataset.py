@@ -94,6 +94,9 @@ class PortraitConfig:
         pairs: also render each sample's subject, view, crop and flip under a second lighting, as
             ``sample["pair"]``, and give the subject's matte in the crop, ``sample["alpha"]`` (for SIPR: a
             relit target and the mask of its loss).
+        matte: give the subject's matte in the crop, ``sample["alpha"]``, without a second lighting (what the
+            evaluation's transfer check composites the face over black and grey with); it draws nothing, so
+            every other field of a sample is the same, bit for bit, with and without it.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -129,6 +132,7 @@ class PortraitConfig:
     crop: str = "face"
     subject: bool = True
     pairs: bool = False
+    matte: bool = False
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -316,7 +320,8 @@ class PortraitDataset(IterableDataset):
     ``fields_per_chunk`` fields at random and relights each with ``lightings_per_field`` lightings in one batched
     product. Lightings come from a pool of the last ``env_pool`` environments of the worker's stream,
     ``env_refresh`` of them new at every chunk, each used with a random rotation about the vertical axis (a
-    whole number of lat-long columns, exact; the background turns with it). Each environment of the pool keeps
+    whole number of lat-long columns, exact; the background turns with it; none for an environment whose
+    lights are placed relative to the camera, ``params["camera_anchored"]``). Each environment of the pool keeps
     a full-resolution background (:func:`environment_background`, :func:`background_pyramid`): 3 to 8 MB per
     environment at 256 to 512 rows, so up to ``(env_pool + env_refresh)`` times that per worker.
 
@@ -335,8 +340,9 @@ class PortraitDataset(IterableDataset):
         environment; ``background_blur`` (the depth of field's sigma, frame pixels); ``camera`` (the effects'
         parameters: ``blur``, ``vignette``, ``noise``, ``jpeg`` and ``tone`` ``(2,)``, identity values where off);
         ``chunk`` ``(worker, index)``; with ``pairs``, ``pair`` holds ``image``, ``mirror_ball``, ``spheres``,
-        ``exposure``, ``label``, ``source``, ``background_blur`` and ``camera`` of the second lighting, and
-        ``alpha`` ``(1, size, size)`` ``uint8`` is the subject's coverage of each crop pixel (255: subject).
+        ``exposure``, ``label``, ``source``, ``background_blur`` and ``camera`` of the second lighting; with
+        ``pairs`` or ``matte``, ``alpha`` ``(1, size, size)`` ``uint8`` is the subject's coverage of each crop
+        pixel (255: subject).
 
     Examples:
         >>> from kornia_ilum.synth.lightstage.scene import Camera
@@ -465,6 +471,8 @@ class PortraitDataset(IterableDataset):
         keys, envs = [k for k, _ in keyed], [e for _, e in keyed]
         width = envs[0].latlong.shape[-1]
         shifts = torch.randint(width, (n,), generator=g).tolist()
+        # lights placed relative to the camera (the portrait lights' flash, studio and window) are not turned
+        shifts = [0 if e.params.get("camera_anchored") else k for e, k in zip(envs, shifts, strict=True)]
         latlongs = torch.empty(n, *envs[0].latlong.shape)
         for out, env, k in zip(latlongs, envs, shifts, strict=True):  # out = env.latlong.roll(k, dims=-1)
             x = env.latlong.float()
@@ -502,7 +510,7 @@ class PortraitDataset(IterableDataset):
                                              position=cfg.crop_position, extent=cfg.crop_extent))
             else:
                 boxes.append(random_crop_boxes(faces[-1], rf.size, g))
-            if cfg.pairs:
+            if cfg.pairs or cfg.matte:
                 alpha = crop_images(rf.alpha.float()[None], _source_boxes(boxes[-1], flips[rows], rf.size),
                                     cfg.size, flips[rows])
                 alphas.append(alpha.mul_(255.0).round_().to(torch.uint8))
@@ -541,6 +549,7 @@ class PortraitDataset(IterableDataset):
             }
             if cfg.pairs:
                 sample["pair"] = one[1]
+            if cfg.pairs or cfg.matte:
                 sample["alpha"] = alphas[j // nl][j % nl]
             samples.append(sample)
         return samples

@@ -4,6 +4,7 @@ reproducibility, variants, configuration and full-resolution backgrounds."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 import torch
@@ -14,7 +15,8 @@ from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.environments import EnvironmentSampler, HDRFolderSource, SkySource, resize_latlong
-from kornia_ilum.synth.lightstage import subject_split
+from kornia_ilum.synth.lightstage import LANDMARK_NAMES, subject_split
+from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.portraits import (
     PortraitConfig,
     PortraitDataset,
@@ -276,3 +278,41 @@ class TestEnvironmentBackground:
         assert full.shape == (3, 256, 512)
         err = (resize_latlong(full, 32) - env.latlong).abs().mean() / env.latlong.abs().mean()
         assert err < 0.15
+
+
+def _disc_field(seed: int = 7) -> ReflectanceField:
+    """A written-down 24 x 24 subject (no Mitsuba): a lit disc on black, with a ring of landmarks."""
+    n = 24
+    c = (torch.arange(n, dtype=torch.float64) + 0.5) / n * 2 - 1
+    y, x = torch.meshgrid(-c, c, indexing="ij")
+    alpha = ((x**2 + y**2) <= 0.6).float()[None]
+    field = (alpha.flatten()[None, :, None] * torch.full((3, 1, S * S), 1.0 / (S * S))).to(torch.bfloat16)
+    ring = torch.arange(len(LANDMARK_NAMES)) * 2 * math.pi / len(LANDMARK_NAMES)
+    landmarks = torch.stack([12 + 5 * ring.cos(), 13 + 6 * ring.sin()], -1)
+    camera = Camera(30.0, 1.0, 0.0, 0.0, size=n)
+    return ReflectanceField(field, alpha, torch.tensor([6.0, 6.0, 18.0, 18.0]), camera, seed,
+                            {"landmarks": landmarks.tolist(), "skin_tone": 3})
+
+
+class TestMatte:
+    def test_matte_adds_the_alpha_and_changes_nothing_else(self) -> None:
+        config = PortraitConfig(split=None, size=32, sphere_sizes=(4, 8), env_pool=4, env_refresh=2,
+                                fields_per_chunk=1, lightings_per_field=4, shuffle=1, length=8)
+        plain = list(PortraitDataset([_disc_field()], config, seed=2))
+        matte = list(PortraitDataset([_disc_field()], dataclasses.replace(config, matte=True), seed=2))
+        assert "alpha" not in plain[0] and "pair" not in matte[0]
+        for a, b in zip(plain, matte, strict=True):
+            assert set(b) == set(a) | {"alpha"}
+            for key, value in a.items():
+                if isinstance(value, torch.Tensor):
+                    assert torch.equal(value, b[key]), key
+                elif isinstance(value, dict):
+                    assert all(torch.equal(v, b[key][k]) for k, v in value.items()), key
+                else:
+                    assert value == b[key], key
+            alpha = b["alpha"]
+            assert alpha.dtype == torch.uint8 and alpha.shape == (1, 32, 32) and alpha.max() == 255
+            rf = _disc_field()  # the matte is the subject's coverage of the crop, as with pairs
+            source = rf.alpha.flip(-1) if b["flip"] else rf.alpha
+            expected = crop_images(source[None], b["crop_box"][None].double(), 32)[0]
+            assert (alpha.float() - 255 * expected).abs().max() <= 1.0

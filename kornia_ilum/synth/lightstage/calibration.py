@@ -1,0 +1,187 @@
+r"""The uniform-white check: does a light-stage face reflect what its skin is documented to reflect?
+
+Relit by a uniform white environment of radiance 1 (:func:`uniform_response`), an unoccluded surface of
+total reflectance ``rho`` reads ``rho``: no subsurface scattering, denoising or relighting step may create or
+lose energy. The cache keeps each view's G-buffer albedo and skin coverage
+(:class:`~kornia_ilum.synth.lightstage.ReflectanceField` ``albedo``, ``skin``), so :func:`check_skin` compares,
+pixel by pixel over the face's skin (fully covered skin pixels inside :func:`face_mask`, lips included):
+
+- **energy**: the median of ``reading / (albedo + SKIN_SPECULAR_ALBEDO)`` per channel is at most ``1 + rtol``
+  (nothing creates light) and at least ``1 - occlusion`` (:data:`~kornia_ilum.synth.lightstage.subjects.skin.
+  SKIN_SPECULAR_ALBEDO`: the light stage's skin specular under uniform light, seen head-on). The lower bound is
+  wider: a face hides part of a uniform environment from itself (nose, brows, a fringe, glasses), so a real
+  face reads less than its albedo too, while no step may add light;
+- **skin**: the median reading lies inside the measured range of facial skin of the subject's Monk tone
+  (:func:`~kornia_ilum.synth.lightstage.subjects.skin.measured_skin_range`).
+
+:func:`check_cache` runs it over the subjects of a light-stage cache; ``kornia-ilum synth check-skin`` prints
+the table and fails when a subject fails.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.synth.lightstage.cache import read_manifest
+from kornia_ilum.synth.lightstage.field import ReflectanceField
+from kornia_ilum.synth.lightstage.portraits import load_fields
+from kornia_ilum.synth.lightstage.portraits.compose import add_relit
+from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
+from kornia_ilum.synth.lightstage.subjects.skin import SKIN_SPECULAR_ALBEDO, measured_skin_range
+
+__all__ = ["SkinCheck", "check_cache", "check_skin", "face_mask", "uniform_response"]
+
+_FACE_OUTLINE = ("brow_right_top", "brow_left_top", "eye_right_outer", "eye_left_outer", "jaw_right", "jaw_left",
+                 "chin", "cheek_right", "cheek_left")
+
+
+def uniform_response(field: ReflectanceField, radiance: float = 1.0) -> torch.Tensor:
+    r"""The subject relit by a uniform white environment of ``radiance``: ``(3, size, size)`` linear.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.scene import Camera
+        >>> rf = ReflectanceField(torch.full((3, 4, 16), 0.25, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
+        >>> uniform_response(rf).shape
+        torch.Size([3, 2, 2])
+    """
+    if not (math.isfinite(radiance) and radiance >= 0):
+        raise ValueCheckError(f"radiance must be finite and non-negative, got {radiance}")
+    s = field.lighting_size
+    lighting = radiance * mirror_ball_valid(s).float().expand(1, 3, s, s)
+    frame = torch.zeros(1, 3, field.size, field.size)
+    return add_relit(frame, field, lighting)[0]
+
+
+def face_mask(landmarks: torch.Tensor, size: int) -> torch.Tensor:
+    r"""``(size, size)`` bool: the pixels inside the convex hull of the face's outline landmarks (brows, outer eye
+    corners, cheeks, jaw, chin), given in pixels ``(x, y)`` in the order of
+    :data:`~kornia_ilum.synth.lightstage.subjects.LANDMARK_NAMES`.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
+        >>> lm = torch.full((len(LANDMARK_NAMES), 2), 8.0)
+        >>> corners = {"brow_right_top": (2, 2), "brow_left_top": (6, 2), "chin": (4, 7), "jaw_right": (2, 6)}
+        >>> for name, xy in corners.items():
+        ...     lm[LANDMARK_NAMES.index(name)] = torch.tensor(xy, dtype=torch.float32)
+        >>> lm[LANDMARK_NAMES.index("jaw_left")] = torch.tensor([6.0, 6.0])
+        >>> int(face_mask(lm, 10).sum()) > 0, bool(face_mask(lm, 10)[0, 0])
+        (True, False)
+    """
+    from scipy.spatial import ConvexHull  # lazy: SciPy only for the check
+
+    pts = torch.stack([landmarks[LANDMARK_NAMES.index(n), :2].double() for n in _FACE_OUTLINE])
+    hull = pts[torch.as_tensor(ConvexHull(pts.numpy()).vertices)]  # counter-clockwise in (x, y)
+    yy, xx = torch.meshgrid(torch.arange(size, dtype=torch.float64) + 0.5,
+                            torch.arange(size, dtype=torch.float64) + 0.5, indexing="ij")
+    edge = hull.roll(-1, 0) - hull
+    cross = edge[:, 0, None, None] * (yy[None] - hull[:, 1, None, None]) - edge[:, 1, None, None] * (
+        xx[None] - hull[:, 0, None, None])
+    return (cross >= 0).all(0)
+
+
+@dataclass
+class SkinCheck:
+    r"""The uniform-white check of one subject-view (:func:`check_skin`).
+
+    Attributes:
+        subject_seed, view_index, skin_tone: which subject and view; its Monk tone.
+        pixels: the face's skin pixels checked (fully covered, all skin, inside :func:`face_mask`).
+        albedo: their median diffuse albedo (the G-buffer's), linear RGB.
+        measured: their median reading under uniform radiance 1.
+        energy: the median of ``reading / (albedo + SKIN_SPECULAR_ALBEDO)`` per pixel, per channel.
+        low, high: the measured range of facial skin of the tone.
+        rtol, occlusion: the energy test's bounds, ``1 - occlusion <= energy <= 1 + rtol``.
+    """
+
+    subject_seed: int
+    view_index: int
+    skin_tone: int
+    pixels: int
+    albedo: tuple[float, float, float]
+    measured: tuple[float, float, float]
+    energy: tuple[float, float, float]
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    rtol: float
+    occlusion: float
+
+    @property
+    def energy_ok(self) -> bool:
+        """The skin neither creates nor loses energy: ``1 - occlusion <= energy <= 1 + rtol``."""
+        return all(1.0 - self.occlusion <= e <= 1.0 + self.rtol for e in self.energy)
+
+    @property
+    def skin_ok(self) -> bool:
+        """The face reads like measured skin of its tone: ``measured`` inside ``[low, high]``."""
+        return all(lo <= m <= hi for lo, m, hi in zip(self.low, self.measured, self.high, strict=True))
+
+    @property
+    def ok(self) -> bool:
+        """Both tests pass."""
+        return self.energy_ok and self.skin_ok
+
+
+def _rgb(values: torch.Tensor) -> tuple[float, float, float]:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def check_skin(field: ReflectanceField, skin_tone: int, rtol: float = 0.1, occlusion: float = 0.15) -> SkinCheck:
+    r"""The uniform-white check of one subject-view (module docstring).
+
+    Args:
+        field: a subject-view of the one-pass renderer (its ``gbuffer``) or of a cache (its ``albedo`` and
+            ``skin``), with ``meta["landmarks"]``.
+        skin_tone: its Monk tone (1 to 10).
+        rtol: how much more than its albedo the skin may read (its specular grows at grazing views: dark skin
+            in blue reads up to 8 % more seen from the side; noise; interreflection).
+        occlusion: how much less (the face's own occlusion of the environment).
+
+    Raises:
+        ValueCheckError: the field has no ``albedo`` / ``skin`` (a cache of an older light stage) or no
+            landmarks, or its face shows no skin pixel.
+    """
+    gbuffer = field.gbuffer  # a fresh render has its G-buffer; a cached view, the two buffers the cache keeps
+    albedo_map = field.albedo if gbuffer is None else gbuffer.albedo
+    skin_map = field.skin if gbuffer is None else gbuffer.subsurface
+    if albedo_map is None or skin_map is None or "landmarks" not in field.meta:
+        raise ValueCheckError(
+            f"subject {field.subject_seed}: the uniform-white check needs the field's albedo, skin and landmarks "
+            "(rebuild the cache with this version's one-pass renderer)"
+        )
+    mask = face_mask(torch.tensor(field.meta["landmarks"]), field.size)
+    mask &= (field.alpha[0] >= 0.999) & (skin_map[0] >= 0.999)
+    if not bool(mask.any()):
+        raise ValueCheckError(f"subject {field.subject_seed}: its face shows no skin pixel")
+    reading = uniform_response(field)[:, mask].double()
+    albedo = albedo_map[:, mask].double()
+    ratio = reading / (albedo + SKIN_SPECULAR_ALBEDO)
+    low, high = measured_skin_range(int(skin_tone))
+    return SkinCheck(
+        subject_seed=field.subject_seed, view_index=int(field.meta.get("view_index", -1)), skin_tone=int(skin_tone),
+        pixels=int(mask.sum()), albedo=_rgb(albedo.median(1).values), measured=_rgb(reading.median(1).values),
+        energy=_rgb(ratio.median(1).values), low=low, high=high, rtol=rtol, occlusion=occlusion,
+    )
+
+
+def check_cache(cache: str | os.PathLike[str], split: str | None = "eval", rtol: float = 0.1,
+                occlusion: float = 0.15) -> list[SkinCheck]:
+    r"""The uniform-white check of every subject-view of a light-stage cache (of ``split``; ``None``: all).
+
+    Each subject's tone comes from the cache manifest (``skin_tone``); subjects without one (mannequins) are
+    skipped.
+    """
+    tones = {(e["subject_seed"], e["view_index"]): e.get("skin_tone") for e in read_manifest(cache)["entries"]}
+    out = []
+    for field in load_fields(cache, split=split):
+        tone = tones.get((field.subject_seed, int(field.meta.get("view_index", -1))))
+        if tone is not None:
+            out.append(check_skin(field, int(tone), rtol, occlusion))
+    return out
