@@ -38,7 +38,11 @@ from kornia_ilum.core.errors import BaseError, HDRIOError
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
 from kornia_ilum.io import read_ldr
-from kornia_ilum.synth.cli import add_synth_environments_parser, add_synth_subjects_parser
+from kornia_ilum.synth.cli import (
+    add_synth_check_skin_parser,
+    add_synth_environments_parser,
+    add_synth_subjects_parser,
+)
 
 PROG = "kornia-ilum"
 _SAMPLE = "astronaut"
@@ -156,6 +160,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    "with their metadata.")
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)
+    add_synth_check_skin_parser(sub)
     for name, (add_parser, help_line) in LAZY_COMMANDS.items():
         if command is None or command == name:
             add_parser(sub)

@@ -24,6 +24,11 @@ portraits composited from the cache with their ground-truth spheres
 (:func:`~kornia_ilum.synth.lightstage.preview.training_sheet`). :func:`add_synth_subjects_parser` and
 :func:`run_synth_subjects` as above.
 
+``synth check-skin`` runs the uniform-white check of
+:mod:`~kornia_ilum.synth.lightstage.calibration` over the subjects of a cache (its eval split by default): one
+row per subject-view (tone, albedo, reading, energy ratio, the measured range), then how many passed; it exits
+with 1 when any failed. :func:`add_synth_check_skin_parser` and :func:`run_synth_check_skin` as above.
+
 Both contact sheets are drawn by :mod:`kornia_ilum.synth.sheets`; the small argument types come from
 :mod:`kornia_ilum.core.cli`.
 """
@@ -38,13 +43,16 @@ from pathlib import Path
 
 from kornia_ilum.core.cli import nonnegative_int, positive_int
 from kornia_ilum.core.errors import IlumError, ValueCheckError
+from kornia_ilum.core.files import atomic_write
 from kornia_ilum.core.progress import progress
 from kornia_ilum.synth.sheets import require_matplotlib, write_contact_sheet
 
 __all__ = [
+    "add_synth_check_skin_parser",
     "add_synth_environments_parser",
     "add_synth_subjects_parser",
     "parse_seeds",
+    "run_synth_check_skin",
     "run_synth_environments",
     "run_synth_subjects",
     "split_seeds",
@@ -375,3 +383,97 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     print(f"{count} portraits in {time.perf_counter() - t1:.1f} s")
     print(f"wrote {out / 'contact_sheet.png'}")
     return 0
+
+
+# ----------------------------------------------------------------------------------------------
+# synth check-skin
+
+_CHECK_SKIN_HELP = """\
+The uniform-white check of a light-stage cache: relight each subject-view by a uniform white environment of
+radiance 1 and compare, over the face's skin (lips included), the reading with the skin's documented albedo
+(its subsurface, relighting and denoising must neither create nor lose energy: 1 - OCCLUSION <= reading /
+(albedo + specular) <= 1 + RTOL) and that albedo with the measured range of facial skin of the subject's Monk
+tone (docs/lightstage.rst, "Skin"). Prints one row per subject-view; exits with 1 when any fails.
+
+examples:
+  kornia-ilum synth check-skin --cache lightstage/                 # its eval subjects
+  kornia-ilum synth check-skin --cache lightstage/ --split all --json skin.json
+"""
+
+
+def add_synth_check_skin_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``synth check-skin`` to ``subparsers`` (reusing a ``synth`` command that is already there).
+
+    Examples:
+        >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
+        >>> cmd = add_synth_check_skin_parser(parser.add_subparsers(dest="command"))
+        >>> args = cmd.parse_args(["--cache", "ls"])
+        >>> args.cache, args.split, args.rtol, args.occlusion, args.func.__name__
+        (['ls'], 'eval', 0.1, 0.15, 'run_synth_check_skin')
+    """
+    sub = _synth_subparsers(subparsers)
+    cmd = sub.add_parser(
+        "check-skin",
+        help="the uniform-white check: do the cached faces reflect what measured skin does?",
+        description=_CHECK_SKIN_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    cmd.add_argument("--cache", action="append", required=True, metavar="DIR",
+                     help="a light-stage cache (repeatable)")
+    cmd.add_argument("--split", choices=("train", "eval", "all"), default="eval",
+                     help="the subjects to check (eval)")
+    cmd.add_argument("--rtol", type=_unit_fraction, default=0.1, metavar="F",
+                     help="how much more light than its albedo the skin may reflect (0.1)")
+    cmd.add_argument("--occlusion", type=_unit_fraction, default=0.15, metavar="F",
+                     help="how much less (the face's occlusion of its own environment; 0.15)")
+    cmd.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    cmd.set_defaults(func=run_synth_check_skin)
+    return cmd
+
+
+def _unit_fraction(text: str) -> float:
+    """A float in ``[0, 1)`` for ``argparse``."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1), got {text}")
+    return value
+
+
+def run_synth_check_skin(args: argparse.Namespace) -> int:
+    """Run ``synth check-skin`` from parsed arguments; returns 0 when every subject-view passes, else 1.
+
+    Raises:
+        ValueCheckError: a cache of an older light stage (no albedo and skin buffers), or one without a subject
+            of the split.
+    """
+    import dataclasses  # lazy: only this sub-command writes JSON rows
+    import json  # lazy: as above
+
+    # lazy: the light-stage package is a heavy import that only this sub-command needs
+    from kornia_ilum.synth.lightstage.calibration import check_cache
+
+    split = None if args.split == "all" else args.split
+    results = [r for cache in args.cache for r in check_cache(cache, split, args.rtol, args.occlusion)]
+    if not results:
+        raise ValueCheckError(f"no MakeHuman subject of split {args.split!r} in {', '.join(args.cache)}")
+
+    def rgb(v: Sequence[float]) -> str:
+        return " ".join(f"{x:.3f}" for x in v)
+
+    print(f"{'subject':>7} {'view':>4} {'tone':>4} {'pixels':>6}  {'albedo + specular':<17}  {'reading':<17}  "
+          f"{'energy':<17}  {'measured range':<37}  result")
+    for r in results:
+        verdict = "ok" if r.ok else ("energy" if not r.energy_ok else "") + (" skin" if not r.skin_ok else "")
+        print(f"{r.subject_seed:>7} {r.view_index:>4} {r.skin_tone:>4} {r.pixels:>6}  {rgb(r.total):<17}  "
+              f"{rgb(r.measured):<17}  {rgb(r.energy):<17}  {rgb(r.low)} .. {rgb(r.high)}  {verdict.strip()}")
+    passed = sum(r.ok for r in results)
+    print(f"{passed} of {len(results)} subject-views passed (energy within [{1 - args.occlusion:.2f}, "
+          f"{1 + args.rtol:.2f}], skin inside its tone's measured range)")
+    if args.json:
+        text = json.dumps([dataclasses.asdict(r) for r in results], indent=1) + "\n"
+        atomic_write(args.json, lambda tmp: tmp.write_text(text))
+        print(f"wrote {args.json}")
+    return 0 if passed == len(results) else 1

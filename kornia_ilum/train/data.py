@@ -30,8 +30,11 @@ from kornia_ilum.train.config import TrainConfig
 __all__ = ["TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset"]
 
 #: What training changes in the :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` defaults
-#: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own).
-TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": ()}
+#: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own); a plain backdrop
+#: behind a quarter of the faces, so the model reads the light from the face, not from the background; the crop's
+#: centre jittered by up to 10 % of its side (the evaluation's default 6 % is narrower than two detectors' boxes
+#: of one face differ, docs/training.rst).
+TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": (), "plain_background": 0.25, "crop_position": 0.10}
 
 
 def _training_environments(config: TrainConfig) -> EnvironmentSampler:

@@ -29,10 +29,13 @@ class TestData:
         assert not torch.equal(run[0]["image"], run[1]["image"])
 
     def test_training_portraits_have_no_sphere_targets_and_the_same_images(self, tiny_cache) -> None:
-        """Training drops the samples' sphere targets (the losses make their own); nothing else changes."""
+        """Training drops the samples' sphere targets (the losses make their own), puts a plain backdrop behind a
+        quarter of the faces and jitters the crop's centre as detectors do; the sphere targets change nothing
+        else."""
         data = small_data()
         dataset = training_dataset(TrainConfig(out="unused", cache=(str(tiny_cache),), data=data))
-        assert TRAINING_PORTRAITS == {"sphere_sizes": ()} and dataset.config.sphere_sizes == ()
+        assert TRAINING_PORTRAITS == {"sphere_sizes": (), "plain_background": 0.25, "crop_position": 0.10}
+        assert dataset.config.sphere_sizes == () and dataset.config.plain_background == 0.25
         full = PortraitDataset(dataset.fields, dataclasses.replace(dataset.config, sphere_sizes=(4, 32)),
                                seed=dataset.seed)
         for a, b in zip(dataset.chunk(0, 1), full.chunk(0, 1), strict=True):

@@ -11,8 +11,11 @@ pixel by pixel over the face's skin (fully covered skin pixels inside :func:`fac
   SKIN_SPECULAR_ALBEDO`: the light stage's skin specular under uniform light, seen head-on). The lower bound is
   wider: a face hides part of a uniform environment from itself (nose, brows, a fringe, glasses), so a real
   face reads less than its albedo too, while no step may add light;
-- **skin**: the median reading lies inside the measured range of facial skin of the subject's Monk tone
-  (:func:`~kornia_ilum.synth.lightstage.subjects.skin.measured_skin_range`).
+- **skin**: the skin's documented total reflectance (the median albedo plus ``SKIN_SPECULAR_ALBEDO``: what a
+  spectrophotometer held to an unoccluded patch would read) lies inside the measured range of facial skin of the
+  subject's Monk tone (:func:`~kornia_ilum.synth.lightstage.subjects.skin.measured_skin_range`). The reading
+  itself is held to that total by the energy test; judging the reading against the range instead would count
+  the face's own occlusion as a wrong skin colour.
 
 :func:`check_cache` runs it over the subjects of a light-stage cache; ``kornia-ilum synth check-skin`` prints
 the table and fails when a subject fails.
@@ -96,6 +99,7 @@ class SkinCheck:
         pixels: the face's skin pixels checked (fully covered, all skin, inside :func:`face_mask`).
         albedo: their median diffuse albedo (the G-buffer's), linear RGB.
         measured: their median reading under uniform radiance 1.
+        total: the documented total reflectance, ``albedo + SKIN_SPECULAR_ALBEDO``.
         energy: the median of ``reading / (albedo + SKIN_SPECULAR_ALBEDO)`` per pixel, per channel.
         low, high: the measured range of facial skin of the tone.
         rtol, occlusion: the energy test's bounds, ``1 - occlusion <= energy <= 1 + rtol``.
@@ -107,6 +111,7 @@ class SkinCheck:
     pixels: int
     albedo: tuple[float, float, float]
     measured: tuple[float, float, float]
+    total: tuple[float, float, float]
     energy: tuple[float, float, float]
     low: tuple[float, float, float]
     high: tuple[float, float, float]
@@ -120,8 +125,8 @@ class SkinCheck:
 
     @property
     def skin_ok(self) -> bool:
-        """The face reads like measured skin of its tone: ``measured`` inside ``[low, high]``."""
-        return all(lo <= m <= hi for lo, m, hi in zip(self.low, self.measured, self.high, strict=True))
+        """The skin reflects like measured skin of its tone: ``total`` inside ``[low, high]``."""
+        return all(lo <= t <= hi for lo, t, hi in zip(self.low, self.total, self.high, strict=True))
 
     @property
     def ok(self) -> bool:
@@ -164,10 +169,11 @@ def check_skin(field: ReflectanceField, skin_tone: int, rtol: float = 0.1, occlu
     albedo = albedo_map[:, mask].double()
     ratio = reading / (albedo + SKIN_SPECULAR_ALBEDO)
     low, high = measured_skin_range(int(skin_tone))
+    median_albedo = albedo.median(1).values
     return SkinCheck(
         subject_seed=field.subject_seed, view_index=int(field.meta.get("view_index", -1)), skin_tone=int(skin_tone),
-        pixels=int(mask.sum()), albedo=_rgb(albedo.median(1).values), measured=_rgb(reading.median(1).values),
-        energy=_rgb(ratio.median(1).values), low=low, high=high, rtol=rtol, occlusion=occlusion,
+        pixels=int(mask.sum()), albedo=_rgb(median_albedo), measured=_rgb(reading.median(1).values),
+        total=_rgb(median_albedo + SKIN_SPECULAR_ALBEDO), energy=_rgb(ratio.median(1).values), low=low, high=high, rtol=rtol, occlusion=occlusion,
     )
 
 

@@ -90,3 +90,54 @@ def test_makehuman_face_reflects_its_albedo(mh, variant):
     field = render_olat(subject, camera, OnePass(lighting_size=16), threads=1)
     result = check_skin(field, subject.skin_tone)
     assert result.ok, result
+
+
+def test_check_judges_the_documented_albedo_not_the_occluded_reading():
+    """A face that hides 12 % of the uniform light from itself reads less than its albedo: its energy ratio
+    says so, and its skin colour is still judged by the albedo (the reading would fall below tone 3's range)."""
+    tone = 3
+    total = tuple(a + SKIN_SPECULAR_ALBEDO for a in SKIN_ALBEDO[tone - 1])
+    occluded = _field(total)
+    occluded.field = occluded.field * 0.88
+    result = check_skin(occluded, tone)
+    assert result.ok
+    torch.testing.assert_close(torch.tensor(result.total), torch.tensor(total), atol=1e-3, rtol=0)
+    torch.testing.assert_close(torch.tensor(result.energy), torch.full((3,), 0.88), atol=0.01, rtol=0)
+
+
+def _write_cache(out, fields_tones):
+    import json
+
+    from kornia_ilum.synth.lightstage.cache import field_path, write_field
+
+    entries = []
+    for seed, (field, tone) in enumerate(fields_tones):
+        field.subject_seed = seed
+        write_field(out / field_path(seed, 0), field)
+        entries.append({"subject_seed": seed, "view_index": 0, "path": field_path(seed, 0), "split": "train",
+                        "skin_tone": tone})
+    (out / "manifest.json").write_text(json.dumps({"format": "kornia_ilum.olat-cache.v2", "entries": entries}))
+    return out
+
+
+def test_check_skin_command_prints_each_view_and_fails_on_a_bad_one(tmp_path, capsys):
+    import json
+
+    from kornia_ilum.cli import main
+
+    tone = 3
+    total = tuple(a + SKIN_SPECULAR_ALBEDO for a in SKIN_ALBEDO[tone - 1])
+    brighter = _field(total)
+    brighter.field = brighter.field * 1.3
+    good = _write_cache(tmp_path / "good", [(_field(total), tone)])
+    assert main(["synth", "check-skin", "--cache", str(good), "--split", "all"]) == 0
+    assert "1 of 1 subject-views passed" in capsys.readouterr().out
+    bad = _write_cache(tmp_path / "bad", [(_field(total), tone), (brighter, tone)])
+    out = tmp_path / "skin.json"
+    assert main(["synth", "check-skin", "--cache", str(bad), "--split", "all", "--json", str(out)]) == 1
+    printed = capsys.readouterr().out
+    assert "1 of 2 subject-views passed" in printed and printed.count(" ok\n") == 1 and "energy" in printed
+    rows = json.loads(out.read_text())
+    assert [r["subject_seed"] for r in rows] == [0, 1] and rows[1]["energy"][0] > 1.2
+    assert main(["synth", "check-skin", "--cache", str(good)]) == 1  # no eval subject: a one-line error
+    assert "no reflectance field" in capsys.readouterr().err

@@ -20,6 +20,7 @@ from typing import Any
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.check import check_choice, check_positive_int, trusted
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.core.seeding import hashed_generator
@@ -97,6 +98,12 @@ class PortraitConfig:
         matte: give the subject's matte in the crop, ``sample["alpha"]``, without a second lighting (what the
             evaluation's transfer check composites the face over black and grey with); it draws nothing, so
             every other field of a sample is the same, bit for bit, with and without it.
+        plain_background: the fraction of samples whose background is a plain backdrop instead of the
+            environment's (training sets it: the model then has to read the light from the face, not from what is
+            behind it); the backdrop is a uniform colour, ``plain_level`` times the subject's mean linear
+            luminance (log-uniform), tinted by ``exp(N(0, 0.1))`` per channel. Drawn only when positive, so at 0
+            every sample is what it was without the option.
+        plain_level: the range of the backdrop's brightness relative to the subject's.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -133,6 +140,8 @@ class PortraitConfig:
     subject: bool = True
     pairs: bool = False
     matte: bool = False
+    plain_background: float = 0.0
+    plain_level: tuple[float, float] = (0.01, 3.0)
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -173,6 +182,9 @@ class PortraitConfig:
             raise ValueCheckError(f"env_refresh ({self.env_refresh}) must not exceed env_pool ({self.env_pool})")
         _probability(self.flip_probability, "flip_probability")
         _probability(self.background_sharp_probability, "background_sharp_probability")
+        _probability(self.plain_background, "plain_background")
+        _pair(self.plain_level, "plain_level", 0.0, strict=True)
+        object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
         _pair(self.background_blur, "background_blur", 0.0)
         if not (self.crop_scale > 0 and self.crop_position >= 0 and self.crop_extent >= 0):
@@ -498,6 +510,11 @@ class PortraitDataset(IterableDataset):
             sharp = torch.rand(n, generator=g, dtype=torch.float64) < cfg.background_sharp_probability
             blurs.append(torch.where(sharp, 0.0, uniform_draws(n, *cfg.background_blur, g)))
         effects = [cfg.camera.draw(n, g) for _ in lightings]
+        plain = backdrops = None
+        if cfg.plain_background > 0:  # drawn last and only when asked for: the other draws stay what they were
+            plain = torch.rand(n, generator=g) < cfg.plain_background
+            level = torch.exp(uniform_draws(n, *map(math.log, cfg.plain_level), g))
+            backdrops = level[:, None] * torch.exp(0.1 * torch.randn(n, 3, generator=g, dtype=torch.float64))
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)
@@ -521,8 +538,9 @@ class PortraitDataset(IterableDataset):
                 if cfg.background == "environment":
                     backgrounds = [self._background(kk, e) for kk, e in zip(env_keys[rows], envs[rows], strict=True)]
                 params = {name: v[rows] for name, v in fx.items()}
+                backdrop = None if plain is None else (plain[rows], backdrops[rows])
                 out.append(self._render(rf, latlong[rows], backgrounds, turns[rows], blur[rows], flips[rows],
-                                        boxes[-1], key[rows], params, g))
+                                        boxes[-1], key[rows], params, g, backdrop))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
             image, truth, gain = (torch.cat(parts) for parts in zip(*out, strict=True))
@@ -575,11 +593,14 @@ class PortraitDataset(IterableDataset):
 
     def _render(self, rf: ReflectanceField, latlong: torch.Tensor, backgrounds: list | None, turn: torch.Tensor,
                 blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor, key: torch.Tensor,
-                effects: dict[str, torch.Tensor], g: torch.Generator
+                effects: dict[str, torch.Tensor], g: torch.Generator,
+                backdrop: tuple[torch.Tensor, torch.Tensor] | None = None
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring).
 
         ``backgrounds`` are :meth:`_background` pairs (pyramid, direction map) or ``None`` (black);
+        ``backdrop`` is ``(plain, colour)``: the samples whose background is replaced by a plain backdrop of
+        ``colour`` (RGB) times the subject's mean linear luminance (``PortraitConfig.plain_background``);
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
         with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
         the mirrored box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
@@ -595,9 +616,18 @@ class PortraitDataset(IterableDataset):
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
             frame = latlong.new_zeros(len(latlong), 3, rf.size, rf.size)
+        plain = None if backdrop is None or not bool(backdrop[0].any()) else backdrop[0]
+        if plain is not None:
+            frame[plain] = 0.0
         if cfg.subject:
             flipped = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
             add_relit(frame, rf, flipped)
+        if plain is not None:
+            alpha = rf.alpha.float()
+            subject = torch.einsum("bchw,c->b", frame[plain].double(), torch.tensor(LUMINANCE, dtype=torch.float64))
+            mean = subject / alpha.double().sum().clamp(min=1.0)  # premultiplied: the covered pixels' mean
+            colour = (backdrop[1][plain] * mean[:, None]).to(frame.dtype)
+            frame[plain] += (1.0 - alpha) * colour[:, :, None, None]
         linear = crop_images(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)

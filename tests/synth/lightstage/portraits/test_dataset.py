@@ -175,6 +175,8 @@ class TestDataset:
             ({"seed": 1.5}, TypeCheckError, "seed must be an int"),
             ({"environments": "sky"}, TypeCheckError, "EnvironmentSampler"),
             ({"lightings_per_field": 0}, ValueCheckError, "lightings_per_field"),
+            ({"plain_background": 1.5}, ValueCheckError, "plain_background"),
+            ({"plain_level": (0.0, 1.0)}, ValueCheckError, "plain_level"),
         ],
     )
     def test_errors(self, cache, kwargs, error, match) -> None:
@@ -316,3 +318,39 @@ class TestMatte:
             source = rf.alpha.flip(-1) if b["flip"] else rf.alpha
             expected = crop_images(source[None], b["crop_box"][None].double(), 32)[0]
             assert (alpha.float() - 255 * expected).abs().max() <= 1.0
+
+
+class TestPlainBackdrop:
+    def _data(self, **kw) -> list[dict]:
+        return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0, crop_scale=2.5,
+                          length=8, **kw))
+
+    def test_backdrop_is_plain_and_scaled_by_the_subject(self) -> None:
+        """Behind every face a uniform colour, ``plain_level`` times the subject's mean linear luminance (times
+        a tint); the ground truth is the environment's, as without the backdrop."""
+        plain = self._data(plain_background=1.0, plain_level=(0.5, 0.5), matte=True)
+        scene = self._data(matte=True)
+        for p, s in zip(plain, scene, strict=True):
+            # the same lighting, in the units of a photo that the backdrop meters differently
+            torch.testing.assert_close(p["mirror_ball"] / p["exposure"], s["mirror_ball"] / s["exposure"],
+                                       rtol=1e-5, atol=0)
+            linear = srgb_to_linear(p["image"].float() / 255.0)
+            alpha = p["alpha"][0].float() / 255.0
+            inside = torch.zeros_like(alpha, dtype=torch.bool)
+            inside[4:-4, 4:-4] = True  # the crop reaches past the rendered frame at its rim
+            back, face = linear[:, (alpha == 0) & inside], linear[:, alpha == 1]
+            assert back.shape[1] > 20 and face.shape[1] > 20
+            assert (back - back.mean(1, keepdim=True)).abs().max() < 0.01  # one colour (8-bit rounding)
+            luminance = lambda rgb: 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]  # noqa: E731
+            ratio = float(luminance(back.mean(1)) / luminance(face.mean(1)))
+            assert 0.5 * math.exp(-0.35) < ratio < 0.5 * math.exp(0.35)  # the tint, exp(N(0, 0.1)) per channel
+            assert not torch.equal(p["image"], s["image"])
+
+    def test_off_by_default_and_a_fraction_when_asked(self) -> None:
+        base = self._data(matte=True)
+        none = self._data(matte=True, plain_background=0.0)
+        assert all(torch.equal(a["image"], b["image"]) for a, b in zip(base, none, strict=True))
+        half = self._data(matte=True, plain_background=0.5)
+        same = [torch.equal(h["image"], b["image"]) and torch.equal(h["mirror_ball"], b["mirror_ball"])
+                for h, b in zip(half, base, strict=True)]
+        assert 0 < sum(same) < len(same)  # the other draws are those of the scene: only the backdrop's samples change
