@@ -19,6 +19,14 @@ pixel by pixel over the face's skin (fully covered skin pixels inside :func:`fac
 
 :func:`check_cache` runs it over the subjects of a light-stage cache; ``kornia-ilum synth check-skin`` prints
 the table and fails when a subject fails.
+
+:func:`check_parts` holds a subject's other parts (eyes, brows, lashes, hair, facial hair, teeth, glasses,
+hats) to what they may reflect, from its materials alone (no render): each part's mean diffuse albedo over its
+opaque texels inside :data:`PART_ALBEDO_RANGES`. Hair of every kind is held to the span of natural hair, from
+black (measured ``L*`` 18 with its shine, Y 0.025, so its diffuse part lies below that: J. Cosmetic Science
+51(5), "Measurement of hair luster") to white; the rest, for which no measured albedo was found, to what
+any natural surface may reflect (below fresh snow's 0.9), so nothing in the light stage reflects more light
+than it receives. The lips are skin (the same albedo map) and are inside the skin check's mask.
 """
 
 from __future__ import annotations
@@ -39,7 +47,16 @@ from kornia_ilum.synth.lightstage.portraits.compose import add_relit
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
 from kornia_ilum.synth.lightstage.subjects.skin import SKIN_SPECULAR_ALBEDO, measured_skin_range
 
-__all__ = ["SkinCheck", "check_cache", "check_skin", "face_mask", "uniform_response"]
+__all__ = [
+    "PART_ALBEDO_RANGES",
+    "PartCheck",
+    "SkinCheck",
+    "check_cache",
+    "check_parts",
+    "check_skin",
+    "face_mask",
+    "uniform_response",
+]
 
 _FACE_OUTLINE = ("brow_right_top", "brow_left_top", "eye_right_outer", "eye_left_outer", "jaw_right", "jaw_left",
                  "chin", "cheek_right", "cheek_left")
@@ -190,4 +207,57 @@ def check_cache(cache: str | os.PathLike[str], split: str | None = "eval", rtol:
         tone = tones.get((field.subject_seed, int(field.meta.get("view_index", -1))))
         if tone is not None:
             out.append(check_skin(field, int(tone), rtol, occlusion))
+    return out
+
+
+#: The range ``(low, high)`` of a part's mean linear albedo (every channel), by part name (``"beard"``: every
+#: ``beard*`` shell); a part not named here (cornea, lenses: clear; the mannequins' pupil, mouth and shirt) is not
+#: checked. Module docstring.
+PART_ALBEDO_RANGES: dict[str, tuple[float, float]] = {
+    "hair": (0.005, 0.6), "brows": (0.002, 0.6), "lashes": (0.001, 0.6), "beard": (0.005, 0.6),
+    "eyes": (0.02, 0.9), "sclera": (0.02, 0.9), "iris": (0.005, 0.9), "lips": (0.005, 0.9), "teeth": (0.02, 0.9), "tongue": (0.02, 0.9), "glasses": (0.005, 0.9),
+    "hat": (0.0, 0.9),
+}  # fmt: skip
+
+
+@dataclass
+class PartCheck:
+    """The albedo check of one part of a subject (:func:`check_parts`): its mean albedo and allowed range."""
+
+    name: str
+    albedo: tuple[float, float, float]
+    low: float
+    high: float
+
+    @property
+    def ok(self) -> bool:
+        """Every channel inside ``[low, high]``."""
+        return all(self.low <= a <= self.high for a in self.albedo)
+
+
+def _mean_albedo(material: Any) -> tuple[float, float, float]:
+    """A material's mean albedo over its opaque texels (``alpha >= 0.5``), or its constant albedo."""
+    texture = material.albedo_texture
+    if texture is None:
+        return tuple(float(c) for c in material.albedo)  # type: ignore[return-value]
+    rgb = torch.as_tensor(texture, dtype=torch.float64).reshape(-1, 3)
+    if material.opacity_texture is not None:
+        rgb = rgb[torch.as_tensor(material.opacity_texture).reshape(-1) >= 0.5]
+    return _rgb(rgb.mean(0))
+
+
+def check_parts(subject: Any) -> list[PartCheck]:
+    r"""The albedo check of each part of ``subject`` named in :data:`PART_ALBEDO_RANGES` (module docstring).
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects import MannequinSource
+        >>> all(c.ok for c in check_parts(MannequinSource().sample(0)))
+        True
+    """
+    out = []
+    for part in subject.parts:
+        key = "beard" if part.name.startswith("beard") else part.name
+        if key in PART_ALBEDO_RANGES:
+            low, high = PART_ALBEDO_RANGES[key]
+            out.append(PartCheck(part.name, _mean_albedo(part.material), low, high))
     return out

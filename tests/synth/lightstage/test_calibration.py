@@ -141,3 +141,30 @@ def test_check_skin_command_prints_each_view_and_fails_on_a_bad_one(tmp_path, ca
     assert [r["subject_seed"] for r in rows] == [0, 1] and rows[1]["energy"][0] > 1.2
     assert main(["synth", "check-skin", "--cache", str(good)]) == 1  # no eval subject: a one-line error
     assert "no reflectance field" in capsys.readouterr().err
+
+
+def test_every_part_of_makehuman_subjects_reflects_a_plausible_share(mh):
+    """Hair, brows, lashes, beards, eyes, teeth, glasses and hats of 24 subjects inside their ranges."""
+    from kornia_ilum.synth.lightstage.calibration import check_parts
+
+    seen = set()
+    for seed in range(24):
+        for check in check_parts(mh.sample(seed)):
+            assert check.ok, (seed, check)
+            seen.add("beard" if check.name.startswith("beard") else check.name)
+    assert {"hair", "brows", "lashes", "eyes", "teeth", "glasses", "beard"} <= seen
+
+
+def test_part_check_catches_a_part_that_reflects_too_much():
+    import dataclasses
+
+    from kornia_ilum.synth.lightstage.calibration import check_parts
+    from kornia_ilum.synth.lightstage.subjects import MannequinSource
+
+    subject = MannequinSource().sample(0)
+    assert all(c.ok for c in check_parts(subject))
+    i = next(i for i, p in enumerate(subject.parts) if p.name == "sclera")
+    part = subject.parts[i]
+    subject.parts[i] = dataclasses.replace(part, material=dataclasses.replace(part.material, albedo=(0.95,) * 3,
+                                                                            albedo_texture=None))
+    assert not next(c for c in check_parts(subject) if c.name == "sclera").ok

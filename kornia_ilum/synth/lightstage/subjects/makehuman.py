@@ -366,6 +366,8 @@ def retint_hair(texture: np.ndarray, opaque: np.ndarray, colour: tuple[float, fl
     import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     detail = _luminance_detail(texture, opaque)
+    if opaque.any():  # the clipping moves the mean (brow and lash maps: to 0.2, all but a few texels clipped)
+        detail = detail / max(float(detail[opaque].mean()), 1e-6)
     if opaque.any() and not opaque.all():
         # nearest opaque texel of every texel: labels number the zero (opaque) pixels in raster order
         _, label = cv2.distanceTransformWithLabels((~opaque).astype(np.uint8), cv2.DIST_L2, 5,
