@@ -136,6 +136,9 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                      help="real photos of the exposure check (default: scikit-image's astronaut)")
     cmd.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME",
                      help=f"the detector that cuts the real photos' face crops ({DEFAULT_DETECTOR})")
+    cmd.add_argument("--tta", type=positive_int, default=None, metavar="N",
+                     help="also score every estimator with test-time augmentation over N jittered crops and "
+                     "their mirrors (as NAME+ttaN; 2N passes per crop)")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -178,7 +181,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, batch_size=batch_size,
                           **options) if checks else None
     results = evaluate(eval_set, getattr(args, "estimator", None), weights,
-                       oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner)
+                       oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner,
+                       tta=getattr(args, "tta", None))
     if checks:
         results["checks"] = {"names": list(checks), **options, **about_photos,
                              "context_set": None if context_set is None else context_set.description}

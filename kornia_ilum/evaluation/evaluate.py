@@ -35,6 +35,7 @@ from kornia_ilum.core.progress import progress as bar
 from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.estimators import (
     LightingEstimator,
+    TestTimeAugmented,
     create_estimator,
     estimator_registry,
     list_estimators,
@@ -355,6 +356,7 @@ def evaluate(
     batch_size: int = 32,
     *,
     checks: Callable[[LightingEstimator, torch.Tensor], dict[str, Any]] | None = None,
+    tta: int | None = None,
 ) -> dict[str, Any]:
     r"""Score the estimators and the oracles on ``eval_set`` (and run ``checks`` on the estimators).
 
@@ -369,6 +371,9 @@ def evaluate(
             see no image), with its lighting on the eval crops; what it returns is recorded as the method's
             ``"checks"`` (:func:`~kornia_ilum.evaluation.checks.check_runner` makes one that runs
             :func:`~kornia_ilum.evaluation.checks.run_checks`).
+        tta: also score each estimator wrapped in
+            :class:`~kornia_ilum.estimators.TestTimeAugmented` with ``jitters=tta`` (``2 tta`` passes per crop),
+            as ``"name+ttaN"``, checks included.
 
     Returns:
         ``{"methods": {name: {"scores": {key: tensor}, "seconds": float}}, "skipped": {name: reason}}``
@@ -377,6 +382,8 @@ def evaluate(
         An estimator without weights (:class:`MissingWeightsError`) is skipped with the reason instead of
         failing the evaluation; other errors propagate.
     """
+    if tta is not None:
+        check_positive_int(tta, "tta")
     names = list(list_estimators() if estimators is None else estimators)
     jobs: list[tuple[str, str, Any]] = [(n, n, None) for n in names]
     jobs += [(f"{n}@{Path(p).name}", n, p) for n, p in (weights or {}).items()]
@@ -389,13 +396,17 @@ def evaluate(
         except MissingWeightsError as e:
             skipped[label] = f"MissingWeightsError: {e}"
             continue
-        t0 = time.perf_counter()
-        pred = predict(model, eval_set.images, batch_size)
-        methods[label] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
-        if digest is not None:
-            methods[label]["sha256"] = digest
-        if checks is not None:
-            methods[label]["checks"] = checks(model, pred)
+        variants = [(label, model)]
+        if tta is not None:
+            variants.append((f"{label}+tta{tta}", TestTimeAugmented(model, jitters=tta)))
+        for variant, estimator in variants:
+            t0 = time.perf_counter()
+            pred = predict(estimator, eval_set.images, batch_size)
+            methods[variant] = {"scores": score(pred, gt), "seconds": round(time.perf_counter() - t0, 2)}
+            if digest is not None:
+                methods[variant]["sha256"] = digest
+            if checks is not None:
+                methods[variant]["checks"] = checks(estimator, pred)
     if oracles:
         t0 = time.perf_counter()
         preds = oracle_predictions(gt)

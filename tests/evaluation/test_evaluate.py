@@ -145,3 +145,14 @@ class TestWeights:
         assert results["methods"]["ours@ckpt.safetensors"]["sha256"] == sha256_file(path)
         assert "sha256" not in results["methods"]["uniform"]  # nothing to record: no weight file
         assert results["skipped"] == {}
+
+
+def test_evaluate_scores_each_estimator_with_test_time_augmentation_too(eval_set) -> None:
+    """``tta=N`` adds ``name+ttaN``: the wrapped estimator's scores and checks, beside the plain ones."""
+    seen = []
+    results = evaluate(eval_set, ["uniform"], oracles=False, tta=2,
+                       checks=lambda model, pred: seen.append(type(model).__name__) or {"n": len(pred)})
+    assert set(results["methods"]) == {"uniform", "uniform+tta2"}
+    assert seen[1] == "TestTimeAugmented" and results["methods"]["uniform+tta2"]["checks"] == {"n": N}
+    with pytest.raises(ValueCheckError, match="tta"):
+        evaluate(eval_set, ["uniform"], oracles=False, tta=0)
