@@ -46,7 +46,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
-from kornia_ilum.core.check import check_positive_int
+from kornia_ilum.core.check import check_positive_int, trusted
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
@@ -139,7 +139,7 @@ class OursEstimator(LightingEstimator):
         input_size=_INPUT_SIZE,
         weights=(
             WeightFile(
-                "ours.safetensors", "be81e5bb50ec6ea11173c6f561cf3bd22609286c5823165038293353d097ae87"
+                "ours.safetensors", "0871075df7985cbd55fa414d183932d0647986e5376631f9ad7ea7389a7e0c4d"
             ),
         ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
@@ -195,7 +195,8 @@ class OursEstimator(LightingEstimator):
         work = torch.promote_types(dtype, torch.float32)  # the exposure and its log: never in bfloat16
         with torch.autocast(crops.device.type, enabled=False):
             if self.normalize_exposure:
-                crops, scale = normalize_exposure(crops.to(work))
+                with trusted():  # the raw network: forward() checked the crops once, where they entered
+                    crops, scale = normalize_exposure(crops.to(work))
                 log_scale = torch.log(scale)[:, None, None, None]
             else:
                 log_scale = crops.new_zeros(len(crops), 1, 1, 1, dtype=work)

@@ -546,9 +546,9 @@ def crop_stability(
         batch_size: crops per forward pass (whole portraits: at least ``jitters``).
 
     Returns:
-        ``{"boxes": (N, J, 4), "energy": (N, J), "direction": (N, J, 3), "per_portrait": {name: (N,)},
-        "table": {group: row}}``: the groups are ``"all"`` and each skin tone; a row holds ``count`` and the
-        medians over its portraits of the three measures.
+        a dict: ``boxes`` ``(N, J, 4)``, ``energy`` ``(N, J)``, ``direction`` ``(N, J, 3)``,
+        ``per_portrait`` (``{name: (N,)}``) and ``table`` (``{group: row}``): the groups are ``"all"`` and each
+        skin tone; a row holds ``count`` and the medians over its portraits of the three measures.
 
     Raises:
         ValueCheckError: the set has no ``nominal_boxes``, ``jitters < 2``.
@@ -621,9 +621,9 @@ def run_checks(
         ks, jitters, position, extent, seed, batch_size: the settings of the checks.
 
     Returns:
-        ``{"transfer": table, "exposure": {"eval": table, "photos": table}, "crop": table, "seconds": {name:
-        float}}`` for the checks run (``"photos"`` only with photos): the ``"table"`` of
-        :func:`transfer_check`, :func:`exposure_equivariance` and :func:`crop_stability`.
+        a dict of the checks run, ``transfer`` (a table), ``exposure`` (``{"eval": table, "photos": table}``,
+        ``"photos"`` only with photos), ``crop`` (a table), and ``seconds`` (``{name: float}``): the tables are
+        the ``"table"`` of :func:`transfer_check`, :func:`exposure_equivariance` and :func:`crop_stability`.
 
     Raises:
         ValueCheckError: an unknown check, or ``"crop"`` without ``context_set``.
