@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["nonnegative_int", "positive_int"]
+__all__ = ["fraction", "nonnegative_int", "positive_int"]
 
 
 def positive_int(text: str) -> int:
@@ -50,3 +50,26 @@ def nonnegative_int(text: str) -> int:
         (0, 48)
     """
     return 0 if text.strip() == "0" else positive_int(text)
+
+
+def fraction(text: str) -> float:
+    """A float in ``[0, 1)`` (``type=`` of tolerances such as ``synth check-skin --rtol``).
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is no number, or outside ``[0, 1)``.
+
+    Examples:
+        >>> fraction("0.15")
+        0.15
+        >>> fraction("1")
+        Traceback (most recent call last):
+        ...
+        argparse.ArgumentTypeError: must be a fraction in [0, 1), got '1'
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a fraction in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be a fraction in [0, 1), got {text!r}")
+    return value

@@ -41,7 +41,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from kornia_ilum.core.cli import nonnegative_int, positive_int
+from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
 from kornia_ilum.core.errors import IlumError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.core.progress import progress
@@ -422,24 +422,13 @@ def add_synth_check_skin_parser(subparsers: argparse._SubParsersAction) -> argpa
                      help="a light-stage cache (repeatable)")
     cmd.add_argument("--split", choices=("train", "eval", "all"), default="eval",
                      help="the subjects to check (eval)")
-    cmd.add_argument("--rtol", type=_unit_fraction, default=0.1, metavar="F",
+    cmd.add_argument("--rtol", type=fraction, default=0.1, metavar="F",
                      help="how much more light than its albedo the skin may reflect (0.1)")
-    cmd.add_argument("--occlusion", type=_unit_fraction, default=0.15, metavar="F",
+    cmd.add_argument("--occlusion", type=fraction, default=0.15, metavar="F",
                      help="how much less (the face's occlusion of its own environment; 0.15)")
     cmd.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     cmd.set_defaults(func=run_synth_check_skin)
     return cmd
-
-
-def _unit_fraction(text: str) -> float:
-    """A float in ``[0, 1)`` for ``argparse``."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0.0 <= value < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1), got {text}")
-    return value
 
 
 def run_synth_check_skin(args: argparse.Namespace) -> int:

@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from kornia_ilum import cli
-from kornia_ilum.core.cli import nonnegative_int, positive_int
+from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
 from kornia_ilum.evaluation import cli as evaluation_cli
 from kornia_ilum.synth import cli as synth_cli
 from kornia_ilum.train import cli as train_cli
@@ -41,8 +41,18 @@ class TestNonnegativeInt:
             nonnegative_int(text)
 
 
+class TestFraction:
+    def test_values(self):
+        assert fraction("0") == 0.0 and fraction("0.15") == 0.15 and fraction(" 0.999 ") == 0.999
+
+    @pytest.mark.parametrize("text", ["1", "-0.1", "x", "nan", "inf"])
+    def test_rejects(self, text):
+        with pytest.raises(argparse.ArgumentTypeError, match=r"must be a fraction in \[0, 1\)"):
+            fraction(text)
+
+
 def test_every_sub_command_uses_the_shared_types():
     """One definition: the sub-commands import the types, they do not define their own."""
     for module in (cli, synth_cli, train_cli, evaluation_cli):
         assert module.positive_int is positive_int, module.__name__
-    assert synth_cli.nonnegative_int is nonnegative_int
+    assert synth_cli.nonnegative_int is nonnegative_int and synth_cli.fraction is fraction
