@@ -190,7 +190,8 @@ def check_skin(field: ReflectanceField, skin_tone: int, rtol: float = 0.1, occlu
     return SkinCheck(
         subject_seed=field.subject_seed, view_index=int(field.meta.get("view_index", -1)), skin_tone=int(skin_tone),
         pixels=int(mask.sum()), albedo=_rgb(median_albedo), measured=_rgb(reading.median(1).values),
-        total=_rgb(median_albedo + SKIN_SPECULAR_ALBEDO), energy=_rgb(ratio.median(1).values), low=low, high=high, rtol=rtol, occlusion=occlusion,
+        total=_rgb(median_albedo + SKIN_SPECULAR_ALBEDO), energy=_rgb(ratio.median(1).values), low=low, high=high,
+        rtol=rtol, occlusion=occlusion,
     )
 
 
@@ -214,9 +215,9 @@ def check_cache(cache: str | os.PathLike[str], split: str | None = "eval", rtol:
 #: ``beard*`` shell); a part not named here (cornea, lenses: clear; the mannequins' pupil, mouth and shirt) is not
 #: checked. Module docstring.
 PART_ALBEDO_RANGES: dict[str, tuple[float, float]] = {
-    "hair": (0.005, 0.6), "brows": (0.002, 0.6), "lashes": (0.001, 0.6), "beard": (0.005, 0.6),
-    "eyes": (0.02, 0.9), "sclera": (0.02, 0.9), "iris": (0.005, 0.9), "lips": (0.005, 0.9), "teeth": (0.02, 0.9), "tongue": (0.02, 0.9), "glasses": (0.005, 0.9),
-    "hat": (0.0, 0.9),
+    "hair": (0.005, 0.6), "brows": (0.005, 0.6), "lashes": (0.005, 0.6), "beard": (0.005, 0.6),
+    "eyes": (0.02, 0.9), "sclera": (0.02, 0.9), "iris": (0.005, 0.9), "lips": (0.005, 0.9),
+    "teeth": (0.02, 0.9), "tongue": (0.02, 0.9), "glasses": (0.005, 0.9), "hat": (0.0, 0.9),
 }  # fmt: skip
 
 

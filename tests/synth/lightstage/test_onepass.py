@@ -130,7 +130,8 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
     # Bounds per seed: (per-light median, worst, worst demodulated, relit). Measured: seed 1 0.005, 0.05, 0.16,
     # 0.034-0.037 (24 px: the edges dominate); seed 4 0.014, 0.14, 0.12, 0.06 (its curly hair; the same without its
     # glasses), relit 0.087 since the brows and lashes are re-tinted to their true colour (five times lighter: their
-    # sub-pixel strands, filtered differently by the two renderers as the beard's below, now carry light); seed 22 0.021, 0.20, 0.40, 0.087: a beard's single-texel strands are far below a 24-px pixel and
+    # sub-pixel strands, filtered differently by the two renderers as the beard's below, now carry light);
+    # seed 22 0.021, 0.20, 0.40, 0.087: a beard's single-texel strands are far below a 24-px pixel and
     # the two renderers may filter the strand mask differently (nearest texel against a bilinear mask; unverified).
     median, worst, worst_demod, relit_err = {1: (0.02, 0.12, 0.25, 0.07), 22: (0.025, 0.25, 0.45, 0.1),
                                              4: (0.02, 0.18, 0.25, 0.1)}[seed]  # fmt: skip

@@ -322,8 +322,8 @@ class TestMatte:
 
 class TestPlainBackdrop:
     def _data(self, **kw) -> list[dict]:
-        return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0, crop_scale=2.5,
-                          length=8, **kw))
+        return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,
+                          crop_scale=2.5, length=8, **kw))
 
     def test_backdrop_is_plain_and_scaled_by_the_subject(self) -> None:
         """Behind every face a uniform colour, ``plain_level`` times the subject's mean linear luminance (times
