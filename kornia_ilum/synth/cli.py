@@ -455,9 +455,9 @@ def run_synth_check_skin(args: argparse.Namespace) -> int:
     print(f"{'subject':>7} {'view':>4} {'tone':>4} {'pixels':>6}  {'albedo + specular':<17}  {'reading':<17}  "
           f"{'energy':<17}  {'measured range':<37}  result")
     for r in results:
-        verdict = "ok" if r.ok else ("energy" if not r.energy_ok else "") + (" skin" if not r.skin_ok else "")
+        verdict = " ".join(name for name, ok in (("energy", r.energy_ok), ("skin", r.skin_ok)) if not ok) or "ok"
         print(f"{r.subject_seed:>7} {r.view_index:>4} {r.skin_tone:>4} {r.pixels:>6}  {rgb(r.total):<17}  "
-              f"{rgb(r.measured):<17}  {rgb(r.energy):<17}  {rgb(r.low)} .. {rgb(r.high)}  {verdict.strip()}")
+              f"{rgb(r.measured):<17}  {rgb(r.energy):<17}  {rgb(r.low)} .. {rgb(r.high)}  {verdict}")
     passed = sum(r.ok for r in results)
     print(f"{passed} of {len(results)} subject-views passed (energy within [{1 - args.occlusion:.2f}, "
           f"{1 + args.rtol:.2f}], skin inside its tone's measured range)")
