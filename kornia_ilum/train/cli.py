@@ -65,6 +65,12 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--log-every", type=positive_int, default=d.log_every, metavar="N")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
+    cmd.add_argument("--lambda-crop", type=float, default=d.lambda_crop,
+                     help="weight of the crop-consistency term (default: 0, off; docs/training.rst)")
+    cmd.add_argument("--crop-pairs", type=positive_int, default=d.crop_pairs, metavar="P",
+                     help=f"crop pairs per step with --lambda-crop (default: {d.crop_pairs})")
+    cmd.add_argument("--init", default=None, metavar="WEIGHTS",
+                     help="start from these .safetensors weights of the estimator (fine-tuning)")
     cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
                      help="constructor arguments of the estimator, e.g. normalize_exposure=False")
     cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
@@ -79,7 +85,8 @@ def run_train(args: argparse.Namespace) -> int:
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
-                         log_every=args.log_every, lambda_adv=args.lambda_adv, model=dict(args.model),
+                         log_every=args.log_every, lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop,
+                         crop_pairs=args.crop_pairs, init=args.init, model=dict(args.model),
                          data=dict(args.data))
     summary = train(config)
     if "weights" in summary:

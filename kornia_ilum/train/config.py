@@ -42,6 +42,14 @@ class TrainConfig:
         betas: Adam's betas (0.9, 0.999).
         lambda_scale, lambda_adv: the weights of each scale's ``L_rec`` (1) and of the adversarial term
             (0.004).
+        lambda_crop: the weight of the crop-consistency term (0: off). With it, the last ``crop_pairs``
+            samples of each step are replaced by a second, jittered crop of the first ``crop_pairs``
+            (:func:`~kornia_ilum.synth.lightstage.portraits.inner_crop_boxes`), with the same lighting, and the
+            generator is also asked to predict the same lighting from both crops of a pair
+            (:func:`~kornia_ilum.train.recipes.train_step`): an estimate that does not swing with the face
+            detector's box (docs/training.rst, "Measured"). Recipes that keep the default
+            :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
+        crop_pairs: the pairs per step with ``lambda_crop`` (8 of a batch of 32).
         seed: the seed of the data and of the initialisation.
         workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (there
             the data is a small part of a step), ``min(8, cores - 1)`` on CUDA, where one worker cannot keep
@@ -56,6 +64,9 @@ class TrainConfig:
         checkpoint_every, log_every: in steps.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
+        init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
+            initialisation (fine-tuning: the side branches, the discriminator and the optimisers start fresh);
+            a checkpoint in ``out`` takes precedence, as for any run.
         data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
             example ``{"fields_per_chunk": 8}``), over :data:`~kornia_ilum.train.data.TRAINING_PORTRAITS`;
             ``split`` and ``environments`` are set by the trainer.
@@ -72,6 +83,8 @@ class TrainConfig:
     betas: tuple[float, float] = (0.9, 0.999)
     lambda_scale: float = 1.0
     lambda_adv: float = 0.004
+    lambda_crop: float = 0.0
+    crop_pairs: int = 8
     seed: int = 0
     workers: int | None = None
     threads: int | None = None
@@ -82,10 +95,11 @@ class TrainConfig:
     log_every: int = 10
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
+    init: str | None = None
     data: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("steps", "batch", "checkpoint_every", "log_every"):
+        for name in ("steps", "batch", "checkpoint_every", "log_every", "crop_pairs"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
                 raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
@@ -98,6 +112,12 @@ class TrainConfig:
             raise ValueCheckError(
                 "lr, disc_lr_ratio and lambda_scale must be positive, lambda_adv non-negative"
             )
+        if not self.lambda_crop >= 0:
+            raise ValueCheckError(f"lambda_crop must be non-negative, got {self.lambda_crop!r}")
+        if self.lambda_crop > 0 and 2 * self.crop_pairs > self.batch:
+            raise ValueCheckError(f"crop_pairs ({self.crop_pairs}) must be at most half the batch ({self.batch})")
+        if self.init is not None:
+            object.__setattr__(self, "init", str(self.init))
         object.__setattr__(self, "cache", tuple(str(c) for c in self.cache))
         object.__setattr__(self, "hdri", tuple(str(h) for h in self.hdri))
         object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))

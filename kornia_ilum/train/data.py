@@ -58,6 +58,8 @@ def training_dataset(config: TrainConfig) -> PortraitDataset:
         known = ", ".join(sorted(allowed))
         raise ValueCheckError(f"unknown data settings {unknown}; PortraitConfig has: {known}")
     overrides = {k: tuple(v) if isinstance(v, list) else v for k, v in config.data.items()}
+    if config.lambda_crop > 0:  # the crop-consistency term cuts each pair's second crop from these boxes
+        overrides["second_crop"] = True
     # No sphere targets: the losses render their own from each sample's mirror ball (train_step), and drawing
     # them would take a good part of the data's time (docs/training.rst, "Measured"). The images and
     # lightings are the same either way.
@@ -68,7 +70,8 @@ def training_dataset(config: TrainConfig) -> PortraitDataset:
 
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
     """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels; for paired
-    samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8)."""
+    samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8); with
+    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``."""
     batch = {
         "image": torch.stack([s["image"] for s in samples]),
         "mirror_ball": torch.stack([s["mirror_ball"] for s in samples]),
@@ -79,6 +82,8 @@ def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
         batch["pair_image"] = torch.stack([s["pair"]["image"] for s in samples])
         batch["pair_mirror_ball"] = torch.stack([s["pair"]["mirror_ball"] for s in samples])
         batch["alpha"] = torch.stack([s["alpha"] for s in samples])
+    if "second_crop" in samples[0]:
+        batch["second_crop"] = torch.stack([s["second_crop"] for s in samples])
     return batch
 
 

@@ -36,6 +36,7 @@ from torch.nn.parallel import DistributedDataParallel
 
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.core.files import atomic_write, sha256_file
+from kornia_ilum.estimators import read_weights
 from kornia_ilum.metrics import reconstruction_loss
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
@@ -163,8 +164,6 @@ def train(config: TrainConfig) -> dict[str, Any]:
     recipe = get_recipe(config.estimator)
     dataset = recipe.dataset(training_dataset(config))  # checks caches, maps and data settings before any file
     out = Path(config.out)
-    if rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     try:
         model, disc = recipe.build(**config.model)
@@ -174,6 +173,15 @@ def train(config: TrainConfig) -> dict[str, Any]:
         raise ValueCheckError(f"estimator {config.estimator!r} takes no model options {sorted(config.model)}") from exc
     state = _load_checkpoint(out, config)
     start, elapsed = 0, 0.0
+    if state is None and config.init is not None:  # fine-tuning: the estimator starts from these weights
+        tensors, _ = read_weights(config.init, expected_by="--init")
+        try:
+            recipe.estimator(model).load_state_dict(tensors, strict=True)
+        except RuntimeError as exc:
+            raise ValueCheckError(f"init {config.init} holds no weights of estimator {config.estimator!r}: "
+                                  f"{exc}") from exc
+    if rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
     if state is not None:
         model.load_state_dict(state["model"])
         if disc is not None:
@@ -218,7 +226,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
-                _write_log(out, rows, _LOG_FIELDS + recipe.log_fields)
+                crop = ("crop",) if config.lambda_crop > 0 else ()  # logged where the term is on
+                _write_log(out, rows, _LOG_FIELDS + crop + recipe.log_fields)
                 _save_checkpoint(out, {
                     "step": step, "elapsed_s": elapsed + time.perf_counter() - run_t0,
                     "model": model.state_dict(), "disc": disc.state_dict() if disc is not None else {},

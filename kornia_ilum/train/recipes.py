@@ -32,8 +32,9 @@ from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
+from kornia_ilum.metrics import reconstruction_loss
 from kornia_ilum.render import mirror_ball_pyramid
-from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.data import batch_loader, collate
 from kornia_ilum.train.losses import discriminator_images, training_losses
@@ -46,6 +47,8 @@ __all__ = [
     "OursRecipe",
     "Recipe",
     "batch_images",
+    "crop_consistency",
+    "crop_pairs",
     "get_recipe",
     "list_recipes",
     "train_step",
@@ -105,8 +108,12 @@ class Recipe:
         """
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
+        pairs = 0
+        if config.lambda_crop > 0:
+            crops, target, pairs = crop_pairs(crops, target, batch["second_crop"], config.crop_pairs)
+            crops = crops.contiguous(memory_format=runtime.memory_format)
         return train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
-                          config=config, runtime=runtime, recipe=self)
+                          config=config, runtime=runtime, recipe=self, pairs=pairs)
 
     def extra_losses(self, pred: dict[int, torch.Tensor]) -> dict[str, torch.Tensor]:
         """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).
@@ -137,9 +144,58 @@ class OursRecipe(Recipe):
         return model.estimator
 
 
+def crop_pairs(crops: torch.Tensor, target: torch.Tensor, boxes: torch.Tensor, pairs: int
+               ) -> tuple[torch.Tensor, torch.Tensor, int]:
+    r"""The batch with its last ``P`` samples replaced by second crops of its first ``P`` (crop consistency).
+
+    Sample ``B - P + i`` becomes the crop ``boxes[i]`` of sample ``i`` (in its pixels,
+    :func:`~kornia_ilum.synth.lightstage.portraits.inner_crop_boxes`), resampled to the crops' side
+    (:func:`~kornia_ilum.synth.lightstage.portraits.crop_images`, bilinear), with sample ``i``'s lighting: the same
+    face and light seen through another detector's box. ``P`` is ``pairs``, at most half the batch.
+
+    Args:
+        crops: ``(B, 3, S, S)`` sRGB crops in ``[0, 1]``.
+        target: ``(B, 3, 32, 32)`` their lighting.
+        boxes: ``(B, 4)`` a second box inside each crop (``batch["second_crop"]``).
+        pairs: the number of pairs ``P`` asked for.
+
+    Returns:
+        ``(crops, target, P)``: new contiguous tensors (the inputs are left alone).
+
+    Examples:
+        >>> crops, target = torch.rand(4, 3, 16, 16), torch.rand(4, 3, 32, 32)
+        >>> boxes = torch.tensor([[0.0, 0.0, 16.0, 16.0]]).repeat(4, 1)  # the whole crop: the same image
+        >>> c, t, p = crop_pairs(crops, target, boxes, 8)
+        >>> p, torch.allclose(c[2:], crops[:2], atol=1e-6), torch.equal(t[2:], target[:2])
+        (2, True, True)
+    """
+    p = min(int(pairs), len(crops) // 2)
+    second = crop_images(crops[:p].float(), boxes[:p].to(crops.device, torch.float64), crops.shape[-1])
+    crops = torch.cat([crops[: len(crops) - p], second.clamp_(0.0, 1.0).to(crops.dtype)])
+    return crops, torch.cat([target[: len(target) - p], target[:p]]), p
+
+
+def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: dict[str, float]) -> torch.Tensor:
+    r"""How far the two crops of each pair are apart in lighting: ``sum_k lambda_k L_rec(k)`` at the finest
+    scale, between the predictions of samples ``i`` and ``B - P + i`` (both get gradients).
+
+    Examples:
+        >>> light = torch.ones(4, 3, 32, 32)
+        >>> float(crop_consistency({32: light}, 2, {"diffuse": 1.0}))
+        0.0
+    """
+    x = pred[max(pred)]
+    n = len(x)
+    total = x.new_zeros(())
+    for brdf, weight in brdf_weights.items():
+        total = total + weight * reconstruction_loss(x[n - pairs :], x[:pairs], brdf, size=x.shape[-1],
+                                                     gamma="safe")
+    return total
+
+
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
                opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
-               config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None
+               config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None, pairs: int = 0
                ) -> dict[str, torch.Tensor]:
     r"""One discriminator step, then one generator step; returns the detached losses (the default
     :meth:`Recipe.step`).
@@ -155,7 +211,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     3. the generator takes one Adam step on
        ``sum_s lambda_s sum_k lambda_k L_rec(k, s) + lambda_adv softplus(-D(fake)) + extra``, with the
        training form of ``L_rec`` (:func:`~kornia_ilum.train.losses.training_losses`) and ``extra`` the sum of
-       the recipe's :meth:`Recipe.extra_losses`.
+       the recipe's :meth:`Recipe.extra_losses`; with ``pairs`` (:func:`crop_pairs`), plus
+       ``lambda_crop`` times :func:`crop_consistency`.
 
     Args:
         model: the multi-scale generator (possibly DDP-wrapped): ``crops -> {size: lighting}``.
@@ -166,9 +223,11 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         config: the loss weights (``brdf_weights``, ``lambda_scale``, ``lambda_adv``).
         runtime: ``bf16`` and the memory format.
         recipe: its :meth:`Recipe.extra_losses` join the generator's loss (none for ``None``).
+        pairs: the crop pairs at the ends of the batch (:func:`crop_pairs`; 0: none).
 
     Returns:
-        the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra`` and ``rec_<brdf>`` (at 32 px).
+        the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
+        without pairs) and ``rec_<brdf>`` (at 32 px).
     """
     memory = runtime.memory_format
     autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=runtime.bf16)
@@ -192,12 +251,13 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
             fake_logits = plain({s: v.contiguous(memory_format=memory) for s, v in fake.items()}).float()
             adv = F.softplus(-fake_logits).mean()
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
-    loss = rec + config.lambda_adv * adv + extra
+    crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
+    loss = rec + config.lambda_adv * adv + extra + config.lambda_crop * crop
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
     return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
-            "extra": extra.detach(), **parts}
+            "extra": extra.detach(), "crop": crop.detach(), **parts}
 
 
 def _recipe_classes() -> dict[str, type[Recipe]]:

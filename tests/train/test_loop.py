@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -96,6 +97,40 @@ class TestTrain:
         assert (summary["bf16"], summary["channels_last"], summary["workers"]) == (False, True, 0)
         assert again["steps"] == 1 and again["weights"]["sha256"] == summary["weights"]["sha256"]
         assert len(read_log(tmp_path / "run")) == 1
+
+
+class TestCropConsistencyAndInit:
+    def test_a_fine_tune_starts_from_its_weights_and_logs_the_crop_term(self, tiny_cache, tmp_path,
+                                                                         monkeypatch) -> None:
+        monkeypatch.setattr(recipes, "PROBE_SIZE", 2)
+        torch.manual_seed(123)  # not the run's seed: the run's own initialisation would differ
+        start = OursEstimator()
+        init = tmp_path / "init.safetensors"
+        safetensors.torch.save_file(start.state_dict(), str(init))
+        threads = torch.get_num_threads()
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=1, batch=2, workers=0,
+                             threads=1, bf16=False, log_every=1, lr=1e-9, lambda_crop=1.0, crop_pairs=1,
+                             init=str(init), data=small_data())
+        try:
+            summary = train(config)
+        finally:
+            torch.set_num_threads(threads)
+        assert summary["config"]["init"] == str(init) and summary["config"]["lambda_crop"] == 1.0
+        (row,) = read_log(tmp_path / "run")
+        assert row["crop"] > 0 and math.isclose(row["loss"], row["rec"] + 0.004 * row["adv"] + row["crop"],
+                                                rel_tol=1e-4)
+        got, ref = weights(tmp_path / "run"), start.state_dict()
+        assert got.keys() == ref.keys()
+        assert all(torch.allclose(got[k].float(), ref[k].float(), atol=1e-3) for k in ref)  # one step of 1e-9
+
+    def test_init_must_be_the_estimators_weights(self, tiny_cache, tmp_path) -> None:
+        init = tmp_path / "other.safetensors"
+        safetensors.torch.save_file({"w": torch.ones(2)}, str(init))
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=1, batch=2, workers=0,
+                             init=str(init), data=small_data())
+        with pytest.raises(ValueCheckError, match="no weights of estimator 'ours'"):
+            train(config)
+        assert not (tmp_path / "run").exists()  # refused before the run's folder is made
 
 
 class TestExport:

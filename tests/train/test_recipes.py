@@ -29,7 +29,13 @@ from kornia_ilum.train import (
     list_recipes,
     train_step,
 )
-from kornia_ilum.train.recipes import RECIPE_ENTRY_POINT_GROUP, OursRecipe, batch_images
+from kornia_ilum.train.recipes import (
+    RECIPE_ENTRY_POINT_GROUP,
+    OursRecipe,
+    batch_images,
+    crop_consistency,
+    crop_pairs,
+)
 
 
 class TestDiscovery:
@@ -137,9 +143,9 @@ class TestTrainStep:
 
     def test_the_generator_steps_on_rec_plus_the_recipes_extra_terms(self) -> None:
         plain, moved = self._run(None)
-        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "rec_diffuse", "rec_matte_silver",
+        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "rec_diffuse", "rec_matte_silver",
                               "rec_mirror"}
-        assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0
+        assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0 and plain["crop"] == 0
         assert torch.equal(plain["loss"], plain["rec"]) and moved.level.item() != 0.5
         penalised, _ = self._run(_Penalised())
         assert penalised["extra"] > 0
@@ -167,3 +173,51 @@ class TestTrainStep:
         x = batch_images(batch, "image", torch.device("cpu"), torch.channels_last)
         assert x.dtype == torch.float32 and bool((x == 1).all())
         assert x.is_contiguous(memory_format=torch.channels_last)
+
+
+class TestCropConsistency:
+    def test_crop_pairs_replace_the_last_samples_by_second_crops_of_the_first(self) -> None:
+        torch.manual_seed(0)
+        crops, target = torch.rand(6, 3, 16, 16), torch.rand(6, 3, 32, 32)
+        boxes = torch.tensor([[0.0, 0.0, 16.0, 16.0], [4.0, 4.0, 12.0, 12.0]]).repeat(3, 1)
+        before = crops.clone()
+        c, t, p = crop_pairs(crops, target, boxes, 2)
+        assert p == 2 and c.shape == crops.shape and torch.equal(crops, before)  # the inputs are left alone
+        assert torch.equal(c[:4], crops[:4]) and torch.equal(t[4:], target[:2]) and torch.equal(t[:4], target[:4])
+        torch.testing.assert_close(c[4], crops[0], atol=1e-6, rtol=0)  # the whole crop: the same image
+        zoom = torch.nn.functional.interpolate(crops[1:2, :, 4:12, 4:12], size=16, mode="bilinear",
+                                               align_corners=False)
+        assert (c[5] - zoom[0]).abs().mean() < 0.05  # the centre half, enlarged
+        assert crop_pairs(crops, target, boxes, 8)[2] == 3  # at most half the batch
+
+    def test_consistency_is_zero_for_equal_predictions_and_pulls_both_together(self) -> None:
+        a = torch.full((2, 3, 32, 32), 1.0, requires_grad=True)
+        b = torch.full((2, 3, 32, 32), 2.0, requires_grad=True)
+        same = crop_consistency({32: torch.cat([a, a])}, 2, {"diffuse": 1.0})
+        assert same.item() == 0.0
+        apart = crop_consistency({16: torch.zeros(4, 3, 16, 16), 32: torch.cat([a, b])}, 2, {"diffuse": 1.0})
+        apart.backward()
+        assert apart > 0 and a.grad.abs().sum() > 0 and b.grad.abs().sum() > 0
+
+    def test_the_default_step_adds_lambda_crop_times_the_term(self) -> None:
+        def run(lambda_crop: float) -> dict:
+            torch.manual_seed(0)
+            model = _Tiny()
+            batch = {"image": torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8),
+                     "mirror_ball": torch.rand(4, 3, 32, 32) * mirror_ball_valid(32),
+                     "second_crop": torch.tensor([[2.0, 2.0, 6.0, 6.0]]).repeat(4, 1)}
+            config = TrainConfig(out="-", cache=("-",), batch=4, lambda_crop=lambda_crop, crop_pairs=2)
+            runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
+            return Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
+                                 batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
+
+        off, on = run(0.0), run(2.0)
+        assert off["crop"] == 0 and on["crop"] > 0
+        torch.testing.assert_close(on["loss"], on["rec"] + 2.0 * on["crop"])
+
+    def test_sipr_refuses_the_term(self) -> None:
+        config = TrainConfig(out="-", cache=("-",), lambda_crop=1.0)
+        with pytest.raises(ValueCheckError, match="crop-consistency"):
+            kornia_ilum_sipr.recipe.SIPRRecipe().step(model=None, disc=None, opt_g=None, opt_d=None, batch={},
+                                                      device=torch.device("cpu"), config=config,
+                                                      runtime=RuntimeSettings(False, False, 0))

@@ -39,6 +39,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.losses import training_losses
@@ -123,6 +124,8 @@ class SIPRRecipe(Recipe):
              opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
              config: TrainConfig, runtime: RuntimeSettings) -> dict[str, Tensor]:
         """One Adam step on the relighting and lighting losses (module docstring)."""
+        if config.lambda_crop > 0:
+            raise ValueCheckError("the sipr recipe has no crop-consistency term: train it with lambda_crop=0")
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target_image, alpha = batch_images(batch, "pair_image", device), batch_images(batch, "alpha", device)
         source = batch["mirror_ball"].to(device, non_blocking=True).float()

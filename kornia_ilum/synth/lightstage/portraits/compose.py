@@ -40,6 +40,7 @@ __all__ = [
     "face_crop_boxes",
     "frame_background",
     "frame_backgrounds",
+    "inner_crop_boxes",
     "random_crop_boxes",
     "relight_portraits",
     "sphere_targets",
@@ -153,6 +154,47 @@ def face_crop_boxes(
         side = side * torch.exp(uniform_draws(b, -extent, extent, generator))
         cx = cx + side * uniform_draws(b, -position, position, generator)
         cy = cy + side * uniform_draws(b, -position, position, generator)
+    return _fit_inside(torch.stack([cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2], -1), size)
+
+
+def inner_crop_boxes(
+    n: int,
+    size: int,
+    generator: torch.Generator,
+    *,
+    position: float = 0.10,
+    extent: float = 0.15,
+) -> torch.Tensor:
+    r"""Square boxes inside a ``size x size`` crop: a second, jittered crop of the same face (crop consistency).
+
+    The side is ``size * exp(-U(0, 2 extent))`` and the centre moves by ``U(-position, position)`` times
+    ``size`` along each axis, then the box is shifted back inside the crop: the two crops of a pair then differ
+    as two draws of :func:`face_crop_boxes`' jitter do (their log sides by up to ``2 extent``), with the smaller
+    one inside the larger, so it needs nothing that the crop does not hold.
+
+    Args:
+        n: the number of boxes.
+        size: the crop's side, in pixels.
+        generator: the random source.
+        position: the largest centre shift, a fraction of ``size``.
+        extent: half the largest log-scale change of the side.
+
+    Returns:
+        ``(n, 4)`` float64 boxes ``(x0, y0, x1, y1)`` in the crop's pixels.
+
+    Examples:
+        >>> box = inner_crop_boxes(3, 256, torch.Generator().manual_seed(0))
+        >>> side = box[:, 2] - box[:, 0]
+        >>> bool((box >= 0).all() and (box <= 256).all()), bool((side >= 256 * math.exp(-0.3) - 1e-9).all())
+        (True, True)
+    """
+    check_positive_int(n, "n")
+    check_positive_int(size, "size")
+    if not (position >= 0 and extent >= 0):
+        raise ValueCheckError(f"position and extent must be non-negative, got {position!r}, {extent!r}")
+    side = size * torch.exp(-uniform_draws(n, 0.0, 2.0 * extent, generator))
+    cx = size / 2 + size * uniform_draws(n, -position, position, generator)
+    cy = size / 2 + size * uniform_draws(n, -position, position, generator)
     return _fit_inside(torch.stack([cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2], -1), size)
 
 

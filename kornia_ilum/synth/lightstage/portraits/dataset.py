@@ -49,6 +49,7 @@ from kornia_ilum.synth.lightstage.portraits.compose import (
     detector_boxes,
     face_crop_boxes,
     frame_backgrounds,
+    inner_crop_boxes,
     random_crop_boxes,
     sphere_targets,
     uniform_draws,
@@ -104,6 +105,11 @@ class PortraitConfig:
             luminance (log-uniform), tinted by ``exp(N(0, 0.1))`` per channel. Drawn only when positive, so at 0
             every sample is what it was without the option.
         plain_level: the range of the backdrop's brightness relative to the subject's.
+        second_crop: also give a second, jittered crop of each sample's face as a box inside its crop,
+            ``sample["second_crop"]`` ``(4,)`` in the crop's pixels (:func:`inner_crop_boxes` with
+            ``crop_position`` and ``crop_extent``; training's crop-consistency term cuts it,
+            :attr:`~kornia_ilum.train.TrainConfig.lambda_crop`). Drawn last and only when asked for, so every
+            other field of a sample is what it was without it.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -142,6 +148,7 @@ class PortraitConfig:
     matte: bool = False
     plain_background: float = 0.0
     plain_level: tuple[float, float] = (0.01, 3.0)
+    second_crop: bool = False
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -354,7 +361,7 @@ class PortraitDataset(IterableDataset):
         ``chunk`` ``(worker, index)``; with ``pairs``, ``pair`` holds ``image``, ``mirror_ball``, ``spheres``,
         ``exposure``, ``label``, ``source``, ``background_blur`` and ``camera`` of the second lighting; with
         ``pairs`` or ``matte``, ``alpha`` ``(1, size, size)`` ``uint8`` is the subject's coverage of each crop
-        pixel (255: subject).
+        pixel (255: subject); with ``second_crop``, ``second_crop`` ``(4,)`` (a box in the crop's pixels).
 
     Examples:
         >>> from kornia_ilum.synth.lightstage.scene import Camera
@@ -549,6 +556,9 @@ class PortraitDataset(IterableDataset):
                           "label": [e.label for e in envs], "source": [e.source for e in envs],
                           "background_blur": blur.float(), "camera": {k: v.float() for k, v in fx.items()}})
         boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
+        second = None
+        if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
+            second = inner_crop_boxes(n, cfg.size, g, position=cfg.crop_position, extent=cfg.crop_extent).float()
         samples = []
         for j in range(n):
             rf = self.fields[field_ids[j // nl]]
@@ -567,6 +577,8 @@ class PortraitDataset(IterableDataset):
             }
             if cfg.pairs:
                 sample["pair"] = one[1]
+            if second is not None:
+                sample["second_crop"] = second[j]
             if cfg.pairs or cfg.matte:
                 sample["alpha"] = alphas[j // nl][j % nl]
             samples.append(sample)

@@ -25,6 +25,7 @@ from kornia_ilum.synth.lightstage.portraits import (
     face_crop_boxes,
     frame_background,
     frame_backgrounds,
+    inner_crop_boxes,
     load_fields,
     random_crop_boxes,
     relight_portraits,
@@ -86,6 +87,23 @@ class TestBoxes:
         assert side.std() > 3 and boxes[:, 0].std() > 2  # jittered in extent and position
         torch.testing.assert_close(face_crop_boxes(faces[:1], 192), torch.tensor([[50.0, 40.0, 150.0, 140.0]],
                                                                                  dtype=torch.float64))
+
+    def test_inner_crops_are_a_second_jittered_crop_inside_the_first(self) -> None:
+        boxes = inner_crop_boxes(2000, 256, torch.Generator().manual_seed(0))
+        side = boxes[:, 2] - boxes[:, 0]
+        torch.testing.assert_close(side, boxes[:, 3] - boxes[:, 1])
+        assert (boxes[:, :2] >= 0).all() and (boxes[:, 2:] <= 256).all()
+        # the log side ratio of the pair spans [-2 extent, 0]: two draws of the detector jitter of +-0.15
+        log_ratio = torch.log(side / 256)
+        assert log_ratio.min() >= -0.3 - 1e-9 and log_ratio.max() <= 1e-9 and log_ratio.min() < -0.29
+        centre = 0.5 * (boxes[:, 0] + boxes[:, 2]) - 128
+        assert centre.abs().max() <= 0.10 * 256 + 1e-9 and centre.std() > 5
+        again = inner_crop_boxes(2000, 256, torch.Generator().manual_seed(0))
+        assert torch.equal(boxes, again)
+        fixed = inner_crop_boxes(3, 64, torch.Generator(), position=0.0, extent=0.0)
+        torch.testing.assert_close(fixed, torch.tensor([[0.0, 0.0, 64.0, 64.0]], dtype=torch.float64).expand(3, 4))
+        with pytest.raises(ValueCheckError):
+            inner_crop_boxes(1, 64, torch.Generator(), position=-0.1)
 
     def test_random_crops(self) -> None:
         g = torch.Generator().manual_seed(1)

@@ -320,6 +320,20 @@ class TestMatte:
             assert (alpha.float() - 255 * expected).abs().max() <= 1.0
 
 
+class TestSecondCrop:
+    def test_drawn_last_inside_the_crop_and_only_when_asked(self) -> None:
+        base = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8))
+        with_second = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8,
+                                 second_crop=True))
+        assert all("second_crop" not in b for b in base)
+        for a, b in zip(base, with_second, strict=True):
+            assert torch.equal(a["image"], b["image"]) and torch.equal(a["mirror_ball"], b["mirror_ball"])
+            box = b["second_crop"]
+            assert box.shape == (4,) and bool((box >= 0).all() and (box <= 32).all())
+        sides = torch.stack([b["second_crop"][2] - b["second_crop"][0] for b in with_second])
+        assert sides.std() > 0  # jittered
+
+
 class TestPlainBackdrop:
     def _data(self, **kw) -> list[dict]:
         return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,
