@@ -23,7 +23,8 @@ class TestParser:
         d = TrainConfig(out="", cache=("-",))
         assert args.cache == ["a", "b"] and args.hdri == [] and args.data == [] and args.model == []
         for name in ("estimator", "steps", "batch", "lr", "seed", "device", "bf16", "channels_last",
-                     "checkpoint_every", "log_every", "lambda_adv", "workers", "threads"):
+                     "checkpoint_every", "log_every", "lambda_adv", "lambda_crop", "crop_pairs", "init",
+                     "workers", "threads"):
             assert getattr(args, name) == getattr(d, name), name
         assert args.brdf_weights == BRDF_WEIGHTS and args.func is run_train
 
@@ -51,10 +52,12 @@ def test_run_train_passes_the_settings_and_prints_the_weights(monkeypatch, capsy
     monkeypatch.setattr(train_cli, "train", fake_train)
     args = _parser().parse_args(["train", "--cache", "c1", "c2", "--out", "run", "--steps", "3",
                                  "--lr", "1e-3", "--workers", "0", "--data", "shuffle=2",
-                                 "--model", "normalize_exposure=False"])
+                                 "--model", "normalize_exposure=False", "--init", "w.safetensors",
+                                 "--lambda-crop", "0.5", "--crop-pairs", "4"])
     assert run_train(args) == 0
     config = seen["config"]
     assert config.cache == ("c1", "c2") and config.steps == 3 and config.lr == 1e-3 and config.workers == 0
     assert config.model == {"normalize_exposure": False}
+    assert (config.init, config.lambda_crop, config.crop_pairs) == ("w.safetensors", 0.5, 4)
     assert config.data == {"shuffle": 2} and config.bf16 is None  # decided by the run, not by the parser
     assert f"run/ours.safetensors  float16  sha256 {'ab' * 32}  3 steps in 1.5 min" in capsys.readouterr().out
