@@ -139,7 +139,7 @@ class OursEstimator(LightingEstimator):
         input_size=_INPUT_SIZE,
         weights=(
             WeightFile(
-                "ours.safetensors", "0871075df7985cbd55fa414d183932d0647986e5376631f9ad7ea7389a7e0c4d"
+                "ours.safetensors", "37c3a5085c9452a4d84e8370e8cacfc1a5b21206906193de071bfc6318e799bb"
             ),
         ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
