@@ -32,7 +32,6 @@ from torch import nn
 
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
-from kornia_ilum.metrics import reconstruction_loss
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
@@ -184,13 +183,10 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
         >>> float(crop_consistency({32: light}, 2, {"diffuse": 1.0}))
         0.0
     """
-    x = pred[max(pred)]
-    n = len(x)
-    total = x.new_zeros(())
-    for brdf, weight in brdf_weights.items():
-        total = total + weight * reconstruction_loss(x[n - pairs :], x[:pairs], brdf, size=x.shape[-1],
-                                                     gamma="safe")
-    return total
+    size = max(pred)
+    x = pred[size]
+    first = x[:pairs]  # the pairs' first crops stand as the truth of their second ones (both get gradients)
+    return training_losses({size: x[len(x) - pairs :]}, first, brdf_weights, truth={size: first})[0]
 
 
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
