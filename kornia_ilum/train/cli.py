@@ -69,6 +69,8 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="weight of the crop-consistency term (default: 0, off; docs/training.rst)")
     cmd.add_argument("--crop-pairs", type=positive_int, default=d.crop_pairs, metavar="P",
                      help=f"crop pairs per step with --lambda-crop (default: {d.crop_pairs})")
+    cmd.add_argument("--lambda-energy", type=float, default=d.lambda_energy,
+                     help="weight of the log-energy term (default: 0, off: the paper's loss; docs/training.rst)")
     cmd.add_argument("--init", default=None, metavar="WEIGHTS",
                      help="start from these .safetensors weights of the estimator (fine-tuning)")
     cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
@@ -86,7 +88,7 @@ def run_train(args: argparse.Namespace) -> int:
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
                          log_every=args.log_every, lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop,
-                         crop_pairs=args.crop_pairs, init=args.init, model=dict(args.model),
+                         crop_pairs=args.crop_pairs, lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
                          data=dict(args.data))
     summary = train(config)
     if "weights" in summary:

@@ -50,6 +50,10 @@ class TrainConfig:
             detector's box (docs/training.rst, "Measured"). Recipes that keep the default
             :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
         crop_pairs: the pairs per step with ``lambda_crop`` (8 of a batch of 32).
+        lambda_energy: the weight of the energy term (0: off, the paper's loss): the log of each channel's
+            energy against the truth's (:func:`~kornia_ilum.train.losses.energy_loss`), which ``L_rec`` on
+            gamma-encoded spheres lets drift low (docs/training.rst, "Energy term"). Recipes that keep the
+            default :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
         seed: the seed of the data and of the initialisation.
         workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (there
             the data is a small part of a step), ``min(8, cores - 1)`` on CUDA, where one worker cannot keep
@@ -85,6 +89,7 @@ class TrainConfig:
     lambda_adv: float = 0.004
     lambda_crop: float = 0.0
     crop_pairs: int = 8
+    lambda_energy: float = 0.0
     seed: int = 0
     workers: int | None = None
     threads: int | None = None
@@ -114,6 +119,8 @@ class TrainConfig:
             )
         if not self.lambda_crop >= 0:
             raise ValueCheckError(f"lambda_crop must be non-negative, got {self.lambda_crop!r}")
+        if not self.lambda_energy >= 0:
+            raise ValueCheckError(f"lambda_energy must be non-negative, got {self.lambda_energy!r}")
         if self.lambda_crop > 0 and 2 * self.crop_pairs > self.batch:
             raise ValueCheckError(f"crop_pairs ({self.crop_pairs}) must be at most half the batch ({self.batch})")
         if self.init is not None:

@@ -226,8 +226,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
-                crop = ("crop",) if config.lambda_crop > 0 else ()  # logged where the term is on
-                _write_log(out, rows, _LOG_FIELDS + crop + recipe.log_fields)
+                terms = (("crop",) if config.lambda_crop > 0 else ()) + (("energy",) if config.lambda_energy > 0 else ())
+                _write_log(out, rows, _LOG_FIELDS + terms + recipe.log_fields)  # a term is logged where it is on
                 _save_checkpoint(out, {
                     "step": step, "elapsed_s": elapsed + time.perf_counter() - run_t0,
                     "model": model.state_dict(), "disc": disc.state_dict() if disc is not None else {},

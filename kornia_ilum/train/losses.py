@@ -4,6 +4,8 @@ r"""The training losses of the lighting estimators (LeGendre et al. 2020, Sec. 3
   the training form of ``L_rec`` (:func:`~kornia_ilum.metrics.reconstruction_loss`, ``gamma="safe"``) and
   the ground truth brought to each scale by the energy-keeping pyramid (docs/conventions.rst, "Multi-scale");
 - :func:`discriminator_images`: the clipped, gamma-encoded mirror spheres that the discriminator sees;
+- :func:`energy_loss`: ``|log E_pred - log E_true|`` per channel, the lighting's energy, an optional term that is
+  not the paper's (:attr:`~kornia_ilum.train.TrainConfig.lambda_energy`);
 - :data:`BRDF_WEIGHTS`: the paper's ``lambda_k``.
 
 The default step (:func:`~kornia_ilum.train.recipes.train_step`), the recipes of the plugins and the weight
@@ -14,10 +16,11 @@ from __future__ import annotations
 
 import torch
 
+from kornia_ilum.geometry import mirror_ball_solid_angles
 from kornia_ilum.metrics import reconstruction_loss
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 
-__all__ = ["BRDF_WEIGHTS", "discriminator_images", "training_losses"]
+__all__ = ["BRDF_WEIGHTS", "discriminator_images", "energy_loss", "training_losses"]
 
 #: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
 BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
@@ -74,3 +77,30 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
             if s == max(pred):
                 parts[f"rec_{brdf}"] = term.detach()
     return total, parts
+
+
+def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> torch.Tensor:
+    r"""How far the lighting's energy is off, in log: the mean over the batch and R, G, B of
+    ``|log(E_pred + eps) - log(E_true + eps)|``, with ``E_c = sum_p Omega_p L_c,p`` (the exact solid angles of
+    :func:`~kornia_ilum.geometry.mirror_ball_solid_angles`).
+
+    ``L_rec`` compares gamma-encoded, soft-clipped spheres, so a lighting too dark by a factor costs less than
+    one too bright by it; this term is symmetric in log and its minimum is the median of the energy's ratio at
+    1 (docs/training.rst, "Energy term").
+
+    Args:
+        pred: ``(B, 3, S, S)`` predicted linear mirror-ball lighting.
+        target: ``(B, 3, S, S)`` ground truth at the same size.
+        eps: added to both energies (in the lighting's units times steradians), for black lightings.
+
+    Examples:
+        >>> light = torch.ones(2, 3, 32, 32)
+        >>> float(energy_loss(light, light))
+        0.0
+        >>> round(float(energy_loss(2 * light, light)), 4)  # log 2
+        0.6931
+    """
+    omega = mirror_ball_solid_angles(pred.shape[-1], device=pred.device, dtype=torch.float32)
+    e_pred = (pred.float() * omega).sum((-2, -1))
+    e_true = (target.float() * omega).sum((-2, -1))
+    return ((e_pred + eps).log() - (e_true + eps).log()).abs().mean()

@@ -36,7 +36,7 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.data import batch_loader, collate
-from kornia_ilum.train.losses import discriminator_images, training_losses
+from kornia_ilum.train.losses import discriminator_images, energy_loss, training_losses
 from kornia_ilum.train.models import MSGDiscriminator, MultiScaleOurs
 
 __all__ = [
@@ -178,6 +178,12 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
     r"""How far the two crops of each pair are apart in lighting: ``sum_k lambda_k L_rec(k)`` at the finest
     scale, between the predictions of samples ``i`` and ``B - P + i`` (both get gradients).
 
+    The term is blind to a scale that the two predictions share: both are multiplied by ``m.detach() / m``,
+    with ``m`` the geometric mean of the pair's two mean radiances. That leaves its value as it is but takes
+    away the gradient that would darken both: ``L_rec`` compares gamma-encoded spheres, so two predictions
+    scaled by ``c`` are ``c^(1/2.2)`` times as far apart, and without this the term alone pulled the energy
+    of every estimate down (docs/training.rst, "Crop consistency").
+
     Examples:
         >>> light = torch.ones(4, 3, 32, 32)
         >>> float(crop_consistency({32: light}, 2, {"diffuse": 1.0}))
@@ -185,8 +191,12 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
     """
     size = max(pred)
     x = pred[size]
-    first = x[:pairs]  # the pairs' first crops stand as the truth of their second ones (both get gradients)
-    return training_losses({size: x[len(x) - pairs :]}, first, brdf_weights, truth={size: first})[0]
+    first, second = x[:pairs], x[len(x) - pairs :]
+    mean = (first.float().clamp_min(0).mean((1, 2, 3)) * second.float().clamp_min(0).mean((1, 2, 3))).clamp_min(
+        1e-12).sqrt()
+    shared = (mean.detach() / mean).view(-1, 1, 1, 1)
+    first, second = first * shared, second * shared  # the pairs' first crops stand as the truth of the second
+    return training_losses({size: second}, first, brdf_weights, truth={size: first})[0]
 
 
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
@@ -208,7 +218,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
        ``sum_s lambda_s sum_k lambda_k L_rec(k, s) + lambda_adv softplus(-D(fake)) + extra``, with the
        training form of ``L_rec`` (:func:`~kornia_ilum.train.losses.training_losses`) and ``extra`` the sum of
        the recipe's :meth:`Recipe.extra_losses`; with ``pairs`` (:func:`crop_pairs`), plus
-       ``lambda_crop`` times :func:`crop_consistency`.
+       ``lambda_crop`` times :func:`crop_consistency`; with ``lambda_energy``, plus that times
+       :func:`~kornia_ilum.train.losses.energy_loss` at 32 px.
 
     Args:
         model: the multi-scale generator (possibly DDP-wrapped): ``crops -> {size: lighting}``.
@@ -223,7 +234,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
 
     Returns:
         the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
-        without pairs) and ``rec_<brdf>`` (at 32 px).
+        without pairs), ``energy`` (:func:`~kornia_ilum.train.losses.energy_loss`, 0 without
+        ``lambda_energy``) and ``rec_<brdf>`` (at 32 px).
     """
     memory = runtime.memory_format
     autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=runtime.bf16)
@@ -248,12 +260,13 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
             adv = F.softplus(-fake_logits).mean()
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
-    loss = rec + config.lambda_adv * adv + extra + config.lambda_crop * crop
+    energy = energy_loss(pred[max(pred)], truth[max(pred)]) if config.lambda_energy > 0 else rec.new_zeros(())
+    loss = rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
     return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
-            "extra": extra.detach(), "crop": crop.detach(), **parts}
+            "extra": extra.detach(), "crop": crop.detach(), "energy": energy.detach(), **parts}
 
 
 def _recipe_classes() -> dict[str, type[Recipe]]:

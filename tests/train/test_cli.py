@@ -23,7 +23,7 @@ class TestParser:
         d = TrainConfig(out="", cache=("-",))
         assert args.cache == ["a", "b"] and args.hdri == [] and args.data == [] and args.model == []
         for name in ("estimator", "steps", "batch", "lr", "seed", "device", "bf16", "channels_last",
-                     "checkpoint_every", "log_every", "lambda_adv", "lambda_crop", "crop_pairs", "init",
+                     "checkpoint_every", "log_every", "lambda_adv", "lambda_crop", "crop_pairs", "lambda_energy", "init",
                      "workers", "threads"):
             assert getattr(args, name) == getattr(d, name), name
         assert args.brdf_weights == BRDF_WEIGHTS and args.func is run_train
@@ -53,11 +53,11 @@ def test_run_train_passes_the_settings_and_prints_the_weights(monkeypatch, capsy
     args = _parser().parse_args(["train", "--cache", "c1", "c2", "--out", "run", "--steps", "3",
                                  "--lr", "1e-3", "--workers", "0", "--data", "shuffle=2",
                                  "--model", "normalize_exposure=False", "--init", "w.safetensors",
-                                 "--lambda-crop", "0.5", "--crop-pairs", "4"])
+                                 "--lambda-crop", "0.5", "--crop-pairs", "4", "--lambda-energy", "0.25"])
     assert run_train(args) == 0
     config = seen["config"]
     assert config.cache == ("c1", "c2") and config.steps == 3 and config.lr == 1e-3 and config.workers == 0
     assert config.model == {"normalize_exposure": False}
-    assert (config.init, config.lambda_crop, config.crop_pairs) == ("w.safetensors", 0.5, 4)
+    assert (config.init, config.lambda_crop, config.crop_pairs, config.lambda_energy) == ("w.safetensors", 0.5, 4, 0.25)
     assert config.data == {"shuffle": 2} and config.bf16 is None  # decided by the run, not by the parser
     assert f"run/ours.safetensors  float16  sha256 {'ab' * 32}  3 steps in 1.5 min" in capsys.readouterr().out

@@ -9,7 +9,7 @@ import torch
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 from kornia_ilum.train import BRDF_WEIGHTS, SCALES, training_losses
-from kornia_ilum.train.losses import discriminator_images
+from kornia_ilum.train.losses import discriminator_images, energy_loss
 
 
 class TestLosses:
@@ -56,3 +56,27 @@ class TestDiscriminatorImages:
             want = sphere_pyramid(lighting[s], sizes=(s,), brdfs=("mirror",), gamma="safe")[f"mirror_{s}"]
             assert images[s].shape == (2, 3, s, s) and torch.equal(images[s], want)
             assert images[s].min() >= 0 and images[s].max() <= 1  # clipped and gamma-encoded
+
+
+class TestEnergyLoss:
+    def test_is_the_log_ratio_of_each_channels_energy(self) -> None:
+        truth = torch.rand(2, 3, 32, 32) * mirror_ball_valid(32)
+        scale = torch.tensor([2.0, 0.5, 1.0]).view(1, 3, 1, 1)
+        expected = torch.tensor([2.0, 0.5, 1.0]).log().abs().mean()
+        torch.testing.assert_close(energy_loss(truth * scale, truth), expected, atol=1e-5, rtol=0)
+        assert energy_loss(truth, truth).item() == 0.0
+
+    def test_symmetric_in_log_unlike_the_rendering_loss(self) -> None:
+        truth = torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)
+        torch.testing.assert_close(energy_loss(2 * truth, truth), energy_loss(truth / 2, truth))
+
+    def test_weighs_by_solid_angle_and_ignores_outside_the_ball(self) -> None:
+        a = torch.ones(1, 3, 32, 32) * mirror_ball_valid(32)
+        b = a + 100.0 * (1 - mirror_ball_valid(32).float())  # only the corners differ
+        assert energy_loss(b, a).item() < 1e-6
+
+    def test_finite_for_black_lightings_and_gradient(self) -> None:
+        pred = torch.zeros(1, 3, 32, 32, requires_grad=True)
+        loss = energy_loss(pred, torch.zeros(1, 3, 32, 32))
+        loss.backward()
+        assert loss.item() == 0.0 and torch.isfinite(pred.grad).all()

@@ -19,6 +19,7 @@ import kornia_ilum.train.recipes as recipes
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.train import (
+    BRDF_WEIGHTS,
     SCALES,
     MSGDiscriminator,
     MultiScaleOurs,
@@ -143,9 +144,10 @@ class TestTrainStep:
 
     def test_the_generator_steps_on_rec_plus_the_recipes_extra_terms(self) -> None:
         plain, moved = self._run(None)
-        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "rec_diffuse", "rec_matte_silver",
-                              "rec_mirror"}
+        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "energy", "rec_diffuse",
+                              "rec_matte_silver", "rec_mirror"}
         assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0 and plain["crop"] == 0
+        assert plain["energy"] == 0
         assert torch.equal(plain["loss"], plain["rec"]) and moved.level.item() != 0.5
         penalised, _ = self._run(_Penalised())
         assert penalised["extra"] > 0
@@ -199,6 +201,17 @@ class TestCropConsistency:
         apart.backward()
         assert apart > 0 and a.grad.abs().sum() > 0 and b.grad.abs().sum() > 0
 
+    def test_consistency_has_no_gradient_along_a_shared_scale(self) -> None:
+        torch.manual_seed(0)
+        x = (torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)).requires_grad_()
+        loss = crop_consistency({32: x}, 2, BRDF_WEIGHTS)
+        loss.backward()
+        # scaling pair i (samples i and 2 + i) by c: d/dc loss at c = 1 is the sum of grad * x over both samples;
+        # it is zero, so the term never darkens the two estimates together
+        along = (x.grad * x.detach()).sum((1, 2, 3))
+        assert loss > 0 and along.abs().min() > 1e-4  # each crop alone is pulled
+        torch.testing.assert_close(along[:2] + along[2:], torch.zeros(2), atol=1e-6, rtol=0)
+
     def test_the_default_step_adds_lambda_crop_times_the_term(self) -> None:
         def run(lambda_crop: float) -> dict:
             torch.manual_seed(0)
@@ -214,6 +227,21 @@ class TestCropConsistency:
         off, on = run(0.0), run(2.0)
         assert off["crop"] == 0 and on["crop"] > 0
         torch.testing.assert_close(on["loss"], on["rec"] + 2.0 * on["crop"])
+
+    def test_the_default_step_adds_lambda_energy_times_the_term(self) -> None:
+        def run(lambda_energy: float) -> dict:
+            torch.manual_seed(0)
+            model = _Tiny()
+            batch = {"image": torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8),
+                     "mirror_ball": torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)}
+            config = TrainConfig(out="-", cache=("-",), batch=4, lambda_energy=lambda_energy)
+            runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
+            return Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
+                                 batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
+
+        off, on = run(0.0), run(0.5)
+        assert off["energy"] == 0 and on["energy"] > 0
+        torch.testing.assert_close(on["loss"], on["rec"] + 0.5 * on["energy"])
 
     def test_sipr_refuses_the_term(self) -> None:
         config = TrainConfig(out="-", cache=("-",), lambda_crop=1.0)
