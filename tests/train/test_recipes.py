@@ -212,40 +212,31 @@ class TestCropConsistency:
         assert loss > 0 and along.abs().min() > 1e-4  # each crop alone is pulled
         torch.testing.assert_close(along[:2] + along[2:], torch.zeros(2), atol=1e-6, rtol=0)
 
-    def test_the_default_step_adds_lambda_crop_times_the_term(self) -> None:
-        def run(lambda_crop: float) -> dict:
-            torch.manual_seed(0)
-            model = _Tiny()
-            batch = {"image": torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8),
-                     "mirror_ball": torch.rand(4, 3, 32, 32) * mirror_ball_valid(32),
-                     "second_crop": torch.tensor([[2.0, 2.0, 6.0, 6.0]]).repeat(4, 1)}
-            config = TrainConfig(out="-", cache=("-",), batch=4, lambda_crop=lambda_crop, crop_pairs=2)
-            runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
-            return Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
-                                 batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
+    @staticmethod
+    def _default_step(**weights: float) -> dict:
+        """One default step of a tiny model on 4 samples (2 crop pairs) with the loss weights ``weights``."""
+        torch.manual_seed(0)
+        model = _Tiny()
+        batch = {"image": torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8),
+                 "mirror_ball": torch.rand(4, 3, 32, 32) * mirror_ball_valid(32),
+                 "second_crop": torch.tensor([[2.0, 2.0, 6.0, 6.0]]).repeat(4, 1)}
+        config = TrainConfig(out="-", cache=("-",), batch=4, crop_pairs=2, **weights)
+        runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
+        return Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
+                             batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
 
-        off, on = run(0.0), run(2.0)
-        assert off["crop"] == 0 and on["crop"] > 0
-        torch.testing.assert_close(on["loss"], on["rec"] + 2.0 * on["crop"])
+    @pytest.mark.parametrize(("weight", "column", "value"), [("lambda_crop", "crop", 2.0),
+                                                              ("lambda_energy", "energy", 0.5)])
+    def test_the_default_step_adds_each_weight_times_its_term(self, weight: str, column: str,
+                                                               value: float) -> None:
+        off, on = self._default_step(**{weight: 0.0}), self._default_step(**{weight: value})
+        assert off[column] == 0 and on[column] > 0
+        torch.testing.assert_close(on["loss"], on["rec"] + value * on[column])
 
-    def test_the_default_step_adds_lambda_energy_times_the_term(self) -> None:
-        def run(lambda_energy: float) -> dict:
-            torch.manual_seed(0)
-            model = _Tiny()
-            batch = {"image": torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8),
-                     "mirror_ball": torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)}
-            config = TrainConfig(out="-", cache=("-",), batch=4, lambda_energy=lambda_energy)
-            runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
-            return Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
-                                 batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
-
-        off, on = run(0.0), run(0.5)
-        assert off["energy"] == 0 and on["energy"] > 0
-        torch.testing.assert_close(on["loss"], on["rec"] + 0.5 * on["energy"])
-
-    def test_sipr_refuses_the_term(self) -> None:
-        config = TrainConfig(out="-", cache=("-",), lambda_crop=1.0)
-        with pytest.raises(ValueCheckError, match="crop-consistency"):
+    @pytest.mark.parametrize("weight", ["lambda_crop", "lambda_energy"])
+    def test_sipr_refuses_the_terms(self, weight: str) -> None:
+        config = TrainConfig(out="-", cache=("-",), **{weight: 1.0})
+        with pytest.raises(ValueCheckError, match="crop-consistency or energy"):
             kornia_ilum_sipr.recipe.SIPRRecipe().step(model=None, disc=None, opt_g=None, opt_d=None, batch={},
                                                       device=torch.device("cpu"), config=config,
                                                       runtime=RuntimeSettings(False, False, 0))
