@@ -8,6 +8,8 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
 - :mod:`~kornia_ilum.evaluation.checks`: the checks kept running for every estimator: the label-free transfer
   check (:func:`transfer_check`), exposure equivariance (:func:`exposure_equivariance`) and crop stability
   (:func:`crop_stability`), with the lighting's energy and dominant direction they compare.
+- :mod:`~kornia_ilum.evaluation.curve`: the learning curve of a run's snapshots (:func:`learning_curve`,
+  :func:`write_curve`).
 - :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
   :func:`write_report`).
 - :mod:`~kornia_ilum.evaluation.cli`: :func:`~kornia_ilum.evaluation.cli.add_evaluate_parser` and
@@ -31,6 +33,7 @@ from kornia_ilum.evaluation.checks import (
     run_checks,
     transfer_check,
 )
+from kornia_ilum.evaluation.curve import CURVE_FIELDS, learning_curve, snapshot_files, write_curve
 from kornia_ilum.evaluation.evaluate import (
     BRDF_NAMES,
     DEFAULT_SAMPLES,
@@ -51,6 +54,7 @@ __all__ = [
     "BACKGROUNDS",
     "BRDF_NAMES",
     "CHECKS",
+    "CURVE_FIELDS",
     "DEFAULT_SAMPLES",
     "EVAL_SEED",
     "EXPOSURE_FACTORS",
@@ -71,6 +75,7 @@ __all__ = [
     "format_markdown",
     "heldout_maps",
     "jitter_boxes",
+    "learning_curve",
     "lighting_energy",
     "load_checkpoint",
     "load_estimator",
@@ -78,7 +83,9 @@ __all__ = [
     "predict",
     "run_checks",
     "score",
+    "snapshot_files",
     "summarize",
     "transfer_check",
+    "write_curve",
     "write_report",
 ]

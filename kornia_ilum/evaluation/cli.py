@@ -16,10 +16,11 @@ from pathlib import Path
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.detection import DEFAULT_DETECTOR
 from kornia_ilum.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
-from kornia_ilum.evaluation.evaluate import build_eval_set, evaluate
+from kornia_ilum.evaluation.curve import learning_curve, write_curve
+from kornia_ilum.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
 from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
-__all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "run_evaluate"]
+__all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "print_curve", "run_evaluate"]
 
 #: The checks run unless ``--checks`` says otherwise.
 DEFAULT_CHECKS: tuple[str, ...] = CHECKS
@@ -45,6 +46,7 @@ examples:
   kornia-ilum evaluate --cache lightstage/ --weights ours=runs/a/best.safetensors --json eval.json
   kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
   kornia-ilum evaluate --cache lightstage/ --checks transfer,exposure --photos me.jpg group.png --out eval/
+  kornia-ilum evaluate --cache lightstage/ --curve runs/a --curve runs/b   # learning curves of two runs
 """
 
 
@@ -139,6 +141,10 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--tta", type=positive_int, default=None, metavar="N",
                      help="also score every estimator with test-time augmentation over N jittered crops and "
                      "their mirrors (as NAME+ttaN; 2N passes per crop)")
+    cmd.add_argument("--curve", action="append", default=[], metavar="RUN",
+                     help="instead of the tables: the learning curve of a training run kept with "
+                     "--snapshot-every, L_rec of each snapshot, written to RUN/curve.csv and RUN/curve.png "
+                     "(repeatable)")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -146,6 +152,18 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--json", metavar="FILE", help="write the JSON summary here")
     cmd.set_defaults(func=run_evaluate)
     return cmd
+
+
+def print_curve(run: str, rows: list[dict]) -> None:
+    """Write a run's learning curve (:func:`~kornia_ilum.evaluation.curve.write_curve`) and print it."""
+    print(f"learning curve of {run}: L_rec on the eval split per snapshot")
+    print("| step | portraits | wall time (min) | " + " | ".join(BRDF_NAMES) + " |")
+    print("|---:|---:|---:|" + "---:|" * len(BRDF_NAMES))
+    for r in rows:
+        print(f"| {r['step']} | {r['samples']} | {r['elapsed_s'] / 60:.1f} | "
+              + " | ".join(f"{r[b]:.4f}" for b in BRDF_NAMES) + " |")
+    for path in write_curve(run, rows):
+        print(f"wrote {path}")
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -161,6 +179,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
     hdri, samples = getattr(args, "hdri", None) or [], getattr(args, "samples", 512)
     background = getattr(args, "background", "environment")
     eval_set = build_eval_set(args.cache, hdri, samples, background=background, progress=True)
+    curves = getattr(args, "curve", None) or []
+    if curves:
+        for run in curves:
+            print_curve(run, learning_curve(eval_set, run, getattr(args, "batch_size", 32)))
+        return 0
     checks = tuple(getattr(args, "checks", DEFAULT_CHECKS))
     options = {"ks": list(EXPOSURE_FACTORS), "jitters": getattr(args, "jitters", 8), "position": 0.10,
                "extent": 0.15, "seed": 0}

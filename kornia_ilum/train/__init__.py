@@ -10,31 +10,32 @@ r"""Training of the lighting estimators on the virtual light stage (``kornia-ilu
 - :func:`training_losses`, :data:`BRDF_WEIGHTS` (:mod:`kornia_ilum.train.losses`): the losses;
 - :class:`MultiScaleOurs`, :class:`MSGDiscriminator` (:mod:`kornia_ilum.train.models`): the training-only
   networks of ``ours``;
-- :func:`export_weights`, :func:`read_log`.
+- :func:`export_weights`, :func:`read_log`, :func:`save_snapshot`.
 
 ``import kornia_ilum`` never imports this package; importing it loads the light stage's data code
 (:mod:`kornia_ilum.synth`). The data and the networks are built by :func:`train`.
 """
 
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
-from kornia_ilum.train.loop import export_weights, read_log, train
+from kornia_ilum.train.loop import export_weights, read_log, save_snapshot, train
 from kornia_ilum.train.losses import BRDF_WEIGHTS, training_losses
 from kornia_ilum.train.models import SCALES, MSGDiscriminator, MultiScaleOurs
 from kornia_ilum.train.recipes import Recipe, get_recipe, list_recipes, train_step
 
 __all__ = [
     "BRDF_WEIGHTS",
-    "SCALES",
     "MSGDiscriminator",
     "MultiScaleOurs",
     "Recipe",
     "RuntimeSettings",
+    "SCALES",
     "TrainConfig",
     "export_weights",
     "get_recipe",
     "list_recipes",
     "read_log",
     "resolve_runtime",
+    "save_snapshot",
     "train",
     "train_step",
     "training_losses",

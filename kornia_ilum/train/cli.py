@@ -63,6 +63,9 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="channels-last memory format (default: on)")
     cmd.add_argument("--checkpoint-every", type=positive_int, default=d.checkpoint_every, metavar="N")
     cmd.add_argument("--log-every", type=positive_int, default=d.log_every, metavar="N")
+    cmd.add_argument("--snapshot-every", type=int, default=d.snapshot_every, metavar="N",
+                     help="keep the estimator's weights every N steps in RUN/snapshots/, for the learning curve "
+                     "of `kornia-ilum evaluate --curve RUN` (default: 0, never)")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--lambda-crop", type=float, default=d.lambda_crop,
@@ -87,7 +90,7 @@ def run_train(args: argparse.Namespace) -> int:
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
-                         log_every=args.log_every, lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop,
+                         log_every=args.log_every, snapshot_every=args.snapshot_every, lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop,
                          crop_pairs=args.crop_pairs, lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
                          data=dict(args.data))
     summary = train(config)

@@ -66,6 +66,10 @@ class TrainConfig:
         channels_last: the networks and crops in channels-last memory format; ``None``: on (it shortens a step
             without bfloat16 too).
         checkpoint_every, log_every: in steps.
+        snapshot_every: keep the estimator's float32 weights every this many steps (0: never), as
+            ``snapshots/step_NNNNNN.safetensors`` with the step, samples and wall time in the file's metadata:
+            what ``kornia-ilum evaluate --curve RUN`` scores for the learning curve
+            (:func:`~kornia_ilum.evaluation.curve.learning_curve`).
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
@@ -98,6 +102,7 @@ class TrainConfig:
     channels_last: bool | None = None
     checkpoint_every: int = 100
     log_every: int = 10
+    snapshot_every: int = 0
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
     init: str | None = None
@@ -108,6 +113,8 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
                 raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
+        if isinstance(self.snapshot_every, bool) or not isinstance(self.snapshot_every, int) or self.snapshot_every < 0:
+            raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
                                          or self.workers < 0):
             raise ValueCheckError(f"workers must be a non-negative integer, got {self.workers!r}")
@@ -131,7 +138,7 @@ class TrainConfig:
 
     def data_key(self) -> dict[str, Any]:
         """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree."""
-        skip = {"out", "steps", "threads", "checkpoint_every", "log_every"}
+        skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 
 

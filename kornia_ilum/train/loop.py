@@ -44,7 +44,7 @@ from kornia_ilum.train.data import training_dataset
 from kornia_ilum.train.losses import BRDF_WEIGHTS
 from kornia_ilum.train.recipes import Recipe, get_recipe
 
-__all__ = ["export_weights", "read_log", "train"]
+__all__ = ["export_weights", "read_log", "save_snapshot", "train"]
 
 _LOG_FIELDS = ("step", "samples", "elapsed_s", "samples_per_s", "loss", "rec", "adv", "disc", "extra",
                "rec_diffuse", "rec_matte_silver", "rec_mirror")
@@ -224,6 +224,9 @@ def train(config: TrainConfig) -> dict[str, Any]:
                    "samples_per_s": rate, **{k: v.item() for k, v in losses.items()}}
             rows.append(row)
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
+        if rank == 0 and config.snapshot_every and step % config.snapshot_every == 0:
+            save_snapshot(out, recipe.estimator(model), config.estimator, step, step * config.batch,
+                          elapsed + time.perf_counter() - run_t0)
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
                 terms = (("crop",) if config.lambda_crop > 0 else ()) + (("energy",) if config.lambda_energy > 0 else ())
@@ -268,6 +271,22 @@ def _cpu_name() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, name: str, step: int, samples: int,
+                  elapsed_s: float) -> Path:
+    r"""Keep the estimator's float32 weights at ``step``: ``out/snapshots/step_NNNNNN.safetensors``.
+
+    The file's safetensors metadata holds ``estimator`` (the registry name), ``step``, ``samples`` and
+    ``elapsed_s`` (the run's training wall time so far): what the learning curve
+    (:func:`~kornia_ilum.evaluation.curve.learning_curve`) reads. Written atomically.
+    """
+    path = Path(out) / "snapshots" / f"step_{step:06d}.safetensors"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tensors = {k: v.detach().float().cpu().contiguous() for k, v in estimator.state_dict().items()}
+    meta = {"estimator": name, "step": str(step), "samples": str(samples), "elapsed_s": f"{elapsed_s:.3f}"}
+    atomic_write(path, lambda tmp: safetensors.torch.save_file(tensors, str(tmp), metadata=meta))
+    return path
 
 
 def export_weights(estimator: torch.nn.Module, path: str | os.PathLike, probe: dict[str, torch.Tensor],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import signal
@@ -10,6 +11,7 @@ import sys
 import time
 
 import pytest
+import safetensors
 import safetensors.torch
 import torch
 
@@ -122,6 +124,26 @@ class TestCropConsistencyAndInit:
         got, ref = weights(tmp_path / "run"), start.state_dict()
         assert got.keys() == ref.keys()
         assert all(torch.allclose(got[k].float(), ref[k].float(), atol=1e-3) for k in ref)  # one step of 1e-9
+
+    def test_snapshots_keep_the_weights_with_their_step(self, tiny_cache, tmp_path, monkeypatch) -> None:
+        monkeypatch.setattr(recipes, "PROBE_SIZE", 2)
+        threads = torch.get_num_threads()
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=2, batch=2, workers=0,
+                             threads=1, bf16=False, log_every=1, snapshot_every=1, data=small_data())
+        try:
+            train(config)
+        finally:
+            torch.set_num_threads(threads)
+        files = sorted((tmp_path / "run" / "snapshots").iterdir())
+        assert [f.name for f in files] == ["step_000001.safetensors", "step_000002.safetensors"]
+        with safetensors.safe_open(str(files[1]), framework="pt") as f:
+            meta = f.metadata()
+        assert (meta["estimator"], meta["step"], meta["samples"]) == ("ours", "2", "4")
+        assert float(meta["elapsed_s"]) > 0
+        last, exported = safetensors.torch.load_file(files[1]), weights(tmp_path / "run")
+        assert last.keys() == exported.keys() and all(v.dtype == torch.float32 for v in last.values())
+        assert all(torch.allclose(last[k], exported[k].float(), atol=1e-2, rtol=1e-3) for k in last)
+        assert config.data_key() == dataclasses.replace(config, snapshot_every=0).data_key()  # resumable either way
 
     def test_init_must_be_the_estimators_weights(self, tiny_cache, tmp_path) -> None:
         init = tmp_path / "other.safetensors"

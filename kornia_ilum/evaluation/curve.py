@@ -1,0 +1,94 @@
+r"""The learning curve of a training run: ``L_rec`` on the held-out split at every kept snapshot.
+
+A run trained with ``--snapshot-every N`` keeps its estimator's weights as
+``RUN/snapshots/step_NNNNNN.safetensors``, with the step, the samples seen and the training wall time in each
+file's metadata (:func:`~kornia_ilum.train.save_snapshot`). :func:`learning_curve` scores every snapshot on an
+eval set (:func:`~kornia_ilum.evaluation.build_eval_set`) and :func:`write_curve` writes ``RUN/curve.csv`` and
+``RUN/curve.png``: whether the run had stopped learning, and, read at equal samples or equal wall time, how
+estimators of different cost compare (``kornia-ilum evaluate --curve RUN``).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+from typing import Any
+
+from safetensors import safe_open
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.core.files import atomic_write
+from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet, load_checkpoint, predict, score
+
+__all__ = ["CURVE_FIELDS", "learning_curve", "snapshot_files", "write_curve"]
+
+#: The columns of ``curve.csv``: where the snapshot was taken, then the mean ``L_rec`` per sphere.
+CURVE_FIELDS: tuple[str, ...] = ("step", "samples", "elapsed_s", *BRDF_NAMES)
+
+
+def snapshot_files(run: str | os.PathLike[str]) -> list[Path]:
+    r"""The snapshots of a run, in step order.
+
+    Raises:
+        ValueCheckError: the run keeps none (it was trained without ``--snapshot-every``).
+    """
+    files = sorted(Path(run, "snapshots").glob("step_*.safetensors"))
+    if not files:
+        raise ValueCheckError(f"{run} keeps no snapshots/step_*.safetensors: train it with --snapshot-every N")
+    return files
+
+
+def learning_curve(eval_set: EvalSet, run: str | os.PathLike[str], batch_size: int = 32) -> list[dict[str, Any]]:
+    r"""Score every snapshot of ``run`` on ``eval_set``: one row per snapshot, in step order.
+
+    Each snapshot is loaded as its metadata's registered estimator (:func:`~kornia_ilum.evaluation.
+    load_checkpoint`: safetensors only) and scored as :func:`~kornia_ilum.evaluation.evaluate` scores it.
+
+    Returns:
+        rows with :data:`CURVE_FIELDS`: ``step``, ``samples``, ``elapsed_s`` (the run's training wall time at
+        the snapshot) and the mean ``L_rec`` per sphere.
+    """
+    rows = []
+    for path in snapshot_files(run):
+        with safe_open(str(path), framework="pt") as f:
+            meta = f.metadata() or {}
+        if not {"estimator", "step", "samples", "elapsed_s"} <= meta.keys():
+            raise ValueCheckError(f"{path} is not a training snapshot: its metadata lacks the estimator or step")
+        model, _ = load_checkpoint(meta["estimator"], path)
+        scores = score(predict(model, eval_set.images, batch_size), eval_set.mirror_ball)
+        rows.append({"step": int(meta["step"]), "samples": int(meta["samples"]),
+                     "elapsed_s": float(meta["elapsed_s"]), **{b: float(scores[b].mean()) for b in BRDF_NAMES}})
+    return rows
+
+
+def write_curve(run: str | os.PathLike[str], rows: list[dict[str, Any]]) -> list[Path]:
+    r"""Write ``run/curve.csv`` and, where matplotlib is installed, ``run/curve.png`` (``L_rec`` per sphere
+    against the samples seen); both atomically. Returns the paths written."""
+    run = Path(run)
+
+    def table(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=CURVE_FIELDS)
+            w.writeheader()
+            for row in rows:
+                w.writerow({k: (row[k] if k in ("step", "samples") else f"{row[k]:.6g}") for k in CURVE_FIELDS})
+
+    atomic_write(run / "curve.csv", table)
+    written = [run / "curve.csv"]
+    try:
+        import matplotlib  # lazy: only for the figure, and optional
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt  # lazy: as matplotlib, after the backend is set
+    except ImportError:  # the CSV has the numbers
+        return written
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for b in BRDF_NAMES:
+        ax.plot([r["samples"] for r in rows], [r[b] for r in rows], marker="o", label=b)
+    ax.set(xlabel="portraits seen", ylabel="L_rec on the eval split", title=run.name)
+    ax.legend()
+    fig.tight_layout()
+    atomic_write(run / "curve.png", lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    plt.close(fig)
+    return [*written, run / "curve.png"]

@@ -1,0 +1,66 @@
+"""kornia_ilum.evaluation.curve: the learning curve of a run's snapshots, and ``evaluate --curve``."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+
+import pytest
+import safetensors.torch
+import torch
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.estimators import OursEstimator
+from kornia_ilum.evaluation import BRDF_NAMES, CURVE_FIELDS, evaluate, learning_curve, snapshot_files
+from kornia_ilum.evaluation.cli import add_evaluate_parser
+from kornia_ilum.train import save_snapshot
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """A run folder with two snapshots of ``ours``, a random one and its weights halved (steps 2 and 4)."""
+    folder = tmp_path_factory.mktemp("run")
+    torch.manual_seed(0)
+    model = OursEstimator().eval()
+    save_snapshot(folder, model, "ours", 4, 128, 90.0)  # written out of order: the curve sorts by step
+    with torch.no_grad():
+        for p in model.parameters():
+            p.mul_(0.5)
+    save_snapshot(folder, model, "ours", 2, 64, 45.5)
+    return folder
+
+
+class TestLearningCurve:
+    def test_one_row_per_snapshot_in_step_order_scored_as_evaluate_scores(self, eval_set, run) -> None:
+        rows = learning_curve(eval_set, run, batch_size=8)
+        assert [(r["step"], r["samples"], r["elapsed_s"]) for r in rows] == [(2, 64, 45.5), (4, 128, 90.0)]
+        assert all(set(r) == set(CURVE_FIELDS) for r in rows)
+        last = snapshot_files(run)[-1]
+        reference = evaluate(eval_set, [], {"ours": last}, oracles=False, batch_size=8)["methods"]
+        scores = reference[f"ours@{last.name}"]["scores"]
+        for b in BRDF_NAMES:
+            assert rows[1][b] == pytest.approx(float(scores[b].mean()), rel=1e-5)
+        assert rows[0]["diffuse"] != rows[1]["diffuse"]
+
+    def test_a_run_without_snapshots_or_a_file_without_metadata(self, eval_set, tmp_path) -> None:
+        with pytest.raises(ValueCheckError, match="--snapshot-every"):
+            learning_curve(eval_set, tmp_path)
+        (tmp_path / "snapshots").mkdir()
+        plain = tmp_path / "snapshots" / "step_000001.safetensors"
+        safetensors.torch.save_file(OursEstimator().state_dict(), str(plain))  # a weight file, no metadata
+        with pytest.raises(ValueCheckError, match="not a training snapshot"):
+            learning_curve(eval_set, tmp_path)
+
+    def test_evaluate_curve_writes_the_csv_and_the_figure(self, caches, hdri, run, capsys) -> None:
+        parser = argparse.ArgumentParser(prog="kornia-ilum")
+        add_evaluate_parser(parser.add_subparsers(dest="command"))
+        args = parser.parse_args(["evaluate", "--cache", str(caches[0]), "--cache", str(caches[1]), "--hdri",
+                                  str(hdri), "--samples", "8", "--curve", str(run)])
+        assert args.func(args) == 0
+        printed = capsys.readouterr().out
+        assert "learning curve of" in printed and "| 4 | 128 | 1.5 |" in printed and "## Table 1" not in printed
+        with open(run / "curve.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert [r["step"] for r in rows] == ["2", "4"] and list(rows[0]) == list(CURVE_FIELDS)
+        assert (run / "curve.png").read_bytes()[:4] == b"\x89PNG"
+        assert not list(run.glob(".*tmp*"))
