@@ -20,7 +20,8 @@ from kornia_ilum.evaluation.curve import learning_curve, write_curve
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
 from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
-__all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "print_curve", "run_evaluate"]
+__all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "print_curve",
+           "run_evaluate"]
 
 #: The checks run unless ``--checks`` says otherwise.
 DEFAULT_CHECKS: tuple[str, ...] = CHECKS

@@ -90,8 +90,9 @@ def run_train(args: argparse.Namespace) -> int:
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
-                         log_every=args.log_every, snapshot_every=args.snapshot_every, lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop,
-                         crop_pairs=args.crop_pairs, lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
+                         log_every=args.log_every, snapshot_every=args.snapshot_every,
+                         lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
+                         lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
                          data=dict(args.data))
     summary = train(config)
     if "weights" in summary:

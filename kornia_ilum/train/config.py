@@ -52,8 +52,8 @@ class TrainConfig:
         crop_pairs: the pairs per step with ``lambda_crop`` (8 of a batch of 32).
         lambda_energy: the weight of the energy term (0: off, the paper's loss): the log of each channel's
             energy against the truth's (:func:`~kornia_ilum.train.losses.energy_loss`), which ``L_rec`` on
-            gamma-encoded spheres lets drift low (docs/training.rst, "Energy term"). Recipes that keep the
-            default :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
+            gamma-encoded spheres lets drift low (docs/training.rst, "Why the energy drifts low"). Recipes
+            that keep the default :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
         seed: the seed of the data and of the initialisation.
         workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (there
             the data is a small part of a step), ``min(8, cores - 1)`` on CUDA, where one worker cannot keep
@@ -113,7 +113,8 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
                 raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
-        if isinstance(self.snapshot_every, bool) or not isinstance(self.snapshot_every, int) or self.snapshot_every < 0:
+        every = self.snapshot_every
+        if isinstance(every, bool) or not isinstance(every, int) or every < 0:
             raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
                                          or self.workers < 0):

@@ -229,8 +229,9 @@ def train(config: TrainConfig) -> dict[str, Any]:
                           elapsed + time.perf_counter() - run_t0)
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
-                terms = (("crop",) if config.lambda_crop > 0 else ()) + (("energy",) if config.lambda_energy > 0 else ())
-                _write_log(out, rows, _LOG_FIELDS + terms + recipe.log_fields)  # a term is logged where it is on
+                terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("energy", config.lambda_energy))
+                              if weight > 0)  # a term is logged where it is on
+                _write_log(out, rows, _LOG_FIELDS + terms + recipe.log_fields)
                 _save_checkpoint(out, {
                     "step": step, "elapsed_s": elapsed + time.perf_counter() - run_t0,
                     "model": model.state_dict(), "disc": disc.state_dict() if disc is not None else {},

@@ -86,7 +86,7 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
 
     ``L_rec`` compares gamma-encoded, soft-clipped spheres, so a lighting too dark by a factor costs less than
     one too bright by it; this term is symmetric in log and its minimum is the median of the energy's ratio at
-    1 (docs/training.rst, "Energy term").
+    1 (docs/training.rst, "Why the energy drifts low, and the energy term").
 
     Args:
         pred: ``(B, 3, S, S)`` predicted linear mirror-ball lighting.

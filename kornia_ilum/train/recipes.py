@@ -181,8 +181,8 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
     The term is blind to a scale that the two predictions share: both are multiplied by ``m.detach() / m``,
     with ``m`` the geometric mean of the pair's two mean radiances. That leaves its value as it is but takes
     away the gradient that would darken both: ``L_rec`` compares gamma-encoded spheres, so two predictions
-    scaled by ``c`` are ``c^(1/2.2)`` times as far apart, and without this the term alone pulled the energy
-    of every estimate down (docs/training.rst, "Crop consistency").
+    scaled by ``c`` lie about ``c^(1/2.2)`` times as far apart. (Measured, that pull was not what made the
+    fine-tuned estimates dark: docs/training.rst, "Why the energy drifts low".)
 
     Examples:
         >>> light = torch.ones(4, 3, 32, 32)

@@ -20,7 +20,8 @@ class TestTrainConfig:
         assert c.bf16 is None and c.channels_last is None and c.workers is None  # decided by resolve_runtime
 
     @pytest.mark.parametrize("bad", [{"steps": 0}, {"batch": True}, {"workers": -1}, {"cache": ()},
-                                     {"lr": 0.0}, {"lambda_adv": -1.0}, {"lambda_crop": -1.0}, {"lambda_energy": -0.1}, {"snapshot_every": -1},
+                                     {"lr": 0.0}, {"lambda_adv": -1.0}, {"lambda_crop": -1.0},
+                                     {"lambda_energy": -0.1}, {"snapshot_every": -1},
                                      {"crop_pairs": 0}, {"lambda_crop": 1.0, "crop_pairs": 17}])
     def test_bad_settings(self, bad) -> None:
         with pytest.raises(ValueCheckError):
