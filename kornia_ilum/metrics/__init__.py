@@ -8,6 +8,7 @@ from kornia_ilum.metrics.lighting import (
     multiscale_reconstruction_loss,
     reconstruction_loss,
     relative_radiance,
+    total_radiance,
 )
 from kornia_ilum.metrics.protocol import (
     METRICS,
@@ -30,4 +31,5 @@ __all__ = [
     "relative_radiance",
     "three_sphere_metrics",
     "tonemap_stylelight",
+    "total_radiance",
 ]

@@ -38,6 +38,7 @@ __all__ = [
     "multiscale_reconstruction_loss",
     "reconstruction_loss",
     "relative_radiance",
+    "total_radiance",
 ]
 
 _REDUCTIONS = ("mean", "sum", "none")
@@ -220,6 +221,22 @@ def multiscale_reconstruction_loss(
     return _reduce(_l_rec(plan, _counts(sizes), pred, target, knee), reduction)
 
 
+def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) -> torch.Tensor:
+    r"""Each channel's radiance summed over the sphere, weighted by each pixel's exact solid angle
+    (:func:`~kornia_ilum.geometry.mirror_ball_solid_angles`, 0 outside the ball): ``(B, 3)``, computed in
+    ``dtype`` (default: the input's). A uniform lighting of radiance 1 gives :math:`4\pi`.
+
+    Examples:
+        >>> import math
+        >>> t = total_radiance(torch.ones(1, 3, 32, 32), torch.float64)
+        >>> bool(torch.allclose(t, torch.full((1, 3), 4 * math.pi, dtype=torch.float64)))
+        True
+    """
+    work = mirror_ball.dtype if dtype is None else dtype
+    omega = mirror_ball_solid_angles(mirror_ball.shape[-1], device=mirror_ball.device, dtype=work)
+    return (mirror_ball.to(work) * omega).sum((-2, -1))
+
+
 def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     r"""Relative radiance error per channel: ``(sum(L_gt) - sum(L_pred)) / sum(L_gt)``.
 
@@ -251,12 +268,10 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         >>> relative_radiance(2.0 * gt, gt)
         tensor([[-1., -1., -1.]])
     """
-    s = check_lighting_pair(pred, target)
+    check_lighting_pair(pred, target)
     check_tensor(target, "target", ["B", "3", "S", "S"], nonnegative=True)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
-    omega = mirror_ball_solid_angles(s, device=pred.device, dtype=work)
-    total_gt = (target.to(work) * omega).sum((-2, -1))
-    total_pred = (pred.to(work) * omega).sum((-2, -1))
+    total_gt, total_pred = total_radiance(target, work), total_radiance(pred, work)
     if checks_active() and not torch.compiler.is_compiling() and bool((total_gt <= 0).any()):
         raise ValueCheckError(
             "target must have a positive total radiance in every channel (it is the denominator)"

@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import torch
 
-from kornia_ilum.geometry import mirror_ball_solid_angles
-from kornia_ilum.metrics import reconstruction_loss
+from kornia_ilum.metrics import reconstruction_loss, total_radiance
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 
 __all__ = ["BRDF_WEIGHTS", "discriminator_images", "energy_loss", "training_losses"]
@@ -81,8 +80,8 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
 
 def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> torch.Tensor:
     r"""How far the lighting's energy is off, in log: the mean over the batch and R, G, B of
-    ``|log(E_pred + eps) - log(E_true + eps)|``, with ``E_c = sum_p Omega_p L_c,p`` (the exact solid angles of
-    :func:`~kornia_ilum.geometry.mirror_ball_solid_angles`).
+    ``|log(E_pred + eps) - log(E_true + eps)|``, with ``E_c = sum_p Omega_p L_c,p``
+    (:func:`~kornia_ilum.metrics.total_radiance`).
 
     ``L_rec`` compares gamma-encoded, soft-clipped spheres, so a lighting too dark by a factor costs less than
     one too bright by it; this term is symmetric in log and its minimum is the median of the energy's ratio at
@@ -100,7 +99,5 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
         >>> round(float(energy_loss(2 * light, light)), 4)  # log 2
         0.6931
     """
-    omega = mirror_ball_solid_angles(pred.shape[-1], device=pred.device, dtype=torch.float32)
-    e_pred = (pred.float() * omega).sum((-2, -1))
-    e_true = (target.float() * omega).sum((-2, -1))
+    e_pred, e_true = total_radiance(pred, torch.float32), total_radiance(target, torch.float32)
     return ((e_pred + eps).log() - (e_true + eps).log()).abs().mean()
