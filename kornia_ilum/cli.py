@@ -10,6 +10,8 @@ Subcommands:
 - ``kornia-ilum train``: train an estimator on the light stage (:mod:`kornia_ilum.train`).
 - ``kornia-ilum evaluate``: the paper's tables on the project's held-out split
   (:mod:`kornia_ilum.evaluation`).
+- ``kornia-ilum ablate``: the paper's ablations, one training run per row, and their table
+  (:mod:`kornia_ilum.ablation`).
 
 Errors print one line, ``kornia-ilum: error: ...``, on stderr, never a traceback (set
 ``KORNIA_ILUM_DEBUG=1`` to get one), and exit with status 2 for usage errors (bad options) or 1 for
@@ -97,6 +99,12 @@ def _add_evaluate_parser(sub: argparse._SubParsersAction) -> None:
     add_evaluate_parser(sub)
 
 
+def _add_ablate_parser(sub: argparse._SubParsersAction) -> None:
+    from kornia_ilum.ablation import add_ablate_parser  # lazy: the ablations train and evaluate
+
+    add_ablate_parser(sub)
+
+
 #: The sub-commands whose packages load the light stage when imported: name -> (adds the real parser, its
 #: help line). A command line that does not name one gets a placeholder with the same help line instead, so
 #: that ``estimate``, ``list`` and ``--help`` start without the light stage (``tests/test_cli.py`` checks that
@@ -104,6 +112,7 @@ def _add_evaluate_parser(sub: argparse._SubParsersAction) -> None:
 LAZY_COMMANDS = {
     "train": (_add_train_parser, "train an estimator on the light stage"),
     "evaluate": (_add_evaluate_parser, "score the estimators and two oracles on the held-out eval set"),
+    "ablate": (_add_ablate_parser, "the paper's ablations: one training run per row, and the table"),
 }
 
 

@@ -33,7 +33,14 @@ from kornia_ilum.evaluation.checks import (
     run_checks,
     transfer_check,
 )
-from kornia_ilum.evaluation.curve import CURVE_FIELDS, learning_curve, snapshot_files, write_curve
+from kornia_ilum.evaluation.curve import (
+    CURVE_FIELDS,
+    equal_budget,
+    format_equal_budget,
+    learning_curve,
+    snapshot_files,
+    write_curve,
+)
 from kornia_ilum.evaluation.evaluate import (
     BRDF_NAMES,
     DEFAULT_SAMPLES,
@@ -41,13 +48,14 @@ from kornia_ilum.evaluation.evaluate import (
     EvalSet,
     build_eval_set,
     evaluate,
+    fit_crops,
     load_checkpoint,
     load_estimator,
     oracle_predictions,
     predict,
     score,
 )
-from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
+from kornia_ilum.evaluation.report import format_markdown, paired_differences, summarize, write_report
 from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields, heldout_maps
 
 __all__ = [
@@ -61,6 +69,7 @@ __all__ = [
     "ORACLES",
     "EvalSet",
     "build_eval_set",
+    "fit_crops",
     "check_runner",
     "composite_background",
     "crop_stability",
@@ -69,10 +78,13 @@ __all__ = [
     "dominant_direction",
     "eval_environment_sources",
     "eval_fields",
+    "equal_budget",
     "evaluate",
     "exposure_equivariance",
     "face_crops",
+    "format_equal_budget",
     "format_markdown",
+    "paired_differences",
     "heldout_maps",
     "jitter_boxes",
     "learning_curve",

@@ -48,7 +48,7 @@ from kornia_ilum.detection import (
     crop_faces,
     square_crop_boxes,
 )
-from kornia_ilum.evaluation.evaluate import EvalSet
+from kornia_ilum.evaluation.evaluate import EvalSet, fit_crops
 from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
 from kornia_ilum.io import read_ldr
 from kornia_ilum.synth.lightstage.portraits import crop_images
@@ -163,7 +163,7 @@ def _energies(estimator: Estimator, batches: Iterator[torch.Tensor], directions:
     energy, direction = [], []
     with torch.inference_mode():
         for crops in batches:
-            out = estimator(crops)
+            out = estimator(fit_crops(estimator, crops))
             ball = getattr(out, "mirror_ball", out).double()
             energy.append(lighting_energy(ball))
             if directions:

@@ -16,7 +16,7 @@ from pathlib import Path
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.detection import DEFAULT_DETECTOR
 from kornia_ilum.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
-from kornia_ilum.evaluation.curve import learning_curve, write_curve
+from kornia_ilum.evaluation.curve import equal_budget, format_equal_budget, learning_curve, write_curve
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
 from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
@@ -47,7 +47,7 @@ examples:
   kornia-ilum evaluate --cache lightstage/ --weights ours=runs/a/best.safetensors --json eval.json
   kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
   kornia-ilum evaluate --cache lightstage/ --checks transfer,exposure --photos me.jpg group.png --out eval/
-  kornia-ilum evaluate --cache lightstage/ --curve runs/a --curve runs/b   # learning curves of two runs
+  kornia-ilum evaluate --cache lightstage/ --curve runs/a --curve runs/b   # two curves, at equal budgets
 """
 
 
@@ -145,7 +145,7 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--curve", action="append", default=[], metavar="RUN",
                      help="instead of the tables: the learning curve of a training run kept with "
                      "--snapshot-every, L_rec of each snapshot, written to RUN/curve.csv and RUN/curve.png "
-                     "(repeatable)")
+                     "(repeatable; with several, also the runs at equal portraits seen and equal wall time)")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -182,8 +182,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
     eval_set = build_eval_set(args.cache, hdri, samples, background=background, progress=True)
     curves = getattr(args, "curve", None) or []
     if curves:
+        found = {}
         for run in curves:
-            print_curve(run, learning_curve(eval_set, run, getattr(args, "batch_size", 32)))
+            found[run] = learning_curve(eval_set, run, getattr(args, "batch_size", 32))
+            print_curve(run, found[run])
+        if len(found) > 1:
+            print("\nat equal budgets (each run at its last snapshot within the budget):")
+            print(format_equal_budget(equal_budget(found)), end="")
         return 0
     checks = tuple(getattr(args, "checks", DEFAULT_CHECKS))
     options = {"ks": list(EXPOSURE_FACTORS), "jitters": getattr(args, "jitters", 8), "position": 0.10,

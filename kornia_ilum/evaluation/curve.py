@@ -5,7 +5,9 @@ A run trained with ``--snapshot-every N`` keeps its estimator's weights as
 file's metadata (:func:`~kornia_ilum.train.save_snapshot`). :func:`learning_curve` scores every snapshot on an
 eval set (:func:`~kornia_ilum.evaluation.build_eval_set`) and :func:`write_curve` writes ``RUN/curve.csv`` and
 ``RUN/curve.png``: whether the run had stopped learning, and, read at equal samples or equal wall time, how
-estimators of different cost compare (``kornia-ilum evaluate --curve RUN``).
+estimators of different cost compare (``kornia-ilum evaluate --curve RUN``). :func:`equal_budget` reads
+several runs' curves at a shared budget of portraits seen and of training wall time
+(``kornia-ilum evaluate --curve RUN_A --curve RUN_B ...`` prints it).
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet, load_checkpoint, predict, score
 
-__all__ = ["CURVE_FIELDS", "learning_curve", "snapshot_files", "write_curve"]
+__all__ = ["CURVE_FIELDS", "equal_budget", "format_equal_budget", "learning_curve", "snapshot_files",
+           "write_curve"]
 
 #: The columns of ``curve.csv``: where the snapshot was taken, then the mean ``L_rec`` per sphere.
 CURVE_FIELDS: tuple[str, ...] = ("step", "samples", "elapsed_s", *BRDF_NAMES)
@@ -92,3 +95,60 @@ def write_curve(run: str | os.PathLike[str], rows: list[dict[str, Any]]) -> list
     atomic_write(run / "curve.png", lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
     return [*written, run / "curve.png"]
+
+
+def _at_budget(rows: list[dict[str, Any]], key: str, budget: float) -> dict[str, Any] | None:
+    """The last row whose ``key`` is at most ``budget`` (a snapshot taken within it), or ``None``."""
+    within = [r for r in rows if r[key] <= budget * (1 + 1e-9)]
+    return max(within, key=lambda r: r[key]) if within else None
+
+
+def equal_budget(curves: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
+    r"""Several runs' learning curves read at equal budgets: whether an ordering is a matter of compute.
+
+    The budgets are the smallest, over the runs, of their last snapshot's portraits seen and of its training
+    wall time: every run has reached both. Each run is read at its last snapshot within the budget (no
+    interpolation between snapshots: the numbers are measured ones).
+
+    Args:
+        curves: run name to its rows (:func:`learning_curve`, in step order).
+
+    Returns:
+        ``{"samples": {"budget": S, "runs": {name: row}}, "elapsed_s": {"budget": T, "runs": {name: row}}}``.
+
+    Raises:
+        ValueCheckError: fewer than two runs, or a run without rows.
+
+    Examples:
+        >>> fast = [{"step": 1, "samples": 10, "elapsed_s": 5.0, "diffuse": 0.3},
+        ...         {"step": 2, "samples": 20, "elapsed_s": 10.0, "diffuse": 0.2}]
+        >>> slow = [{"step": 1, "samples": 10, "elapsed_s": 50.0, "diffuse": 0.25}]
+        >>> table = equal_budget({"fast": fast, "slow": slow})
+        >>> table["samples"]["budget"], table["samples"]["runs"]["fast"]["diffuse"]
+        (10, 0.3)
+        >>> table["elapsed_s"]["budget"], table["elapsed_s"]["runs"]["fast"]["diffuse"]
+        (10.0, 0.2)
+    """
+    if len(curves) < 2 or not all(curves.values()):
+        raise ValueCheckError("equal_budget needs at least two runs, each with at least one snapshot")
+    table = {}
+    for key in ("samples", "elapsed_s"):
+        budget = min(rows[-1][key] for rows in curves.values())
+        table[key] = {"budget": budget, "runs": {name: _at_budget(rows, key, budget) for name, rows in curves.items()}}
+    return table
+
+
+def format_equal_budget(table: dict[str, Any]) -> str:
+    """:func:`equal_budget`'s table as Markdown: one row per run and budget, ``L_rec`` per sphere."""
+    lines = ["| budget | run | step | portraits | wall time (min) | " + " | ".join(BRDF_NAMES) + " |",
+             "|---|---|---:|---:|---:|" + "---:|" * len(BRDF_NAMES)]
+    for key, what in (("samples", "portraits"), ("elapsed_s", "wall time")):
+        budget = table[key]["budget"]
+        label = f"{what} {budget}" if key == "samples" else f"{what} {budget / 60:.1f} min"
+        for name, r in table[key]["runs"].items():
+            if r is None:  # no snapshot within the budget
+                lines.append(f"| {label} | {name} | - | - | - | " + " | ".join("-" for _ in BRDF_NAMES) + " |")
+                continue
+            lines.append(f"| {label} | {name} | {r['step']} | {r['samples']} | {r['elapsed_s'] / 60:.1f} | "
+                         + " | ".join(f"{r[b]:.4f}" for b in BRDF_NAMES) + " |")
+    return "\n".join(lines) + "\n"

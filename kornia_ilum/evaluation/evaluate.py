@@ -19,15 +19,16 @@ per channel (:func:`kornia_ilum.metrics.relative_radiance`). Oracles (:func:`ora
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import torch
+import torch.nn.functional as F
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
@@ -55,6 +56,7 @@ __all__ = [
     "ORACLES",
     "EvalSet",
     "build_eval_set",
+    "fit_crops",
     "evaluate",
     "load_checkpoint",
     "load_estimator",
@@ -71,7 +73,7 @@ DEFAULT_SAMPLES = 512
 ORACLES: tuple[str, ...] = ("SH of GT", "mean of GT")
 
 
-@dataclass
+@dataclasses.dataclass
 class EvalSet:
     r"""The eval samples, stacked.
 
@@ -97,7 +99,7 @@ class EvalSet:
     source: list[str]
     alpha: torch.Tensor | None = None
     nominal_boxes: torch.Tensor | None = None
-    description: dict[str, Any] = field(default_factory=dict)
+    description: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.images)
@@ -115,6 +117,7 @@ def build_eval_set(
     lightings_per_field: int = 8,
     background: str = "environment",
     context: float | None = None,
+    portraits: Mapping[str, Any] | None = None,
     progress: bool = False,
 ) -> EvalSet:
     r"""The held-out eval set: ``samples`` portraits of the eval subjects under eval environments.
@@ -145,6 +148,10 @@ def build_eval_set(
         background: ``"environment"`` (the matching background, as in training ``ours``) or ``"black"``
             (the same portraits, subjects, lightings and crops over black, the variant SIPR was trained on).
         context: ``None`` for the usual face crops, or a factor of at least 1: the context crops above.
+        portraits: other :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` settings of the
+            portraits (for an ablation's input: ``{"subject": False}`` for the backgrounds alone, a wider
+            ``crop_position`` and ``crop_extent`` for crops without a face detector); not those that this
+            function sets itself (the split, environments, length, chunks, background, matte, sphere sizes).
         progress: show a progress bar.
 
     Returns:
@@ -163,6 +170,12 @@ def build_eval_set(
     subjects = eval_fields(caches, fields)
     sources = eval_environment_sources(hdri)
     sampler = EnvironmentSampler(sources=sources, seed=seed)
+    own = {"split", "environments", "length", "sphere_sizes", "fields_per_chunk", "lightings_per_field",
+           "env_pool", "env_refresh", "shuffle", "background", "matte"}
+    portraits = dict(portraits or {})
+    unknown = sorted(set(portraits) - ({f.name for f in dataclasses.fields(PortraitConfig)} - own))
+    if unknown:
+        raise ValueCheckError(f"portraits settings {unknown} are not PortraitConfig's, or are set by the eval set")
     per_chunk = fields_per_chunk * lightings_per_field
     crop: dict[str, Any] = {"size": size}
     if context is not None:  # the same draws: a jitter of zero width still draws its numbers
@@ -172,7 +185,7 @@ def build_eval_set(
     config = PortraitConfig(split="eval", environments=sampler, length=samples, sphere_sizes=(),
                             fields_per_chunk=fields_per_chunk, lightings_per_field=lightings_per_field,
                             env_pool=per_chunk, env_refresh=per_chunk, shuffle=1, background=background,
-                            matte=True, **crop)
+                            matte=True, **{**portraits, **crop})
     dataset = PortraitDataset(subjects, config, seed=seed)
     render_size = {(f.subject_seed, int(f.meta.get("view_index", -1))): f.size for f in dataset.fields}
     what = "eval set" if context is None else "context set"
@@ -211,7 +224,8 @@ def build_eval_set(
         "environment_sampler": {"seed": seed, "sources": [type(s).__name__ for s in sources],
                                 "weights": [round(w, 6) for w in sampler.weights]},
         "portraits": {"fields_per_chunk": fields_per_chunk, "lightings_per_field": lightings_per_field,
-                      "env_pool": per_chunk, "camera": "CameraEffects() (the training default)"},
+                      "env_pool": per_chunk, "camera": "CameraEffects() (the training default)",
+                      **{k: repr(v) for k, v in sorted(portraits.items())}},
         "build_seconds": round(seconds, 2),
         "torch_threads": torch.get_num_threads(),
     }
@@ -282,15 +296,39 @@ def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
     return out
 
 
+def fit_crops(estimator: Any, crops: torch.Tensor) -> torch.Tensor:
+    r"""``crops`` at the side that ``estimator`` takes (``estimator.info.input_size``): as they are when they
+    have it (or the estimator has no ``info``), else resized as :func:`~kornia_ilum.detection.crop_faces` resizes
+    (bilinear, antialiased) and clamped to ``[0, 1]``.
+
+    The eval set's crops are 256 px, the paper's size; an estimator that takes another size (``sipr``: 128)
+    is scored on the same crops resized to it, as :func:`~kornia_ilum.estimate_lighting` cuts its crops at that
+    size.
+
+    Examples:
+        >>> class Small:
+        ...     info = type("Info", (), {"input_size": 128})
+        >>> tuple(fit_crops(Small(), torch.rand(2, 3, 256, 256)).shape)
+        (2, 3, 128, 128)
+    """
+    info = getattr(estimator, "info", None)
+    size = getattr(info, "input_size", None)
+    if size is None or crops.shape[-1] == crops.shape[-2] == size:
+        return crops
+    resized = F.interpolate(crops.float(), size=(size, size), mode="bilinear", antialias=True, align_corners=False)
+    return resized.clamp_(0.0, 1.0).to(crops.dtype)
+
+
 def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:
     r"""``estimator`` on uint8 crops, in batches: float crops in ``[0, 1]`` in, ``(N, 3, 32, 32)`` float32 out.
 
-    ``estimator`` returns a :class:`~kornia_ilum.estimators.LightingEstimate` (or a tensor of mirror balls).
+    ``estimator`` returns a :class:`~kornia_ilum.estimators.LightingEstimate` (or a tensor of mirror balls); the
+    crops are brought to its input size first (:func:`fit_crops`).
     """
     out = []
     with torch.inference_mode():
         for i in range(0, len(images), batch_size):
-            crops = images[i : i + batch_size].float() / 255.0
+            crops = fit_crops(estimator, images[i : i + batch_size].float() / 255.0)
             est = estimator(crops)
             out.append(getattr(est, "mirror_ball", est).float())
     return torch.cat(out)

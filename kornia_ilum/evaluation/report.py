@@ -28,7 +28,7 @@ import torch
 
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet
 
-__all__ = ["format_markdown", "summarize", "write_report"]
+__all__ = ["format_markdown", "paired_differences", "summarize", "write_report"]
 
 _GROUPS = ("indoor", "outdoor", "all")
 _CHANNELS = ("r", "g", "b")
@@ -42,7 +42,22 @@ def _means(x: torch.Tensor) -> list[float] | None:
     return None if x.numel() == 0 else [float(v) for v in x.double().mean(0)]
 
 
-def _paired(scores: dict[str, torch.Tensor], reference: dict[str, torch.Tensor]) -> dict[str, dict[str, float]]:
+def paired_differences(scores: dict[str, torch.Tensor], reference: dict[str, torch.Tensor]
+                       ) -> dict[str, dict[str, float]]:
+    r"""Per sphere, ``L_rec(method) - L_rec(reference)`` on the same portraits (module docstring, "Paired
+    differences"): ``mean``, its 95 % interval ``low`` and ``high``, and ``better``, the fraction of samples
+    where the method is better.
+
+    Args:
+        scores, reference: per-sample scores of :func:`~kornia_ilum.evaluation.score` on one eval set.
+
+    Examples:
+        >>> ref = {b: torch.tensor([0.2, 0.3]) for b in BRDF_NAMES}
+        >>> mine = {b: torch.tensor([0.1, 0.3]) for b in BRDF_NAMES}
+        >>> d = paired_differences(mine, ref)["diffuse"]
+        >>> round(d["mean"], 6), d["better"]
+        (-0.05, 0.5)
+    """
     out = {}
     for b in BRDF_NAMES:
         d = (scores[b] - reference[b]).double()
@@ -102,7 +117,7 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
         "table2_relative_radiance": t2,
         "per_skin_tone": t3,
         "paired": {"reference": reference if reference in results["methods"] else None,
-                   "methods": {name: _paired(m["scores"], results["methods"][reference]["scores"])
+                   "methods": {name: paired_differences(m["scores"], results["methods"][reference]["scores"])
                                for name, m in results["methods"].items() if name != reference}
                    if reference in results["methods"] else {}},
         **extra,

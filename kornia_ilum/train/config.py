@@ -20,7 +20,10 @@ import torch
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.train.losses import BRDF_WEIGHTS
 
-__all__ = ["RuntimeSettings", "TrainConfig", "resolve_runtime"]
+__all__ = ["LOSSES", "RuntimeSettings", "TrainConfig", "resolve_runtime"]
+
+#: The losses on the lighting that :attr:`TrainConfig.loss` can name.
+LOSSES: tuple[str, ...] = ("rendering", "log_l2")
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,12 @@ class TrainConfig:
             energy against the truth's (:func:`~kornia_ilum.train.losses.energy_loss`), which ``L_rec`` on
             gamma-encoded spheres lets drift low (docs/training.rst, "Why the energy drifts low"). Recipes
             that keep the default :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
+        multi_scale: the rendering loss at every scale of the generator (4, 8, 16 and 32 px, the paper's
+            multi-scale loss); ``False``: at the finest scale only (the paper's ablation "no multi-scale loss":
+            the coarser heads then learn from the adversarial term alone).
+        loss: the loss on the lighting: ``"rendering"`` (the paper's ``L_rec`` on the three spheres) or
+            ``"log_l2"`` (the paper's ablation: ``mean((log(1 + L_pred) - log(1 + L_true))^2)`` over each scale's
+            mirror-ball texels, :func:`~kornia_ilum.train.losses.log_l2_loss`, instead of ``L_rec``).
         seed: the seed of the data and of the initialisation.
         workers: data-loader worker processes per rank (0: in the training process); ``None``: 1 on CPU (there
             the data is a small part of a step), ``min(8, cores - 1)`` on CUDA, where one worker cannot keep
@@ -94,6 +103,8 @@ class TrainConfig:
     lambda_crop: float = 0.0
     crop_pairs: int = 8
     lambda_energy: float = 0.0
+    multi_scale: bool = True
+    loss: str = "rendering"
     seed: int = 0
     workers: int | None = None
     threads: int | None = None
@@ -129,6 +140,10 @@ class TrainConfig:
             raise ValueCheckError(f"lambda_crop must be non-negative, got {self.lambda_crop!r}")
         if not self.lambda_energy >= 0:
             raise ValueCheckError(f"lambda_energy must be non-negative, got {self.lambda_energy!r}")
+        if not isinstance(self.multi_scale, bool):
+            raise ValueCheckError(f"multi_scale must be True or False, got {self.multi_scale!r}")
+        if self.loss not in LOSSES:
+            raise ValueCheckError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
         if self.lambda_crop > 0 and 2 * self.crop_pairs > self.batch:
             raise ValueCheckError(f"crop_pairs ({self.crop_pairs}) must be at most half the batch ({self.batch})")
         if self.init is not None:
@@ -138,7 +153,8 @@ class TrainConfig:
         object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
 
     def data_key(self) -> dict[str, Any]:
-        """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree."""
+        """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree (a
+        setting that a checkpoint predates counts as its default there)."""
         skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 

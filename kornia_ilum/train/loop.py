@@ -70,7 +70,11 @@ def _load_checkpoint(out: Path, config: TrainConfig) -> dict[str, Any] | None:
     if not path.is_file():
         return None
     state = torch.load(path, map_location="cpu", weights_only=True)
-    if state["data_key"] != json.loads(json.dumps(config.data_key())):
+    now = json.loads(json.dumps(config.data_key()))
+    # a checkpoint written before a setting existed was trained with that setting's default
+    defaults = json.loads(json.dumps(TrainConfig(out="", cache=("-",)).data_key()))
+    stored = {**{k: defaults[k] for k in now.keys() - state["data_key"].keys()}, **state["data_key"]}
+    if stored != now:
         raise ValueCheckError(
             f"{path} was written by a run with other settings; resume with the same settings or use a new --out "
             f"(checkpoint: {state['data_key']}, now: {config.data_key()})"
@@ -171,6 +175,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
         if not config.model:
             raise
         raise ValueCheckError(f"estimator {config.estimator!r} takes no model options {sorted(config.model)}") from exc
+    if config.lambda_adv == 0:  # no adversarial term: no discriminator to train (built first, so the RNG is the same)
+        disc = None
     state = _load_checkpoint(out, config)
     start, elapsed = 0, 0.0
     if state is None and config.init is not None:  # fine-tuning: the estimator starts from these weights

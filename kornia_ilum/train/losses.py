@@ -4,6 +4,8 @@ r"""The training losses of the lighting estimators (LeGendre et al. 2020, Sec. 3
   the training form of ``L_rec`` (:func:`~kornia_ilum.metrics.reconstruction_loss`, ``gamma="safe"``) and
   the ground truth brought to each scale by the energy-keeping pyramid (docs/conventions.rst, "Multi-scale");
 - :func:`discriminator_images`: the clipped, gamma-encoded mirror spheres that the discriminator sees;
+- :func:`log_l2_loss`: the L2 distance of ``log(1 + L)`` on the mirror ball, the loss of the paper's ablation
+  "log-L2 on the HDR lighting instead of the rendering losses" (:attr:`~kornia_ilum.train.TrainConfig.loss`);
 - :func:`energy_loss`: ``|log E_pred - log E_true|`` per channel, the lighting's energy, an optional term that is
   not the paper's (:attr:`~kornia_ilum.train.TrainConfig.lambda_energy`);
 - :data:`BRDF_WEIGHTS`: the paper's ``lambda_k``.
@@ -16,10 +18,11 @@ from __future__ import annotations
 
 import torch
 
+from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.metrics import reconstruction_loss, total_radiance
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 
-__all__ = ["BRDF_WEIGHTS", "discriminator_images", "energy_loss", "training_losses"]
+__all__ = ["BRDF_WEIGHTS", "discriminator_images", "energy_loss", "log_l2_loss", "training_losses"]
 
 #: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
 BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
@@ -76,6 +79,33 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
             if s == max(pred):
                 parts[f"rec_{brdf}"] = term.detach()
     return total, parts
+
+
+def log_l2_loss(pred: dict[int, torch.Tensor], truth: dict[int, torch.Tensor], lambda_scale: float = 1.0
+                ) -> torch.Tensor:
+    r"""``sum_s lambda_s mean((log(1 + L_pred) - log(1 + L_true))^2)`` over each scale's mirror-ball texels and
+    channels: the loss on the HDR lighting itself that LeGendre et al. 2020 ablate against their rendering
+    losses (Sec. 5, Table 4), and that Sun et al. 2019 train SIPR's lighting with.
+
+    Args:
+        pred: ``{size: (B, 3, size, size)}`` predicted linear mirror-ball lighting per scale.
+        truth: the ground truth at the same sizes (:func:`~kornia_ilum.render.mirror_ball_pyramid`).
+        lambda_scale: the weight of each scale.
+
+    Examples:
+        >>> light = {4: torch.ones(2, 3, 4, 4), 32: torch.ones(2, 3, 32, 32)}
+        >>> float(log_l2_loss(light, light))
+        0.0
+        >>> dark = {s: torch.zeros_like(x) for s, x in light.items()}
+        >>> round(float(log_l2_loss(dark, light)), 4)  # two scales of log(2)^2
+        0.9609
+    """
+    total = next(iter(pred.values())).new_zeros((), dtype=torch.float32)
+    for s, x in pred.items():
+        valid = mirror_ball_valid(s, device=x.device).float()
+        d = (torch.log1p(x.float().clamp_min(0)) - torch.log1p(truth[s].float().clamp_min(0))).square() * valid
+        total = total + lambda_scale * d.sum() / (valid.sum() * d.shape[0] * d.shape[1])
+    return total
 
 
 def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> torch.Tensor:

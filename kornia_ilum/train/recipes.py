@@ -36,7 +36,7 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.data import batch_loader, collate
-from kornia_ilum.train.losses import discriminator_images, energy_loss, training_losses
+from kornia_ilum.train.losses import discriminator_images, energy_loss, log_l2_loss, training_losses
 from kornia_ilum.train.models import MSGDiscriminator, MultiScaleOurs
 
 __all__ = [
@@ -217,7 +217,9 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     3. the generator takes one Adam step on
        ``sum_s lambda_s sum_k lambda_k L_rec(k, s) + lambda_adv softplus(-D(fake)) + extra``, with the
        training form of ``L_rec`` (:func:`~kornia_ilum.train.losses.training_losses`) and ``extra`` the sum of
-       the recipe's :meth:`Recipe.extra_losses`; with ``pairs`` (:func:`crop_pairs`), plus
+       the recipe's :meth:`Recipe.extra_losses`. The paper's ablations change the first term: without
+       ``config.multi_scale`` it is taken at 32 px only, and ``config.loss == "log_l2"`` puts
+       :func:`~kornia_ilum.train.losses.log_l2_loss` in place of ``L_rec``. With ``pairs`` (:func:`crop_pairs`), plus
        ``lambda_crop`` times :func:`crop_consistency`; with ``lambda_energy``, plus that times
        :func:`~kornia_ilum.train.losses.energy_loss` at 32 px.
 
@@ -227,7 +229,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         opt_g, opt_d: their optimisers (``opt_d`` is ``None`` with ``disc``).
         crops: ``(B, 3, 256, 256)`` sRGB in ``[0, 1]``, in the networks' memory format.
         target: ``(B, 3, 32, 32)`` linear ground-truth lighting.
-        config: the loss weights (``brdf_weights``, ``lambda_scale``, ``lambda_adv``).
+        config: the loss weights (``brdf_weights``, ``lambda_scale``, ``lambda_adv``, ...) and the ablations'
+            ``multi_scale`` and ``loss``.
         runtime: ``bf16`` and the memory format.
         recipe: its :meth:`Recipe.extra_losses` join the generator's loss (none for ``None``).
         pairs: the crop pairs at the ends of the batch (:func:`crop_pairs`; 0: none).
@@ -242,7 +245,14 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     with autocast:
         pred = model(crops)
     truth = mirror_ball_pyramid(target, tuple(pred))  # the losses' targets, the discriminator's real images
-    rec, parts = training_losses(pred, target, config.brdf_weights, config.lambda_scale, truth)
+    finest = max(pred)
+    scored = pred if config.multi_scale else {finest: pred[finest]}
+    if config.loss == "log_l2":
+        rec = log_l2_loss(scored, truth, config.lambda_scale)
+        with torch.no_grad():  # L_rec at 32 px for the log only
+            parts = training_losses({finest: pred[finest]}, target, config.brdf_weights, truth=truth)[1]
+    else:
+        rec, parts = training_losses(scored, target, config.brdf_weights, config.lambda_scale, truth)
     adv = disc_loss = rec.new_zeros(())
     if disc is not None:
         plain = getattr(disc, "module", disc)  # the generator's step syncs no gradient of the discriminator
@@ -260,7 +270,7 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
             adv = F.softplus(-fake_logits).mean()
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
-    energy = energy_loss(pred[max(pred)], truth[max(pred)]) if config.lambda_energy > 0 else rec.new_zeros(())
+    energy = energy_loss(pred[finest], truth[finest]) if config.lambda_energy > 0 else rec.new_zeros(())
     loss = rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
     opt_g.zero_grad(set_to_none=True)
     loss.backward()

@@ -11,7 +11,15 @@ import torch
 
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
-from kornia_ilum.evaluation import BRDF_NAMES, CURVE_FIELDS, evaluate, learning_curve, snapshot_files
+from kornia_ilum.evaluation import (
+    BRDF_NAMES,
+    CURVE_FIELDS,
+    equal_budget,
+    evaluate,
+    format_equal_budget,
+    learning_curve,
+    snapshot_files,
+)
 from kornia_ilum.evaluation.cli import add_evaluate_parser
 from kornia_ilum.train import save_snapshot
 
@@ -64,3 +72,28 @@ class TestLearningCurve:
         assert [r["step"] for r in rows] == ["2", "4"] and list(rows[0]) == list(CURVE_FIELDS)
         assert (run / "curve.png").read_bytes()[:4] == b"\x89PNG"
         assert not list(run.glob(".*tmp*"))
+
+
+class TestEqualBudget:
+    @staticmethod
+    def _rows(*points: tuple[int, float, float]) -> list[dict]:
+        return [{"step": i + 1, "samples": s, "elapsed_s": t, **dict.fromkeys(BRDF_NAMES, v)}
+                for i, (s, t, v) in enumerate(points)]
+
+    def test_each_run_at_its_last_snapshot_within_the_shared_budgets(self) -> None:
+        cheap = self._rows((100, 10.0, 0.30), (200, 20.0, 0.20), (300, 30.0, 0.15))
+        costly = self._rows((100, 40.0, 0.25), (150, 60.0, 0.22))
+        table = equal_budget({"cheap": cheap, "costly": costly})
+        assert table["samples"]["budget"] == 150 and table["elapsed_s"]["budget"] == 30.0
+        assert table["samples"]["runs"]["cheap"]["samples"] == 100  # not interpolated: the last snapshot within
+        assert table["samples"]["runs"]["costly"]["samples"] == 150
+        assert table["elapsed_s"]["runs"]["cheap"]["diffuse"] == 0.15
+        assert table["elapsed_s"]["runs"]["costly"] is None  # no snapshot within 30 s
+        text = format_equal_budget(table)
+        assert "| portraits 150 | cheap | 1 | 100 |" in text and "| wall time 0.5 min | costly | - |" in text
+
+    def test_needs_two_runs_with_snapshots(self) -> None:
+        with pytest.raises(ValueCheckError, match="at least two runs"):
+            equal_budget({"a": self._rows((1, 1.0, 0.1))})
+        with pytest.raises(ValueCheckError, match="at least two runs"):
+            equal_budget({"a": self._rows((1, 1.0, 0.1)), "b": []})

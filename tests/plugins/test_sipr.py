@@ -13,6 +13,7 @@ import safetensors.torch
 import torch
 from kornia_ilum_sipr import (
     ENCODER_DEPTHS,
+    INPUT_SIZE,
     LIGHTING_SHAPE,
     ConvNormAct,
     Encoder,
@@ -42,7 +43,7 @@ def net() -> SIPREstimator:
     return SIPREstimator().eval()
 
 
-def crops(batch: int = 2, seed: int = 0, size: int = 256) -> torch.Tensor:
+def crops(batch: int = 2, seed: int = 0, size: int = INPUT_SIZE) -> torch.Tensor:
     return torch.rand(batch, 3, size, size, generator=torch.Generator().manual_seed(seed))
 
 
@@ -51,7 +52,7 @@ class TestRegistry:
         assert "sipr" in list_estimators()
         est = create_estimator("sipr", pretrained=False)
         assert isinstance(est, SIPREstimator) and isinstance(est, LightingEstimator)
-        assert est.info.name == "sipr" and est.info.input_size == 256 and est.info.needs_weights
+        assert est.info.name == "sipr" and est.info.input_size == INPUT_SIZE == 128 and est.info.needs_weights
         assert "Sun et al. 2019" in est.info.paper and kornia_ilum_sipr.__version__
 
     def test_pretrained_is_missing_until_trained(self):
@@ -82,7 +83,7 @@ class TestRegistry:
 class TestNetwork:
     def test_encoder_blocks_as_nelf(self):
         enc = Encoder()
-        feats = enc(crops(1))
+        feats = enc(crops(1, size=256))
         assert [f.shape[1] for f in feats] == list(ENCODER_DEPTHS)
         assert [f.shape[-1] for f in feats] == [256, 128, 128, 64, 64, 32, 32, 16, 16, 16]  # strides at 1, 3, 5, 7
         first = enc.blocks[0]
@@ -91,7 +92,7 @@ class TestNetwork:
             conv, norm, act = block
             assert isinstance(norm, torch.nn.GroupNorm) and norm.num_groups == min(32, conv.out_channels)
             assert isinstance(act, torch.nn.PReLU)
-        x = crops(1)
+        x = crops(1, size=256)
         assert torch.equal(feats[0][:, :3], x)  # the input joins block 0's 29 channels
 
     def test_lighting_head_is_the_confidence_weighted_mean(self):
@@ -199,7 +200,7 @@ class TestData:
         base = PortraitDataset(load_fields(tiny_cache, split=None), PortraitConfig(split=None), seed=1)
         data = SIPRRecipe().dataset(base)
         assert data.config.background == "black" and data.config.pairs and data.config.crop == "face"
-        assert data.config.crop_position > base.config.crop_position
+        assert data.config.crop_position > base.config.crop_position and data.config.size == INPUT_SIZE
         assert data.seed == base.seed and all(a is b for a, b in zip(data.fields, base.fields, strict=True))
 
 

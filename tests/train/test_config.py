@@ -18,11 +18,13 @@ class TestTrainConfig:
             32, 1.5e-4, 0.01, (0.9, 0.999), 0.004, 1.0)
         assert c.cache == ("a", "b") and c.brdf_weights == BRDF_WEIGHTS and c.brdf_weights is not BRDF_WEIGHTS
         assert c.bf16 is None and c.channels_last is None and c.workers is None  # decided by resolve_runtime
+        assert c.multi_scale and c.loss == "rendering"
 
     @pytest.mark.parametrize("bad", [{"steps": 0}, {"batch": True}, {"workers": -1}, {"cache": ()},
                                      {"lr": 0.0}, {"lambda_adv": -1.0}, {"lambda_crop": -1.0},
                                      {"lambda_energy": -0.1}, {"snapshot_every": -1},
-                                     {"crop_pairs": 0}, {"lambda_crop": 1.0, "crop_pairs": 17}])
+                                     {"crop_pairs": 0}, {"lambda_crop": 1.0, "crop_pairs": 17},
+                                     {"multi_scale": 1}, {"loss": "l2"}])
     def test_bad_settings(self, bad) -> None:
         with pytest.raises(ValueCheckError):
             TrainConfig(**{"out": "run", "cache": ("a",), **bad})

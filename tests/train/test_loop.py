@@ -145,6 +145,28 @@ class TestCropConsistencyAndInit:
         assert all(torch.allclose(last[k], exported[k].float(), atol=1e-2, rtol=1e-3) for k in last)
         assert config.data_key() == dataclasses.replace(config, snapshot_every=0).data_key()  # resumable either way
 
+    def test_no_adversarial_term_trains_no_discriminator_and_old_checkpoints_resume(self, tiny_cache, tmp_path,
+                                                                                     monkeypatch) -> None:
+        monkeypatch.setattr(recipes, "PROBE_SIZE", 2)
+        threads = torch.get_num_threads()
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=1, batch=2, workers=0,
+                             threads=1, bf16=False, log_every=1, checkpoint_every=1, lambda_adv=0.0,
+                             data=small_data())
+        path = tmp_path / "run" / "checkpoint.pt"
+        try:
+            train(config)
+            state = torch.load(path, weights_only=True)
+            assert state["disc"] == {} and state["opt_d"] == {}
+            # a checkpoint written before the ablations' settings existed holds their defaults
+            for key in ("multi_scale", "loss"):
+                del state["data_key"][key]
+            torch.save(state, path)
+            with pytest.raises(ValueCheckError, match="other settings"):
+                train(dataclasses.replace(config, steps=2, loss="log_l2"))
+            assert train(dataclasses.replace(config, steps=2))["steps"] == 2
+        finally:
+            torch.set_num_threads(threads)
+
     def test_init_must_be_the_estimators_weights(self, tiny_cache, tmp_path) -> None:
         init = tmp_path / "other.safetensors"
         safetensors.torch.save_file({"w": torch.ones(2)}, str(init))

@@ -18,6 +18,7 @@ from torch import nn
 import kornia_ilum.train.recipes as recipes
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.train import (
     BRDF_WEIGHTS,
     SCALES,
@@ -30,6 +31,7 @@ from kornia_ilum.train import (
     list_recipes,
     train_step,
 )
+from kornia_ilum.train.losses import log_l2_loss
 from kornia_ilum.train.recipes import (
     RECIPE_ENTRY_POINT_GROUP,
     OursRecipe,
@@ -232,6 +234,28 @@ class TestCropConsistency:
         off, on = self._default_step(**{weight: 0.0}), self._default_step(**{weight: value})
         assert off[column] == 0 and on[column] > 0
         torch.testing.assert_close(on["loss"], on["rec"] + value * on[column])
+
+    def test_the_ablations_change_the_lighting_loss_only(self) -> None:
+        full = self._default_step()
+        finest = self._default_step(multi_scale=False)
+        logl2 = self._default_step(loss="log_l2")
+        parts = ("rec_diffuse", "rec_matte_silver", "rec_mirror")
+        for k in parts:  # L_rec at 32 px is logged the same way by every variant
+            torch.testing.assert_close(finest[k], full[k])
+            torch.testing.assert_close(logl2[k], full[k])
+        # without the multi-scale loss, rec is the 32 px scale's weighted sum alone
+        torch.testing.assert_close(finest["rec"], sum(BRDF_WEIGHTS[k[4:]] * finest[k] for k in parts))
+        assert full["rec"] > finest["rec"] > 0
+        # log-L2 in place of L_rec: _Tiny's 16 and 32 px lightings against the truth's pyramid
+        torch.manual_seed(0)
+        model = _Tiny()
+        crops = torch.randint(0, 256, (4, 3, 8, 8), dtype=torch.uint8).float() / 255
+        target = torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)
+        with torch.no_grad():
+            pred = model(crops)
+        expected = log_l2_loss(pred, mirror_ball_pyramid(target, tuple(pred)))
+        torch.testing.assert_close(logl2["rec"], expected)
+        torch.testing.assert_close(logl2["loss"], logl2["rec"])
 
     @pytest.mark.parametrize("weight", ["lambda_crop", "lambda_energy"])
     def test_sipr_refuses_the_terms(self, weight: str) -> None:

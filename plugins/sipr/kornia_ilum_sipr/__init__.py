@@ -12,7 +12,7 @@ the training code (:mod:`kornia_ilum.train`).
 
 from typing import Any
 
-from kornia_ilum_sipr.estimator import LIGHTING_SIZE, PAPER, SIPREstimator
+from kornia_ilum_sipr.estimator import INPUT_SIZE, LIGHTING_SIZE, PAPER, SIPREstimator
 from kornia_ilum_sipr.network import (
     ENCODER_DEPTHS,
     LIGHTING_SHAPE,
@@ -34,6 +34,7 @@ __all__ = [
     "CROP_EXTENT",
     "CROP_POSITION",
     "ENCODER_DEPTHS",
+    "INPUT_SIZE",
     "LIGHTING_SHAPE",
     "LIGHTING_SIZE",
     "LIGHTING_WEIGHT",

@@ -23,11 +23,16 @@ from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEsti
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
 
-__all__ = ["LIGHTING_SIZE", "PAPER", "SIPREstimator"]
+__all__ = ["INPUT_SIZE", "LIGHTING_SIZE", "PAPER", "SIPREstimator"]
 
 #: Side of the mirror ball of the estimate.
 LIGHTING_SIZE = 32
-_INPUT_SIZE = 256
+#: Side of the face crops that ``sipr`` is trained and run at: 128, half the paper's 256. The cut that makes its
+#: training fit the project's budget (a step costs about a quarter of one at 256; plugins/sipr/README.md,
+#: "Training cost"). The network is fully convolutional, so nothing else changes: the bottleneck is 8 x 8
+#: instead of 16 x 16, and the confidence-weighted head pools over it. :func:`~kornia_ilum.estimate_lighting`
+#: cuts each face's crop at this size, and ``kornia-ilum evaluate`` resizes its 256 px eval crops to it.
+INPUT_SIZE = 128
 
 PAPER = (
     'Sun et al. 2019, "Single Image Portrait Relighting", ACM TOG 38(4) (SIGGRAPH), doi:10.1145/3306346.3323008; '
@@ -46,7 +51,7 @@ class SIPREstimator(LightingEstimator):
         ``log_mirror_ball`` (``log(1 + mirror_ball)``) and ``valid``.
 
     Shape:
-        - Input: :math:`(B, 3, 256, 256)`, sRGB in ``[0, 1]``
+        - Input: :math:`(B, 3, 128, 128)` (:data:`INPUT_SIZE`), sRGB in ``[0, 1]``
         - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(B, 3, 32, 32)`
 
     Convention:
@@ -57,19 +62,20 @@ class SIPREstimator(LightingEstimator):
         >>> net = SIPREstimator()
         >>> sum(p.numel() for p in net.parameters())
         18874139
-        >>> est = net(torch.rand(2, 3, 256, 256))
+        >>> est = net(torch.rand(2, 3, 128, 128))
         >>> tuple(est.mirror_ball.shape), bool((est.mirror_ball >= 0).all())
         ((2, 3, 32, 32), True)
-        >>> tuple(net.latlong(torch.rand(1, 3, 256, 256)).shape)
+        >>> tuple(net.latlong(torch.rand(1, 3, 128, 128)).shape)
         (1, 3, 16, 32)
     """
 
     info = EstimatorInfo(
         name="sipr",
         description="Sun et al. 2019's portrait-relighting U-Net (GroupNorm, PReLU, /16 bottleneck), its "
-        "confidence-weighted lighting head: 256 x 256 face crop -> 16 x 32 log-HDR lat-long -> 32 x 32 mirror ball",
+        "confidence-weighted lighting head: 128 x 128 face crop (the paper's 256, halved for the training budget) "
+        "-> 16 x 32 log-HDR lat-long -> 32 x 32 mirror ball",
         paper=PAPER,
-        input_size=_INPUT_SIZE,
+        input_size=INPUT_SIZE,
         weights=(),
         install_hint="pip install ./plugins/sipr (package kornia_ilum_sipr); trained weights are not released "
         "yet, pass pretrained=False for the untrained network",

@@ -9,7 +9,8 @@ Data (:meth:`SIPRRecipe.dataset`). LeGendre et al. trained their SIPR on "random
 composited over black backgrounds (not real-world imagery)", in pairs of one subject under two lightings:
 ``PortraitConfig(background="black", pairs=True)``, and crops around the face with a wider jitter than
 ``ours``'s (:data:`CROP_POSITION`, :data:`CROP_EXTENT`: the face's centre moves by up to 15 % of the crop's
-side and the side changes by up to a factor ``e^0.3``). The light stage's ``crop="random"`` is not used: it
+side and the side changes by up to a factor ``e^0.3``), at the estimator's input size
+(:data:`~kornia_ilum_sipr.estimator.INPUT_SIZE`, 128: the budget's cut). The light stage's ``crop="random"`` is not used: it
 makes crops that miss the face on purpose (negatives), from which no lighting can be read. The camera
 effects, flips and exposure are those of ``ours``; each image of a pair has its own auto-exposure, and each
 lighting is in the units of its image.
@@ -44,7 +45,7 @@ from kornia_ilum.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.losses import training_losses
 from kornia_ilum.train.recipes import Recipe, batch_images
-from kornia_ilum_sipr.estimator import SIPREstimator
+from kornia_ilum_sipr.estimator import INPUT_SIZE, SIPREstimator
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, RelightingDecoder, log_latlong_target, log_latlong_to_mirror_ball
 
 __all__ = ["CROP_EXTENT", "CROP_POSITION", "LIGHTING_WEIGHT", "RELIT_WEIGHT", "SIPRRecipe", "SIPRTrainer", "masked_l1"]
@@ -114,7 +115,7 @@ class SIPRRecipe(Recipe):
     def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
         """The portraits as SIPR was trained on them (module docstring)."""
         config = dataclasses.replace(dataset.config, background="black", pairs=True, crop="face",
-                                     crop_position=CROP_POSITION, crop_extent=CROP_EXTENT)
+                                     crop_position=CROP_POSITION, crop_extent=CROP_EXTENT, size=INPUT_SIZE)
         return type(dataset)(dataset.fields, config, seed=dataset.seed)
 
     def estimator(self, model: nn.Module) -> nn.Module:

@@ -1,0 +1,248 @@
+r"""The paper's ablations (LeGendre et al. 2020, Table 4), as one command: ``kornia-ilum ablate``.
+
+Each row of :data:`ABLATIONS` is a training run of ``ours`` that differs from the baseline row in one thing,
+and the eval set it is scored on. The baseline is ``ours``'s training recipe (:data:`BASELINE`, the flags of
+the shipped weights' run) at a reduced budget (:data:`ABLATION_STEPS` steps of 32 by default). The rows:
+
+- ``no-multi-scale``: the rendering loss at 32 px only (:attr:`~kornia_ilum.train.TrainConfig.multi_scale`);
+- ``no-adversarial``: no adversarial term, so no discriminator (``lambda_adv = 0``);
+- ``no-face-detector``: crops that no face detector placed: the crop's centre moves by up to half its side and
+  its side changes by up to a factor ``e^0.7`` (against 0.10 and ``e^0.15`` for a detector's crop). The light
+  stage renders head-and-shoulders framings in which the face takes most of the frame, so a random crop of the
+  render is such a crop. Scored on crops of the same kind: at inference there is no detector either;
+- ``black-background``: the portraits over black, in training and in the eval set (as SIPR is trained);
+- ``log-l2``: ``mean((log(1 + L_pred) - log(1 + L_true))^2)`` on the mirror ball in place of ``L_rec``
+  (:func:`~kornia_ilum.train.losses.log_l2_loss`);
+- ``background-only``: the backgrounds alone, no subject, in training and in the eval set.
+
+:func:`run_ablations` trains the rows one after the other, each in ``OUT/NAME`` (a run that was cut resumes
+bit-exactly from its checkpoint; a finished one is not trained again), scores every row and the baseline on
+the row's eval set, and writes ``OUT/ablations.md`` and ``OUT/ablations.json``. A row's paired differences
+(:func:`~kornia_ilum.evaluation.report.paired_differences`) are against the baseline on the same portraits
+with the row's input, so a row whose input differs (no face, black, other crops) is compared with what the
+baseline does with that input too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.core.files import atomic_write
+from kornia_ilum.evaluation import (
+    BRDF_NAMES,
+    EvalSet,
+    build_eval_set,
+    load_checkpoint,
+    paired_differences,
+    predict,
+    score,
+)
+from kornia_ilum.train import TrainConfig, train
+
+__all__ = ["ABLATIONS", "ABLATION_STEPS", "BASELINE", "Ablation", "ablation_config", "add_ablate_parser",
+           "format_ablations", "run_ablations"]
+
+#: The baseline's training settings beyond :class:`~kornia_ilum.train.TrainConfig`'s defaults: those of the
+#: shipped ``ours`` run (its model card), so that each row takes one thing away from what is shipped.
+BASELINE: dict[str, Any] = {"lambda_crop": 1.0, "crop_pairs": 8, "lambda_energy": 0.5}
+#: The reduced budget of every row: steps of 32.
+ABLATION_STEPS = 900
+
+
+@dataclass(frozen=True)
+class Ablation:
+    r"""One row of the ablation table.
+
+    Args:
+        name: the row's name (``kornia-ilum ablate --only NAME``).
+        paper: what the row takes away, as the paper's Table 4 names it.
+        train: :class:`~kornia_ilum.train.TrainConfig` settings over :data:`BASELINE`; ``"data"`` is merged
+            into the baseline's data settings.
+        background: the eval set's background (:func:`~kornia_ilum.evaluation.build_eval_set`).
+        portraits: the eval set's other portrait settings (``portraits`` of
+            :func:`~kornia_ilum.evaluation.build_eval_set`).
+    """
+
+    name: str
+    paper: str
+    train: dict[str, Any] = field(default_factory=dict)
+    background: str = "environment"
+    portraits: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def eval_key(self) -> tuple[str, tuple[tuple[str, Any], ...]]:
+        """What fixes the row's eval set: rows with the same key share it."""
+        return self.background, tuple(sorted(self.portraits.items()))
+
+
+_WIDE_CROPS = {"crop_position": 0.5, "crop_extent": 0.7}
+
+#: The rows, the baseline first (module docstring).
+ABLATIONS: dict[str, Ablation] = {a.name: a for a in (
+    Ablation("baseline", "ours, the full method"),
+    Ablation("no-multi-scale", "no multi-scale losses", {"multi_scale": False}),
+    Ablation("no-adversarial", "no adversarial loss", {"lambda_adv": 0.0}),
+    Ablation("no-face-detector", "no face detector (random crops)", {"data": _WIDE_CROPS},
+             portraits=_WIDE_CROPS),
+    Ablation("black-background", "black background", {"data": {"background": "black", "plain_background": 0.0}},
+             background="black"),
+    Ablation("log-l2", "log-L2 loss on the HDR lighting instead of the rendering losses", {"loss": "log_l2"}),
+    Ablation("background-only", "background only (no face)", {"data": {"subject": False, "plain_background": 0.0}},
+             portraits={"subject": False}),
+)}
+
+
+def ablation_config(name: str, out: str | os.PathLike[str], **settings: Any) -> TrainConfig:
+    r"""The training run of row ``name``: :data:`BASELINE`, then ``settings`` (the caches, steps, seed, ...),
+    then the row's own changes, in ``out``.
+
+    Raises:
+        ValueCheckError: no row ``name``.
+
+    Examples:
+        >>> config = ablation_config("no-adversarial", "runs/x", cache=("cache",), steps=900)
+        >>> config.lambda_adv, config.lambda_energy, config.steps
+        (0.0, 0.5, 900)
+        >>> ablation_config("black-background", "runs/y", cache=("cache",)).data["background"]
+        'black'
+    """
+    if name not in ABLATIONS:
+        raise ValueCheckError(f"no ablation {name!r}; the rows are: {', '.join(ABLATIONS)}")
+    row = ABLATIONS[name].train
+    merged: dict[str, Any] = {**BASELINE, **settings, **{k: v for k, v in row.items() if k != "data"}}
+    merged["data"] = {**settings.get("data", {}), **row.get("data", {})}
+    return TrainConfig(out=str(out), **merged)
+
+
+def _row_scores(eval_set: EvalSet, weights: Path, batch_size: int) -> tuple[dict[str, Any], str]:
+    model, digest = load_checkpoint("ours", weights)
+    return score(predict(model, eval_set.images, batch_size), eval_set.mirror_ball), digest
+
+
+def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: Sequence[str],
+                  eval_cache: Sequence[str], hdri: Sequence[str] = (), steps: int = ABLATION_STEPS,
+                  samples: int = 512, batch_size: int = 32, **settings: Any) -> dict[str, Any]:
+    r"""Train rows ``names`` (the baseline always) in ``out/NAME``, score them, write ``out/ablations.md`` and
+    ``out/ablations.json``; returns the JSON's content.
+
+    Args:
+        names: the rows (:data:`ABLATIONS`), in the order to train them.
+        out: the folder of the runs and the tables.
+        cache: the light-stage caches of training (their ``"train"`` subjects).
+        eval_cache: the caches of the eval set (their ``"eval"`` subjects).
+        hdri: folders of real maps: their ``"train"`` maps in training, ``"eval"`` maps in the eval sets.
+        steps: steps of 32 per row.
+        samples: portraits per eval set.
+        batch_size: crops per forward pass in the scoring.
+        settings: other :class:`~kornia_ilum.train.TrainConfig` settings of every row (``seed``, ``threads``,
+            ``log_every``, ...).
+    """
+    unknown = [n for n in names if n not in ABLATIONS]
+    if unknown:
+        raise ValueCheckError(f"no ablation {unknown}; the rows are: {', '.join(ABLATIONS)}")
+    rows = ["baseline", *[n for n in dict.fromkeys(names) if n != "baseline"]]
+    out = Path(out)
+    weights = {}
+    for name in rows:
+        print(f"ablation {name}: training {out / name}", flush=True)
+        config = ablation_config(name, out / name, cache=tuple(cache), hdri=tuple(hdri), steps=steps, **settings)
+        summary = train(config)
+        weights[name] = (out / name / summary["weights"]["file"], summary["wall_time_s"])
+    sets: dict[Any, EvalSet] = {}
+    table: dict[str, Any] = {}
+    for name in rows:
+        row = ABLATIONS[name]
+        if row.eval_key not in sets:
+            sets[row.eval_key] = build_eval_set(eval_cache, hdri, samples, background=row.background,
+                                                portraits=row.portraits, progress=True)
+        eval_set = sets[row.eval_key]
+        scores, digest = _row_scores(eval_set, weights[name][0], batch_size)
+        base, _ = _row_scores(eval_set, weights["baseline"][0], batch_size)
+        table[name] = {
+            "paper": row.paper, "weights": str(weights[name][0]), "sha256": digest,
+            "wall_time_s": round(weights[name][1], 1), "background": row.background,
+            "portraits": {k: repr(v) for k, v in row.portraits.items()},
+            "l_rec": {b: float(scores[b].double().mean()) for b in BRDF_NAMES},
+            "baseline_l_rec": {b: float(base[b].double().mean()) for b in BRDF_NAMES},
+            "paired_vs_baseline": paired_differences(scores, base),
+        }
+    result = {"steps": steps, "batch": settings.get("batch", 32), "samples": samples, "baseline": BASELINE,
+              "cache": list(cache), "eval_cache": list(eval_cache), "hdri": list(hdri), "rows": table}
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / "ablations.json", lambda tmp: tmp.write_text(json.dumps(result, indent=2) + "\n"))
+    text = format_ablations(result)
+    atomic_write(out / "ablations.md", lambda tmp: tmp.write_text(text))
+    return result
+
+
+def format_ablations(result: dict[str, Any]) -> str:
+    r"""The ablation table as Markdown: per row, ``L_rec`` per sphere, the baseline's on the same eval set, and
+    the paired difference with its 95 % interval (positive: the row is worse than the baseline)."""
+    lines = [f"Ablations: `ours`, {result['steps']} steps of {result['batch']} per row, "
+             f"{result['samples']} eval portraits; L_rec (lower is better) as diffuse / matte silver / mirror.", "",
+             "| row | takes away | eval input | L_rec | baseline on that input | row - baseline [95 %] |",
+             "|---|---|---|---|---|---|"]
+    for name, row in result["rows"].items():
+        what = row["background"] + "".join(f", {k}={v}" for k, v in row["portraits"].items())
+        mine = " / ".join(f"{row['l_rec'][b]:.4f}" for b in BRDF_NAMES)
+        base = " / ".join(f"{row['baseline_l_rec'][b]:.4f}" for b in BRDF_NAMES)
+        diff = "; ".join(f"{p['mean']:+.4f} [{p['low']:+.4f}, {p['high']:+.4f}]"
+                         for p in (row["paired_vs_baseline"][b] for b in BRDF_NAMES))
+        lines.append(f"| {name} | {row['paper']} | {what} | {mine} | {base} | {diff if name != 'baseline' else ''} |")
+    return "\n".join(lines) + "\n"
+
+
+_HELP = """\
+Run the paper's ablations (LeGendre et al. 2020, Table 4): train ours once per row, each without one part of
+the method, at a reduced budget; score every row and the baseline on the row's eval set; write
+OUT/ablations.md and OUT/ablations.json. Rows: {rows}.
+
+Each run lives in OUT/NAME and resumes from its checkpoint when the command is run again (a finished run is
+not trained again), so the table can be built over several sessions; --only NAME trains and scores one row
+(and the baseline).
+
+examples:
+  kornia-ilum ablate --cache lightstage/ --eval-cache lightstage/ --hdri ../shared/data/hdri --out runs/ablations
+  kornia-ilum ablate --cache lightstage/ --eval-cache lightstage/ --out runs/ablations --only log-l2
+"""
+
+
+def add_ablate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``ablate`` to the ``kornia-ilum`` subcommands."""
+    cmd = subparsers.add_parser("ablate", help="the paper's ablations: one training run per row, and the table",
+                                description=_HELP.format(rows=", ".join(ABLATIONS)),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    cmd.add_argument("--cache", nargs="+", required=True, metavar="DIR", help="light-stage caches of training")
+    cmd.add_argument("--eval-cache", nargs="+", required=True, metavar="DIR",
+                     help="light-stage caches whose eval subjects are scored")
+    cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="folders of real lat-long HDR maps")
+    cmd.add_argument("--out", required=True, metavar="OUT", help="the folder of the runs and the table")
+    cmd.add_argument("--only", nargs="+", default=None, metavar="NAME", choices=list(ABLATIONS),
+                     help="these rows only (and the baseline)")
+    cmd.add_argument("--steps", type=positive_int, default=ABLATION_STEPS,
+                     help=f"steps of 32 per row (default: {ABLATION_STEPS})")
+    cmd.add_argument("--samples", type=positive_int, default=512, metavar="N", help="eval portraits (512)")
+    cmd.add_argument("--seed", type=int, default=0, help="seed of every row's data and initialisation")
+    cmd.add_argument("--threads", type=positive_int, default=None, help="torch threads of the training")
+    cmd.add_argument("--log-every", type=positive_int, default=20, metavar="N")
+    cmd.add_argument("--checkpoint-every", type=positive_int, default=100, metavar="N")
+    cmd.set_defaults(func=run_ablate)
+    return cmd
+
+
+def run_ablate(args: argparse.Namespace) -> int:
+    """Run ``kornia-ilum ablate``; prints the table."""
+    result = run_ablations(args.only or list(ABLATIONS), args.out, cache=args.cache, eval_cache=args.eval_cache,
+                           hdri=args.hdri, steps=args.steps, samples=args.samples, seed=args.seed,
+                           threads=args.threads, log_every=args.log_every, checkpoint_every=args.checkpoint_every)
+    print(format_ablations(result), end="")
+    print(f"wrote {Path(args.out) / 'ablations.md'} and {Path(args.out) / 'ablations.json'}")
+    return 0
