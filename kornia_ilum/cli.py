@@ -362,7 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = _warn
         try:
             args = parser.parse_args(argv)
-            if args.command in ("synth", "train", "evaluate"):
+            if args.command in ("synth", *LAZY_COMMANDS):
                 return args.func(args)
             return _cmd_list() if args.command == "list" else _cmd_estimate(args)
         except SystemExit as e:  # --help / --version

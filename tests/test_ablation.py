@@ -90,3 +90,12 @@ def test_ablate_command_line_help() -> None:
     r = subprocess.run([sys.executable, "-m", "kornia_ilum", "ablate", "--help"], capture_output=True, text=True,
                        check=True)
     assert "background-only" in r.stdout and "--eval-cache" in r.stdout
+
+
+def test_the_cli_runs_the_command_and_fails_on_one_line(tmp_path, capsys) -> None:
+    from kornia_ilum.cli import main
+
+    missing = str(tmp_path / "no_cache")
+    status = main(["ablate", "--cache", missing, "--eval-cache", missing, "--out", str(tmp_path / "abl")])
+    err = capsys.readouterr().err
+    assert status == 1 and err.count("\n") == 1 and "no_cache" in err and "AttributeError" not in err
