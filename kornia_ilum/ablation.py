@@ -156,16 +156,16 @@ def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: S
         config = ablation_config(name, out / name, cache=tuple(cache), hdri=tuple(hdri), steps=steps, **settings)
         summary = train(config)
         weights[name] = (out / name / summary["weights"]["file"], summary["wall_time_s"])
-    sets: dict[Any, EvalSet] = {}
+    sets: dict[Any, tuple[EvalSet, dict[str, Any]]] = {}  # eval key -> the set and the baseline's scores on it
     table: dict[str, Any] = {}
     for name in rows:
         row = ABLATIONS[name]
         if row.eval_key not in sets:
-            sets[row.eval_key] = build_eval_set(eval_cache, hdri, samples, background=row.background,
-                                                portraits=row.portraits, progress=True)
-        eval_set = sets[row.eval_key]
+            eval_set = build_eval_set(eval_cache, hdri, samples, background=row.background,
+                                      portraits=row.portraits, progress=True)
+            sets[row.eval_key] = eval_set, _row_scores(eval_set, weights["baseline"][0], batch_size)[0]
+        eval_set, base = sets[row.eval_key]
         scores, digest = _row_scores(eval_set, weights[name][0], batch_size)
-        base, _ = _row_scores(eval_set, weights["baseline"][0], batch_size)
         table[name] = {
             "paper": row.paper, "weights": str(weights[name][0]), "sha256": digest,
             "wall_time_s": round(weights[name][1], 1), "background": row.background,
