@@ -28,12 +28,11 @@ from pathlib import Path
 from typing import Any
 
 import torch
-import torch.nn.functional as F
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
 from kornia_ilum.core.progress import progress as bar
-from kornia_ilum.detection.crop import CROP_SCALE
+from kornia_ilum.detection.crop import CROP_SCALE, crop_faces
 from kornia_ilum.estimators import (
     LightingEstimator,
     TestTimeAugmented,
@@ -298,8 +297,8 @@ def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
 
 def fit_crops(estimator: Any, crops: torch.Tensor) -> torch.Tensor:
     r"""``crops`` at the side that ``estimator`` takes (``estimator.info.input_size``): as they are when they
-    have it (or the estimator has no ``info``), else resized as :func:`~kornia_ilum.detection.crop_faces` resizes
-    (bilinear, antialiased) and clamped to ``[0, 1]``.
+    have it (or the estimator has no ``info``), else resized by :func:`~kornia_ilum.detection.crop_faces` with
+    each whole crop as its box (bilinear, antialiased) and clamped to ``[0, 1]``.
 
     The eval set's crops are 256 px, the paper's size; an estimator that takes another size (``sipr``: 128)
     is scored on the same crops resized to it, as :func:`~kornia_ilum.estimate_lighting` cuts its crops at that
@@ -315,8 +314,11 @@ def fit_crops(estimator: Any, crops: torch.Tensor) -> torch.Tensor:
     size = getattr(info, "input_size", None)
     if size is None or crops.shape[-1] == crops.shape[-2] == size:
         return crops
-    resized = F.interpolate(crops.float(), size=(size, size), mode="bilinear", antialias=True, align_corners=False)
-    return resized.clamp_(0.0, 1.0).to(crops.dtype)
+    n, _, h, w = crops.shape
+    whole = torch.tensor([[0.0, 0.0, float(w), float(h)]]).expand(n, 4)  # each crop whole: only the resize
+    index = torch.arange(n, device=crops.device)
+    resized = crop_faces(crops, whole.to(crops.device), size, index, check_values=False)
+    return resized.clamp_(0.0, 1.0)
 
 
 def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:

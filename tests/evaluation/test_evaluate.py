@@ -15,6 +15,7 @@ from kornia_ilum.evaluation import (
     ORACLES,
     build_eval_set,
     evaluate,
+    fit_crops,
     load_checkpoint,
     load_estimator,
     oracle_predictions,
@@ -113,6 +114,25 @@ def _checkpoint(path):
     net = create_estimator("ours", pretrained=False)
     safetensors.torch.save_file({k: v.contiguous() for k, v in net.state_dict().items()}, str(path))
     return net
+
+
+class TestFitCrops:
+    class Sized:
+        def __init__(self, size: int) -> None:
+            self.info = type("Info", (), {"input_size": size})
+
+    def test_crops_at_the_estimators_size_pass_unchanged(self) -> None:
+        crops = torch.rand(2, 3, 16, 16)
+        assert fit_crops(self.Sized(16), crops) is crops and fit_crops(object(), crops) is crops
+
+    def test_a_resize_is_crop_faces_on_the_whole_crop(self) -> None:
+        from kornia_ilum.detection import crop_faces
+
+        crops = torch.rand(3, 3, 16, 16)
+        out = fit_crops(self.Sized(8), crops)
+        assert out.shape == (3, 3, 8, 8) and 0.0 <= out.min() and out.max() <= 1.0
+        whole = torch.tensor([[0.0, 0.0, 16.0, 16.0]])
+        torch.testing.assert_close(out[1], crop_faces(crops[1], whole, size=8)[0])
 
 
 class TestWeights:
