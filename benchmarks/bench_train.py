@@ -3,7 +3,9 @@
 Run: ``python benchmarks/bench_train.py [--batch 32] [--threads 2] [--repeats 5]``, or
 ``python benchmarks/bench_train.py --recipes ours sh sipr --batch 8`` for the step of each trainable estimator
 (its recipe's :meth:`~kornia_ilum.train.recipes.Recipe.step`, at the training defaults), as a ratio to the
-first, with the projected wall time of the shipped run (3600 steps of 32 samples) on this machine.
+first, with the projected wall time of the shipped run (3600 steps of 32 samples) on this machine and the
+steps of 32 that sipr's budget (``BUDGET_H``) buys. Each recipe's step runs at its estimator's input size
+(``info.input_size``: sipr 128, the others 256), as its training data does.
 
 A step of ``ours`` is what :func:`kornia_ilum.train.train_step` does (through its recipe): the multi-scale
 generator forward, the rendering losses at 4-32 px, one discriminator step and one generator step (Adam), on
@@ -22,6 +24,10 @@ from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.train import TrainConfig, get_recipe, resolve_runtime
 
 
+#: sipr's training budget on the project's 2 cores (issue 22), in hours: the steps of 32 it buys are printed.
+BUDGET_H = 2.5
+
+
 def _step_seconds(name: str, batch: int, repeats: int, **precision: bool | None) -> float:
     """Seconds per step of ``name``'s recipe (:meth:`Recipe.step`) on random data (uint8 crops, pairs, mattes
     and lightings), at the training defaults unless ``bf16`` / ``channels_last`` are given."""
@@ -34,8 +40,10 @@ def _step_seconds(name: str, batch: int, repeats: int, **precision: bool | None)
     opt_g = torch.optim.Adam(model.parameters(), lr=config.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=config.lr * config.disc_lr_ratio) if disc is not None else None
 
+    size = recipe.estimator(model).info.input_size  # the crops the recipe's data gives: sipr trains at 128, the others at 256
+
     def images(channels: int) -> torch.Tensor:
-        return torch.randint(0, 256, (batch, channels, 256, 256), dtype=torch.uint8)
+        return torch.randint(0, 256, (batch, channels, size, size), dtype=torch.uint8)
 
     def lighting() -> torch.Tensor:
         return torch.rand(batch, 3, 32, 32).exp() * mirror_ball_valid(32)
@@ -62,8 +70,9 @@ def main() -> None:
             t = _step_seconds(name, args.batch, args.repeats)
             base = t if base is None else base
             hours = 3600 * 32 / (args.batch / t) / 3600
+            budget = int(BUDGET_H * 3600 * args.batch / t / 32)
             print(f"  {name:<8} {1e3 * t:9.0f} ms   {t / base:6.2f}x {args.recipes[0]}   {args.batch / t:6.2f} samples/s"
-                  f"   3600 steps x 32: {hours:6.1f} h")
+                  f"   3600 steps x 32: {hours:6.1f} h   in {BUDGET_H} h: {budget} steps x 32")
         return
     print(f"one training step of ours, batch {args.batch}, {args.threads} threads, median of {args.repeats}")
     base = None
