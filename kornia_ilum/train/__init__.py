@@ -10,14 +10,14 @@ r"""Training of the lighting estimators on the virtual light stage (``kornia-ilu
 - :func:`training_losses`, :data:`BRDF_WEIGHTS` (:mod:`kornia_ilum.train.losses`): the losses;
 - :class:`MultiScaleOurs`, :class:`MSGDiscriminator` (:mod:`kornia_ilum.train.models`): the training-only
   networks of ``ours``;
-- :func:`export_weights`, :func:`read_log`, :func:`save_snapshot`.
+- :func:`export_weights`, :func:`read_log`, :func:`save_snapshot`, :func:`average_snapshots`.
 
 ``import kornia_ilum`` never imports this package; importing it loads the light stage's data code
 (:mod:`kornia_ilum.synth`). The data and the networks are built by :func:`train`.
 """
 
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
-from kornia_ilum.train.loop import export_weights, read_log, save_snapshot, train
+from kornia_ilum.train.loop import average_snapshots, export_weights, read_log, save_snapshot, train
 from kornia_ilum.train.losses import BRDF_WEIGHTS, training_losses
 from kornia_ilum.train.models import SCALES, MSGDiscriminator, MultiScaleOurs
 from kornia_ilum.train.recipes import Recipe, get_recipe, list_recipes, train_step
@@ -30,6 +30,7 @@ __all__ = [
     "RuntimeSettings",
     "SCALES",
     "TrainConfig",
+    "average_snapshots",
     "export_weights",
     "get_recipe",
     "list_recipes",

@@ -66,6 +66,10 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--snapshot-every", type=int, default=d.snapshot_every, metavar="N",
                      help="keep the estimator's weights every N steps in RUN/snapshots/, for the learning curve "
                      "of `kornia-ilum evaluate --curve RUN` (default: 0, never)")
+    cmd.add_argument("--average-tail", type=float, default=d.average_tail, metavar="F",
+                     help="export the mean of the snapshots of the run's last fraction F of steps (stochastic "
+                     "weight averaging; needs --snapshot-every; rerunning a finished run with it only "
+                     "re-exports; default: 0, the last step's weights)")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--lambda-crop", type=float, default=d.lambda_crop,
@@ -91,6 +95,7 @@ def run_train(args: argparse.Namespace) -> int:
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
                          log_every=args.log_every, snapshot_every=args.snapshot_every,
+                         average_tail=args.average_tail,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
                          lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
                          data=dict(args.data))

@@ -79,6 +79,12 @@ class TrainConfig:
             ``snapshots/step_NNNNNN.safetensors`` with the step, samples and wall time in the file's metadata:
             what ``kornia-ilum evaluate --curve RUN`` scores for the learning curve
             (:func:`~kornia_ilum.evaluation.curve.learning_curve`).
+        average_tail: export the mean of the snapshots of the run's last ``average_tail`` fraction of steps
+            instead of the last step's weights (0: the last step's). That is stochastic weight averaging
+            (Izmailov et al. 2018, "Averaging Weights Leads to Wider Optima and Better Generalization"): at a
+            constant learning rate the weights keep wandering around a minimum, and their mean lies nearer it
+            than any one of them. Needs ``snapshot_every``; the networks have no batch statistics to
+            recompute. Only the export depends on it, so a finished run exported again with it trains nothing.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
@@ -114,6 +120,7 @@ class TrainConfig:
     checkpoint_every: int = 100
     log_every: int = 10
     snapshot_every: int = 0
+    average_tail: float = 0.0
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
     init: str | None = None
@@ -127,6 +134,10 @@ class TrainConfig:
         every = self.snapshot_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 0:
             raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
+        if not 0 <= self.average_tail < 1:
+            raise ValueCheckError(f"average_tail must be in [0, 1), got {self.average_tail!r}")
+        if self.average_tail > 0 and not self.snapshot_every:
+            raise ValueCheckError("average_tail averages the run's snapshots: it needs snapshot_every > 0")
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
                                          or self.workers < 0):
             raise ValueCheckError(f"workers must be a non-negative integer, got {self.workers!r}")
@@ -155,7 +166,7 @@ class TrainConfig:
     def data_key(self) -> dict[str, Any]:
         """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree (a
         setting that a checkpoint predates counts as its default there)."""
-        skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every"}
+        skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every", "average_tail"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 
 

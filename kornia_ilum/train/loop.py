@@ -44,7 +44,7 @@ from kornia_ilum.train.data import training_dataset
 from kornia_ilum.train.losses import BRDF_WEIGHTS
 from kornia_ilum.train.recipes import Recipe, get_recipe
 
-__all__ = ["export_weights", "read_log", "save_snapshot", "train"]
+__all__ = ["average_snapshots", "export_weights", "read_log", "save_snapshot", "train"]
 
 _LOG_FIELDS = ("step", "samples", "elapsed_s", "samples_per_s", "loss", "rec", "adv", "disc", "extra",
                "rec_diffuse", "rec_matte_silver", "rec_mirror")
@@ -264,6 +264,10 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Re
     }
     if rank == 0:
         estimator = recipe.estimator(model).cpu().float().eval()
+        if config.average_tail > 0:
+            averaged, steps = average_snapshots(out, after=(1 - config.average_tail) * step, upto=step)
+            estimator.load_state_dict(averaged, strict=True)
+            summary["averaged_snapshots"] = steps
         summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors",
                                             recipe.probe(dataset))
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
@@ -294,6 +298,30 @@ def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, name: str,
     meta = {"estimator": name, "step": str(step), "samples": str(samples), "elapsed_s": f"{elapsed_s:.3f}"}
     atomic_write(path, lambda tmp: safetensors.torch.save_file(tensors, str(tmp), metadata=meta))
     return path
+
+
+def average_snapshots(out: str | os.PathLike, after: float, upto: int) -> tuple[dict[str, torch.Tensor], list[int]]:
+    r"""The mean of a run's snapshots (:func:`save_snapshot`) of steps ``after < step <= upto``, and their steps.
+
+    Floating-point tensors are averaged in float64 and returned in float32; any other tensor is the last
+    snapshot's. Used by :attr:`~kornia_ilum.train.TrainConfig.average_tail` (stochastic weight averaging).
+
+    Raises:
+        ValueCheckError: no snapshot in that range.
+    """
+    found = []
+    for path in sorted((Path(out) / "snapshots").glob("step_*.safetensors")):
+        with safetensors.safe_open(str(path), "pt") as f:
+            step = int(f.metadata()["step"])
+        if after < step <= upto:
+            found.append((step, path))
+    if not found:
+        raise ValueCheckError(f"no snapshot of a step in ({after:g}, {upto}] in {Path(out) / 'snapshots'} to average; "
+                              "train with snapshot_every")
+    snapshots = [safetensors.torch.load_file(str(path)) for _, path in found]
+    mean = {k: torch.stack([s[k].double() for s in snapshots]).mean(0).float() if v.is_floating_point() else v
+            for k, v in snapshots[-1].items()}
+    return mean, [step for step, _ in found]
 
 
 def export_weights(estimator: torch.nn.Module, path: str | os.PathLike, probe: dict[str, torch.Tensor],

@@ -19,7 +19,7 @@ import kornia_ilum.train.recipes as recipes
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.train import TrainConfig, export_weights, read_log, train
+from kornia_ilum.train import TrainConfig, average_snapshots, export_weights, read_log, train
 from tests.train.helpers import cli, common, env, small_data, weights
 
 _LOSS_COLUMNS = slice(4, None)  # log.csv columns after step, samples, elapsed_s, samples_per_s
@@ -144,6 +144,30 @@ class TestCropConsistencyAndInit:
         assert last.keys() == exported.keys() and all(v.dtype == torch.float32 for v in last.values())
         assert all(torch.allclose(last[k], exported[k].float(), atol=1e-2, rtol=1e-3) for k in last)
         assert config.data_key() == dataclasses.replace(config, snapshot_every=0).data_key()  # resumable either way
+
+        # the finished run exported again with weight averaging: nothing trained, the mean of the tail's snapshots
+        averaged = dataclasses.replace(config, average_tail=0.5)
+        assert averaged.data_key() == config.data_key()
+        try:
+            summary = train(averaged)
+        finally:
+            torch.set_num_threads(threads)
+        assert summary["averaged_snapshots"] == [2] and len(read_log(tmp_path / "run")) == 2
+        again = dataclasses.replace(config, average_tail=0.75)  # steps 1 and 2
+        try:
+            summary = train(again)
+        finally:
+            torch.set_num_threads(threads)
+        first = safetensors.torch.load_file(files[0])
+        mean, steps = average_snapshots(tmp_path / "run", after=0, upto=2)
+        assert summary["averaged_snapshots"] == steps == [1, 2]
+        assert all(torch.allclose(mean[k], (first[k] + last[k]) / 2, atol=1e-6) for k in last)
+        exported = weights(tmp_path / "run")
+        assert all(torch.allclose(mean[k], exported[k].float(), atol=1e-2, rtol=1e-3) for k in last)
+        with pytest.raises(ValueCheckError, match="no snapshot"):
+            average_snapshots(tmp_path / "run", after=2, upto=2)
+        with pytest.raises(ValueCheckError, match="snapshot_every"):
+            dataclasses.replace(config, snapshot_every=0, average_tail=0.5)
 
     def test_no_adversarial_term_trains_no_discriminator_and_old_checkpoints_resume(self, tiny_cache, tmp_path,
                                                                                      monkeypatch) -> None:
