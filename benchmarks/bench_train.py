@@ -40,7 +40,7 @@ def _step_seconds(name: str, batch: int, repeats: int, **precision: bool | None)
     opt_g = torch.optim.Adam(model.parameters(), lr=config.lr)
     opt_d = torch.optim.Adam(disc.parameters(), lr=config.lr * config.disc_lr_ratio) if disc is not None else None
 
-    size = recipe.estimator(model).info.input_size  # the crops the recipe's data gives: sipr trains at 128, the others at 256
+    size = recipe.estimator(model).info.input_size  # the crops of the recipe's data: sipr 128, the others 256
 
     def images(channels: int) -> torch.Tensor:
         return torch.randint(0, 256, (batch, channels, size, size), dtype=torch.uint8)

@@ -2,7 +2,8 @@ r"""The paper's ablations (LeGendre et al. 2020, Table 4), as one command: ``kor
 
 Each row of :data:`ABLATIONS` is a training run of ``ours`` that differs from the baseline row in one thing,
 and the eval set it is scored on. The baseline is ``ours``'s training recipe (:data:`BASELINE`, the flags of
-issue 22's long run: the crop term and the energy term on) at a reduced budget (:data:`ABLATION_STEPS` steps of 32 by default). The rows:
+issue 22's long run: the crop term and the energy term on) at a reduced budget (:data:`ABLATION_STEPS` steps
+of 32 by default). The rows:
 
 - ``no-multi-scale``: the rendering loss at 32 px only (:attr:`~kornia_ilum.train.TrainConfig.multi_scale`);
 - ``no-adversarial``: no adversarial term, so no discriminator (``lambda_adv = 0``);
