@@ -82,8 +82,8 @@ class TrainConfig:
         average_tail: export the mean of the snapshots of the run's last ``average_tail`` fraction of steps
             instead of the last step's weights (0: the last step's). That is stochastic weight averaging
             (Izmailov et al. 2018, "Averaging Weights Leads to Wider Optima and Better Generalization"): at a
-            constant learning rate the weights keep wandering around a minimum, and their mean lies nearer it
-            than any one of them. Needs ``snapshot_every``; the networks have no batch statistics to
+            constant learning rate the weights keep wandering around a minimum, and their mean tends to lie
+            nearer it than any one of them (docs/training.rst, "Twice the portraits": measured once). Needs ``snapshot_every``; the networks have no batch statistics to
             recompute. Only the export depends on it, so a finished run exported again with it trains nothing.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).

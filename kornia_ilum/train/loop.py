@@ -300,7 +300,8 @@ def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, name: str,
     return path
 
 
-def average_snapshots(out: str | os.PathLike, after: float, upto: int) -> tuple[dict[str, torch.Tensor], list[int]]:
+def average_snapshots(out: str | os.PathLike, after: float,
+                      upto: int) -> tuple[dict[str, torch.Tensor], list[int]]:
     r"""The mean of a run's snapshots (:func:`save_snapshot`) of steps ``after < step <= upto``, and their steps.
 
     Floating-point tensors are averaged in float64 and returned in float32; any other tensor is the last
@@ -316,8 +317,8 @@ def average_snapshots(out: str | os.PathLike, after: float, upto: int) -> tuple[
         if after < step <= upto:
             found.append((step, path))
     if not found:
-        raise ValueCheckError(f"no snapshot of a step in ({after:g}, {upto}] in {Path(out) / 'snapshots'} to average; "
-                              "train with snapshot_every")
+        raise ValueCheckError(f"no snapshot of a step in ({after:g}, {upto}] in {Path(out) / 'snapshots'} to "
+                              "average; train with snapshot_every")
     snapshots = [safetensors.torch.load_file(str(path)) for _, path in found]
     mean = {k: torch.stack([s[k].double() for s in snapshots]).mean(0).float() if v.is_floating_point() else v
             for k, v in snapshots[-1].items()}
