@@ -83,8 +83,9 @@ class TrainConfig:
             instead of the last step's weights (0: the last step's). That is stochastic weight averaging
             (Izmailov et al. 2018, "Averaging Weights Leads to Wider Optima and Better Generalization"): at a
             constant learning rate the weights keep wandering around a minimum, and their mean tends to lie
-            nearer it than any one of them (docs/training.rst, "Twice the portraits": measured once). Needs ``snapshot_every``; the networks have no batch statistics to
-            recompute. Only the export depends on it, so a finished run exported again with it trains nothing.
+            nearer it than any one of them (measured once: docs/training.rst, "Twice the portraits"). Needs
+            ``snapshot_every``; the networks have no batch statistics to recompute. Only the export depends on
+            it, so a finished run exported again with it trains nothing.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
