@@ -18,8 +18,8 @@ of 32 by default). The rows:
 
 :func:`run_ablations` trains the rows one after the other, each in ``OUT/NAME`` (a run that was cut resumes
 bit-exactly from its checkpoint; a finished one is not trained again), scores every row and the baseline on
-the row's eval set, and writes ``OUT/ablations.md`` and ``OUT/ablations.json``. A row's paired differences
-(:func:`~kornia_ilum.evaluation.report.paired_differences`) are against the baseline on the same portraits
+the row's eval set, and writes ``OUT/ablations.md``, ``OUT/ablations.rst`` (the table of docs/training.rst)
+and ``OUT/ablations.json``. A row's paired differences (:func:`~kornia_ilum.evaluation.report.paired_differences`) are against the baseline on the same portraits
 with the row's input, so a row whose input differs (no face, black, other crops) is compared with what the
 baseline does with that input too.
 """
@@ -132,8 +132,8 @@ def _row_scores(eval_set: EvalSet, weights: Path, batch_size: int) -> tuple[dict
 def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: Sequence[str],
                   eval_cache: Sequence[str], hdri: Sequence[str] = (), steps: int = ABLATION_STEPS,
                   samples: int = 512, batch_size: int = 32, **settings: Any) -> dict[str, Any]:
-    r"""Train rows ``names`` (the baseline always) in ``out/NAME``, score them, write ``out/ablations.md`` and
-    ``out/ablations.json``; returns the JSON's content.
+    r"""Train rows ``names`` (the baseline always) in ``out/NAME``, score them, write ``out/ablations.md``,
+    ``out/ablations.rst`` and ``out/ablations.json``; returns the JSON's content.
 
     Args:
         names: the rows (:data:`ABLATIONS`), in the order to train them.
@@ -180,25 +180,45 @@ def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: S
               "cache": list(cache), "eval_cache": list(eval_cache), "hdri": list(hdri), "rows": table}
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "ablations.json", lambda tmp: tmp.write_text(json.dumps(result, indent=2) + "\n"))
-    text = format_ablations(result)
-    atomic_write(out / "ablations.md", lambda tmp: tmp.write_text(text))
+    for fmt, suffix in (("markdown", "md"), ("rst", "rst")):
+        text = format_ablations(result, fmt)
+        atomic_write(out / f"ablations.{suffix}", lambda tmp, text=text: tmp.write_text(text))
     return result
 
 
-def format_ablations(result: dict[str, Any]) -> str:
-    r"""The ablation table as Markdown: per row, ``L_rec`` per sphere, the baseline's on the same eval set, and
-    the paired difference with its 95 % interval (positive: the row is worse than the baseline)."""
-    lines = [f"Ablations: `ours`, {result['steps']} steps of {result['batch']} per row, "
-             f"{result['samples']} eval portraits; L_rec (lower is better) as diffuse / matte silver / mirror.", "",
-             "| row | takes away | eval input | L_rec | baseline on that input | row - baseline [95 %] |",
-             "|---|---|---|---|---|---|"]
+def format_ablations(result: dict[str, Any], fmt: str = "markdown") -> str:
+    r"""The ablation table: per row, what it takes away, its eval input, ``L_rec`` per sphere, the baseline's on
+    the same eval set, and the paired difference with its 95 % interval (positive: the row is worse).
+
+    Args:
+        result: what :func:`run_ablations` returns (or ``ablations.json``).
+        fmt: ``"markdown"`` (``ablations.md``) or ``"rst"`` (``ablations.rst``: the list-table of
+            docs/training.rst, pasted as it is).
+
+    Raises:
+        ValueCheckError: another ``fmt``.
+    """
+    head = ("row", "takes away", "eval input", "L_rec", "baseline on that input", "row - baseline [95 %]")
+    rows = []
     for name, row in result["rows"].items():
-        what = row["background"] + "".join(f", {k}={v}" for k, v in row["portraits"].items())
-        mine = " / ".join(f"{row['l_rec'][b]:.4f}" for b in BRDF_NAMES)
-        base = " / ".join(f"{row['baseline_l_rec'][b]:.4f}" for b in BRDF_NAMES)
         diff = "; ".join(f"{p['mean']:+.4f} [{p['low']:+.4f}, {p['high']:+.4f}]"
                          for p in (row["paired_vs_baseline"][b] for b in BRDF_NAMES))
-        lines.append(f"| {name} | {row['paper']} | {what} | {mine} | {base} | {diff if name != 'baseline' else ''} |")
+        rows.append((name, row["paper"], row["background"] + "".join(f", {k}={v}" for k, v in row["portraits"].items()),
+                     " / ".join(f"{row['l_rec'][b]:.4f}" for b in BRDF_NAMES),
+                     " / ".join(f"{row['baseline_l_rec'][b]:.4f}" for b in BRDF_NAMES),
+                     diff if name != "baseline" else "(itself)"))
+    if fmt == "markdown":
+        lines = [f"Ablations: `ours`, {result['steps']} steps of {result['batch']} per row, {result['samples']} "
+                 "eval portraits; L_rec (lower is better) as diffuse / matte silver / mirror.", "",
+                 "| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+        lines += ["| " + " | ".join(cells) + " |" for cells in rows]
+    elif fmt == "rst":
+        lines = [".. list-table::", "   :header-rows: 1", "   :widths: 12 16 16 18 18 30", ""]
+        head = tuple(c.replace("L_rec", "``L_rec``") for c in head)
+        for cells in [head, *[(f"``{r[0]}``", *r[1:]) for r in rows]]:
+            lines += [f"   * - {cells[0]}", *[f"     - {c}" for c in cells[1:]]]
+    else:
+        raise ValueCheckError(f"fmt must be 'markdown' or 'rst', got {fmt!r}")
     return "\n".join(lines) + "\n"
 
 

@@ -82,8 +82,25 @@ def test_ablate_trains_scores_and_writes_the_table(cache, tmp_path, monkeypatch)
     saved = json.loads((tmp_path / "abl" / "ablations.json").read_text())
     assert saved["rows"].keys() == rows.keys()
     assert (tmp_path / "abl" / "ablations.md").read_text() == format_ablations(result)
+    assert (tmp_path / "abl" / "ablations.rst").read_text() == format_ablations(result, "rst")
     assert not (tmp_path / "abl" / "no-adversarial" / "checkpoint.pt").exists() or torch.load(
         tmp_path / "abl" / "no-adversarial" / "checkpoint.pt", weights_only=True)["disc"] == {}
+
+
+def test_the_table_in_markdown_and_rst() -> None:
+    paired = {b: {"mean": 0.01, "low": 0.0, "high": 0.02} for b in BRDF_NAMES}
+    row = {"paper": "no adversarial loss", "background": "environment", "portraits": {},
+           "l_rec": dict.fromkeys(BRDF_NAMES, 0.2), "baseline_l_rec": dict.fromkeys(BRDF_NAMES, 0.1),
+           "paired_vs_baseline": paired}
+    result = {"steps": 9, "batch": 2, "samples": 4, "rows": {"no-adversarial": row}}
+    md = format_ablations(result).splitlines()
+    assert md[-1] == ("| no-adversarial | no adversarial loss | environment | 0.2000 / 0.2000 / 0.2000 | 0.1000 / "
+                      "0.1000 / 0.1000 | +0.0100 [+0.0000, +0.0200]; +0.0100 [+0.0000, +0.0200]; +0.0100 "
+                      "[+0.0000, +0.0200] |")
+    rst = format_ablations(result, "rst").splitlines()
+    assert rst[0] == ".. list-table::" and "   * - ``no-adversarial``" in rst and len(rst) == 4 + 2 * 6
+    with pytest.raises(ValueCheckError, match="fmt"):
+        format_ablations(result, "html")
 
 
 def test_ablate_command_line_help() -> None:
