@@ -19,7 +19,8 @@ of 32 by default). The rows:
 :func:`run_ablations` trains the rows one after the other, each in ``OUT/NAME`` (a run that was cut resumes
 bit-exactly from its checkpoint; a finished one is not trained again), scores every row and the baseline on
 the row's eval set, and writes ``OUT/ablations.md``, ``OUT/ablations.rst`` (the table of docs/training.rst)
-and ``OUT/ablations.json``. A row's paired differences (:func:`~kornia_ilum.evaluation.report.paired_differences`) are against the baseline on the same portraits
+and ``OUT/ablations.json``. A row's paired differences
+(:func:`~kornia_ilum.evaluation.report.paired_differences`) are against the baseline on the same portraits
 with the row's input, so a row whose input differs (no face, black, other crops) is compared with what the
 baseline does with that input too.
 """
@@ -203,8 +204,8 @@ def format_ablations(result: dict[str, Any], fmt: str = "markdown") -> str:
     for name, row in result["rows"].items():
         diff = "; ".join(f"{p['mean']:+.4f} [{p['low']:+.4f}, {p['high']:+.4f}]"
                          for p in (row["paired_vs_baseline"][b] for b in BRDF_NAMES))
-        rows.append((name, row["paper"], row["background"] + "".join(f", {k}={v}" for k, v in row["portraits"].items()),
-                     " / ".join(f"{row['l_rec'][b]:.4f}" for b in BRDF_NAMES),
+        what = row["background"] + "".join(f", {k}={v}" for k, v in row["portraits"].items())
+        rows.append((name, row["paper"], what, " / ".join(f"{row['l_rec'][b]:.4f}" for b in BRDF_NAMES),
                      " / ".join(f"{row['baseline_l_rec'][b]:.4f}" for b in BRDF_NAMES),
                      diff if name != "baseline" else "(itself)"))
     if fmt == "markdown":

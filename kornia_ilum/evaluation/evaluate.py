@@ -315,9 +315,8 @@ def fit_crops(estimator: Any, crops: torch.Tensor) -> torch.Tensor:
     if size is None or crops.shape[-1] == crops.shape[-2] == size:
         return crops
     n, _, h, w = crops.shape
-    whole = torch.tensor([[0.0, 0.0, float(w), float(h)]]).expand(n, 4)  # each crop whole: only the resize
-    index = torch.arange(n, device=crops.device)
-    resized = crop_faces(crops, whole.to(crops.device), size, index, check_values=False)
+    whole = torch.tensor([[0.0, 0.0, w, h]], device=crops.device).expand(n, 4)  # each whole crop: a resize
+    resized = crop_faces(crops, whole, size, torch.arange(n, device=crops.device), check_values=False)
     return resized.clamp_(0.0, 1.0)
 
 
