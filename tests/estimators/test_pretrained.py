@@ -15,7 +15,7 @@ from kornia_ilum.estimators.pretrained import pretrained_names, set_pretrained_l
 
 def test_the_registry_installs_its_lookup():
     names = pretrained_names()
-    assert {"ours", "uniform"} <= set(names) and "sipr" not in names  # sipr ships no weights yet
+    assert {"ours", "sh", "sipr", "uniform"} <= set(names)
     assert names == [n for n in registry.list_estimators() if registry.estimator_info(n).pretrained_available]
 
 

@@ -25,7 +25,7 @@ from kornia_ilum_sipr import (
     masked_l1,
 )
 
-from kornia_ilum.core.errors import MissingWeightsError
+from kornia_ilum.core.files import sha256_file
 from kornia_ilum.estimators import LightingEstimator, create_estimator, list_estimators
 from kornia_ilum.geometry import latlong_solid_angles, mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.synth.camera_effects import CameraEffects
@@ -55,9 +55,20 @@ class TestRegistry:
         assert est.info.name == "sipr" and est.info.input_size == INPUT_SIZE == 128 and est.info.needs_weights
         assert "Sun et al. 2019" in est.info.paper and kornia_ilum_sipr.__version__
 
-    def test_pretrained_is_missing_until_trained(self):
-        with pytest.raises(MissingWeightsError, match="pretrained=False"):
-            create_estimator("sipr")
+    def test_shipped_weights(self):
+        """The weights of the budget run (issue 22) load, SHA-256 checked, in float16, and give lighting."""
+        (weights,) = SIPREstimator.info.weights
+        path = SIPREstimator.default_weights_dir() / weights.name
+        assert path.is_file() and sha256_file(path) == weights.sha256
+        assert (SIPREstimator.default_weights_dir() / "MODEL_CARD.md").is_file()
+        est = create_estimator("sipr")
+        assert isinstance(est, SIPREstimator) and not est.training
+        state = safetensors.torch.load_file(path)
+        assert {v.dtype for v in state.values()} == {torch.float16} and state.keys() == est.state_dict().keys()
+        with torch.no_grad():
+            out = est(crops(1))
+        valid = mirror_ball_valid(32)
+        assert torch.isfinite(out.mirror_ball).all() and (out.mirror_ball[:, :, valid] > 0).all()
 
     def test_training_names_load_on_first_use(self):
         assert kornia_ilum_sipr.SIPRRecipe is SIPRRecipe and kornia_ilum_sipr.masked_l1 is masked_l1

@@ -19,7 +19,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
 
@@ -76,9 +76,11 @@ class SIPREstimator(LightingEstimator):
         "-> 16 x 32 log-HDR lat-long -> 32 x 32 mirror ball",
         paper=PAPER,
         input_size=INPUT_SIZE,
-        weights=(),
-        install_hint="pip install ./plugins/sipr (package kornia_ilum_sipr); trained weights are not released "
-        "yet, pass pretrained=False for the untrained network",
+        weights=(
+            WeightFile("sipr.safetensors", "84c37dd086d2dfe697921fe022f54866d8fe2859364a9a8956a1f92a8e5346c8"),
+        ),
+        install_hint="pip install ./plugins/sipr (package kornia_ilum_sipr); its weights ship inside it "
+        "(kornia_ilum_sipr/weights/); reinstall it",
         needs_weights=True,
     )
 
