@@ -122,7 +122,7 @@ class TestInstalledEntryPoints:
         with pytest.raises(
             MissingWeightsError,
             match=r"^'untrained' is registered but ships no trained weights yet; pass pretrained=False for an "
-            r"untrained model or pick one of: ours, sh, uniform$",
+            r"untrained model or pick one of: ours, sh, sipr, uniform$",
         ):
             create_estimator(untrained_name)
         net = create_estimator("ours", pretrained=False)
