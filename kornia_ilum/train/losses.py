@@ -117,6 +117,10 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
     one too bright by it; this term is symmetric in log and its minimum is the median of the energy's ratio at
     1 (docs/training.rst, "Why the energy drifts low, and the energy term").
 
+    Negative radiance counts as 0 (docs/conventions.rst: lighting is never negative), as in the estimate's
+    ``mirror_ball``: an unclamped order-2 SH reconstruction (``sh``'s training path) can have a negative total,
+    whose log would be NaN.
+
     Args:
         pred: ``(B, 3, S, S)`` predicted linear mirror-ball lighting.
         target: ``(B, 3, S, S)`` ground truth at the same size.
@@ -128,6 +132,8 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
         0.0
         >>> round(float(energy_loss(2 * light, light)), 4)  # log 2
         0.6931
+        >>> bool(energy_loss(-light, light).isfinite())  # negative radiance counts as 0
+        True
     """
-    e_pred, e_true = total_radiance(pred, torch.float32), total_radiance(target, torch.float32)
+    e_pred, e_true = total_radiance(pred.clamp(min=0), torch.float32), total_radiance(target, torch.float32)
     return ((e_pred + eps).log() - (e_true + eps).log()).abs().mean()

@@ -80,3 +80,13 @@ class TestEnergyLoss:
         loss = energy_loss(pred, torch.zeros(1, 3, 32, 32))
         loss.backward()
         assert loss.item() == 0.0 and torch.isfinite(pred.grad).all()
+
+    def test_negative_radiance_counts_as_zero(self) -> None:
+        """An unclamped SH reconstruction (sh's training path) can sum to a negative energy: no NaN."""
+        truth = torch.ones(1, 3, 32, 32) * mirror_ball_valid(32)
+        pred = (truth * torch.linspace(-1, 0.5, 32)).requires_grad_()  # mostly negative, total below 0
+        loss = energy_loss(pred, truth)
+        loss.backward()
+        assert torch.isfinite(loss) and torch.isfinite(pred.grad).all()
+        torch.testing.assert_close(loss, energy_loss(pred.detach().clamp(min=0), truth))
+        assert (pred.grad[pred.detach() > 0] != 0).any() and (pred.grad[pred.detach() < 0] == 0).all()
