@@ -16,7 +16,8 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
 
     The temporary file is in the same folder (so the rename is atomic) and keeps ``path``'s extension (so
     writers that pick a format by extension, such as OpenImageIO, pick the right one). It is removed if
-    ``write`` fails, and ``path`` is then left as it was. The file gets the default permissions (umask).
+    ``write`` fails, and ``path`` is then left as it was. The file gets the default permissions (umask), even
+    where ``write`` makes its own private file (safetensors writes mode 0600).
 
     Args:
         path: the destination; its folder must exist.
@@ -32,7 +33,11 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
     path = Path(path)
     tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
     try:
+        with open(tmp, "x"):  # created empty first: the mode the umask gives, whatever ``write`` then does
+            pass
+        mode = tmp.stat().st_mode & 0o777
         write(tmp)
+        os.chmod(tmp, mode)
         with open(tmp, "rb") as f:
             os.fsync(f.fileno())
         os.replace(tmp, path)

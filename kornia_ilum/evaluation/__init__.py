@@ -9,7 +9,7 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
   check (:func:`transfer_check`), exposure equivariance (:func:`exposure_equivariance`) and crop stability
   (:func:`crop_stability`), with the lighting's energy and dominant direction they compare.
 - :mod:`~kornia_ilum.evaluation.curve`: the learning curve of a run's snapshots (:func:`learning_curve`,
-  :func:`write_curve`).
+  :func:`write_curve`, :func:`read_curve`; :func:`equal_budget` reads several at equal budgets).
 - :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
   :func:`write_report`).
 - :mod:`~kornia_ilum.evaluation.cli`: :func:`~kornia_ilum.evaluation.cli.add_evaluate_parser` and
@@ -38,6 +38,7 @@ from kornia_ilum.evaluation.curve import (
     equal_budget,
     format_equal_budget,
     learning_curve,
+    read_curve,
     snapshot_files,
     write_curve,
 )
@@ -93,6 +94,7 @@ __all__ = [
     "load_estimator",
     "oracle_predictions",
     "predict",
+    "read_curve",
     "run_checks",
     "score",
     "snapshot_files",

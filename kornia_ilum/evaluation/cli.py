@@ -14,9 +14,10 @@ import time
 from pathlib import Path
 
 from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR
 from kornia_ilum.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
-from kornia_ilum.evaluation.curve import equal_budget, format_equal_budget, learning_curve, write_curve
+from kornia_ilum.evaluation.curve import equal_budget, format_equal_budget, learning_curve, read_curve, write_curve
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
 from kornia_ilum.evaluation.report import format_markdown, summarize, write_report
 
@@ -48,6 +49,7 @@ examples:
   kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
   kornia-ilum evaluate --cache lightstage/ --checks transfer,exposure --photos me.jpg group.png --out eval/
   kornia-ilum evaluate --cache lightstage/ --curve runs/a --curve runs/b   # two curves, at equal budgets
+  kornia-ilum evaluate --curve docs/_static/ours22_curve.csv --curve runs/b/curve.csv   # from written curves
 """
 
 
@@ -113,8 +115,9 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
         description=_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    cmd.add_argument("--cache", action="append", required=True, metavar="DIR",
-                     help="a light-stage cache; its eval subjects are used (repeatable)")
+    cmd.add_argument("--cache", action="append", metavar="DIR",
+                     help="a light-stage cache; its eval subjects are used (repeatable; needed unless every "
+                     "--curve is a curve.csv)")
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR",
                      help="folders of real maps; their eval maps are used (default: procedural only)")
     cmd.add_argument("--samples", type=positive_int, default=512, metavar="N", help="eval portraits (512)")
@@ -145,7 +148,8 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--curve", action="append", default=[], metavar="RUN",
                      help="instead of the tables: the learning curve of a training run kept with "
                      "--snapshot-every, L_rec of each snapshot, written to RUN/curve.csv and RUN/curve.png "
-                     "(repeatable; with several, also the runs at equal portraits seen and equal wall time)")
+                     "(repeatable; with several, also the runs at equal portraits seen and equal wall time; "
+                     "a path ending in .csv is a curve.csv written before, read instead of scored)")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -170,20 +174,29 @@ def print_curve(run: str, rows: list[dict]) -> None:
 def run_evaluate(args: argparse.Namespace) -> int:
     """Run ``evaluate`` from parsed arguments (module docstring); prints the tables, returns 0.
 
-    ``args`` needs ``cache``; the other options of :func:`add_evaluate_parser` are optional (their defaults).
+    ``args`` needs ``cache`` unless every ``curve`` is a ``curve.csv``; the other options of
+    :func:`add_evaluate_parser` are optional (their defaults).
 
     Raises:
-        ValueCheckError: no eval subject in the caches.
+        ValueCheckError: no cache (and curves to score), or no eval subject in the caches.
         HDRIOError: a ``--hdri`` folder is missing or holds no eval map.
     """
     t0 = time.perf_counter()
     hdri, samples = getattr(args, "hdri", None) or [], getattr(args, "samples", 512)
     background = getattr(args, "background", "environment")
-    eval_set = build_eval_set(args.cache, hdri, samples, background=background, progress=True)
     curves = getattr(args, "curve", None) or []
+    written = [c for c in curves if str(c).endswith(".csv")]  # curves scored before: read, not scored again
+    if not getattr(args, "cache", None) and not (curves and len(written) == len(curves)):
+        raise ValueCheckError("evaluate needs --cache DIR (a light-stage cache with eval subjects); only "
+                              "--curve with curve.csv files alone goes without")
+    eval_set = None if len(written) == len(curves) and curves else build_eval_set(
+        args.cache, hdri, samples, background=background, progress=True)
     if curves:
         found = {}
         for run in curves:
+            if run in written:
+                found[run] = read_curve(run)
+                continue
             found[run] = learning_curve(eval_set, run, getattr(args, "batch_size", 32))
             print_curve(run, found[run])
         if len(found) > 1:

@@ -7,7 +7,8 @@ eval set (:func:`~kornia_ilum.evaluation.build_eval_set`) and :func:`write_curve
 ``RUN/curve.png``: whether the run had stopped learning, and, read at equal samples or equal wall time, how
 estimators of different cost compare (``kornia-ilum evaluate --curve RUN``). :func:`equal_budget` reads
 several runs' curves at a shared budget of portraits seen and of training wall time
-(``kornia-ilum evaluate --curve RUN_A --curve RUN_B ...`` prints it).
+(``kornia-ilum evaluate --curve RUN_A --curve RUN_B ...`` prints it); :func:`read_curve` reads a written
+``curve.csv`` back, so a table can be rebuilt from curves whose snapshots are gone.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet, load_checkpoint, predict, score
 
-__all__ = ["CURVE_FIELDS", "equal_budget", "format_equal_budget", "learning_curve", "snapshot_files",
-           "write_curve"]
+__all__ = ["CURVE_FIELDS", "equal_budget", "format_equal_budget", "learning_curve", "read_curve",
+           "snapshot_files", "write_curve"]
 
 #: The columns of ``curve.csv``: where the snapshot was taken, then the mean ``L_rec`` per sphere.
 CURVE_FIELDS: tuple[str, ...] = ("step", "samples", "elapsed_s", *BRDF_NAMES)
@@ -63,6 +64,37 @@ def learning_curve(eval_set: EvalSet, run: str | os.PathLike[str], batch_size: i
         rows.append({"step": int(meta["step"]), "samples": int(meta["samples"]),
                      "elapsed_s": float(meta["elapsed_s"]), **{b: float(scores[b].mean()) for b in BRDF_NAMES}})
     return rows
+
+
+def read_curve(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    r"""Read a ``curve.csv`` that :func:`write_curve` wrote: the rows of :func:`learning_curve`, in step order.
+
+    Raises:
+        ValueCheckError: the file is missing, has no row, or lacks a column of :data:`CURVE_FIELDS`.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     _ = Path(run, "curve.csv").write_text("step,samples,elapsed_s,diffuse,matte_silver,mirror\n"
+        ...                                           "400,12800,393.8,0.16,0.18,0.33\n")
+        ...     rows = read_curve(Path(run, "curve.csv"))
+        >>> rows[0]["step"], rows[0]["samples"], abs(rows[0]["mirror"] - 0.33) < 1e-9
+        (400, 12800, True)
+    """
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise ValueCheckError(f"cannot read the learning curve {path}: {e.strerror or e}") from e
+    missing = [k for k in CURVE_FIELDS if not rows or k not in rows[0]]
+    if missing:
+        raise ValueCheckError(f"{path} is not a curve.csv: it needs a row with the columns {', '.join(CURVE_FIELDS)}"
+                              f" (missing: {', '.join(missing)})")
+    try:
+        out = [{k: (int(r[k]) if k in ("step", "samples") else float(r[k])) for k in CURVE_FIELDS} for r in rows]
+    except (TypeError, ValueError) as e:
+        raise ValueCheckError(f"{path} has a value that is not a number: {e}") from e
+    return sorted(out, key=lambda r: r["step"])
 
 
 def write_curve(run: str | os.PathLike[str], rows: list[dict[str, Any]]) -> list[Path]:

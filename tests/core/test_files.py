@@ -32,6 +32,21 @@ class TestAtomicWrite:
         atomic_write(path, lambda tmp: tmp.write_text("new"))
         assert path.read_text() == "new" and os.listdir(tmp_path) == ["a.txt"]
 
+    def test_the_file_gets_the_umask_mode_even_from_a_private_writer(self, tmp_path):
+        import safetensors.torch
+        import torch
+
+        old = os.umask(0o022)
+        try:
+            atomic_write(tmp_path / "w.safetensors", lambda tmp: safetensors.torch.save_file({"a": torch.ones(2)}, str(tmp)))
+            atomic_write(tmp_path / "a.txt", lambda tmp: tmp.write_text("x"))
+        finally:
+            os.umask(old)
+        # safetensors alone writes 0600: weights that others on the machine cannot read
+        assert (tmp_path / "w.safetensors").stat().st_mode & 0o777 == 0o644
+        assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644
+        assert sorted(os.listdir(tmp_path)) == ["a.txt", "w.safetensors"]
+
     def test_failed_write_leaves_the_destination_as_it_was(self, tmp_path):
         path = tmp_path / "a.txt"
         path.write_text("old")

@@ -18,6 +18,7 @@ from kornia_ilum.evaluation import (
     evaluate,
     format_equal_budget,
     learning_curve,
+    read_curve,
     snapshot_files,
 )
 from kornia_ilum.evaluation.cli import add_evaluate_parser
@@ -97,3 +98,44 @@ class TestEqualBudget:
             equal_budget({"a": self._rows((1, 1.0, 0.1))})
         with pytest.raises(ValueCheckError, match="at least two runs"):
             equal_budget({"a": self._rows((1, 1.0, 0.1)), "b": []})
+
+
+class TestReadCurve:
+    def test_reads_back_what_write_curve_wrote(self, run, eval_set) -> None:
+        rows = learning_curve(eval_set, run, batch_size=8)
+        from kornia_ilum.evaluation import write_curve
+
+        write_curve(run, rows)
+        back = read_curve(run / "curve.csv")
+        assert [(r["step"], r["samples"]) for r in back] == [(r["step"], r["samples"]) for r in rows]
+        for got, want in zip(back, rows):
+            for k in ("elapsed_s", *BRDF_NAMES):
+                assert got[k] == pytest.approx(want[k], rel=1e-5)
+
+    def test_missing_empty_or_foreign_files_are_typed_errors(self, tmp_path) -> None:
+        with pytest.raises(ValueCheckError, match="cannot read the learning curve"):
+            read_curve(tmp_path / "nope.csv")
+        (tmp_path / "empty.csv").write_text("")
+        with pytest.raises(ValueCheckError, match="not a curve.csv"):
+            read_curve(tmp_path / "empty.csv")
+        (tmp_path / "other.csv").write_text("a,b\n1,2\n")
+        with pytest.raises(ValueCheckError, match="missing: step"):
+            read_curve(tmp_path / "other.csv")
+        (tmp_path / "text.csv").write_text(",".join(CURVE_FIELDS) + "\n1,2,x,0.1,0.2,0.3\n")
+        with pytest.raises(ValueCheckError, match="not a number"):
+            read_curve(tmp_path / "text.csv")
+
+    def test_evaluate_reads_written_curves_without_a_cache(self, tmp_path, capsys) -> None:
+        header = ",".join(CURVE_FIELDS) + "\n"
+        (tmp_path / "a.csv").write_text(header + "1,100,10,0.3,0.3,0.3\n2,200,20,0.2,0.2,0.2\n")
+        (tmp_path / "b.csv").write_text(header + "1,100,40,0.25,0.25,0.25\n")
+        parser = argparse.ArgumentParser(prog="kornia-ilum")
+        add_evaluate_parser(parser.add_subparsers(dest="command"))
+        args = parser.parse_args(["evaluate", "--curve", str(tmp_path / "a.csv"), "--curve", str(tmp_path / "b.csv")])
+        assert args.func(args) == 0
+        printed = capsys.readouterr().out
+        assert "at equal budgets" in printed and "| portraits 100 |" in printed
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.csv"]  # nothing written
+        args = parser.parse_args(["evaluate", "--curve", str(tmp_path / "a.csv"), "--curve", str(tmp_path)])
+        with pytest.raises(ValueCheckError, match="needs --cache"):
+            args.func(args)
