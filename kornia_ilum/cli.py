@@ -37,8 +37,18 @@ from kornia_ilum import __version__
 from kornia_ilum.api import cached_detector, cached_estimator, estimate_lighting
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import BaseError, HDRIOError
+from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
-from kornia_ilum.estimators import DEFAULT_ESTIMATOR, estimator_info, list_estimators
+from kornia_ilum.estimators import (
+    DEFAULT_ESTIMATOR,
+    PARITY_ATOL,
+    OnnxEstimator,
+    create_estimator,
+    estimator_info,
+    export_onnx,
+    list_estimators,
+    parity,
+)
 from kornia_ilum.io import read_ldr
 from kornia_ilum.synth.cli import (
     add_synth_check_skin_parser,
@@ -164,6 +174,16 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="average each face's estimate over N jittered crops and their mirror images "
                      "(2N estimator passes; more stable under the crop; default: off)")
 
+    exp = sub.add_parser(
+        "export", help="export an estimator to ONNX, checked against PyTorch",
+        description="Export a registered estimator, with its shipped weights, to an ONNX file: sRGB face crops "
+        "(B, 3, S, S) in, the estimate's fields out (mirror_ball in the units of the photo, valid, and "
+        "log_mirror_ball or sh), with a dynamic batch. The file is written only if ONNX Runtime reproduces "
+        f"PyTorch's log(1 + L) within {PARITY_ATOL:g} on a probe batch. Needs pip install 'kornia_ilum[onnx]'.",
+    )
+    exp.add_argument("--onnx", required=True, metavar="FILE", help="the .onnx file to write")
+    exp.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default)")
+
     sub.add_parser("list", help="list the estimators and face detectors",
                    description="List the registered lighting estimators and face detectors, "
                    "with their metadata.")
@@ -254,6 +274,30 @@ def _cmd_list() -> int:
     print(f"Detectors (default: {DEFAULT_DETECTOR}):")
     for name in list_detectors():
         print(f"  {name}\n      {describe_detector(name)}")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    name = args.estimator or DEFAULT_ESTIMATOR
+    if name not in list_estimators():
+        raise _UsageError(f"unknown estimator {name!r}; choose one of: {', '.join(list_estimators())}")
+    target = Path(args.onnx)
+    if target.suffix.lower() != ".onnx":
+        raise _UsageError(f"--onnx must name a .onnx file, got {args.onnx!r}")
+    if not target.parent.is_dir():
+        raise HDRIOError(f"cannot write {target}: the folder {target.parent} does not exist")
+    t0 = time.perf_counter()
+    estimator = create_estimator(name)
+    model = export_onnx(estimator)
+    size = estimator.info.input_size
+    probe = torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0))
+    error = parity(estimator, OnnxEstimator(model), probe)
+    if error > PARITY_ATOL:
+        raise RuntimeError(f"the ONNX export of {name!r} differs from PyTorch by {error:.3g} in log(1 + L) "
+                           f"(at most {PARITY_ATOL:g}); nothing was written")
+    atomic_write(target, lambda tmp: tmp.write_bytes(model))
+    print(f"wrote {target} ({len(model) / 2**20:.1f} MiB, estimator {name!r}, input (B, 3, {size}, {size}); "
+          f"max |log(1 + L)| difference to PyTorch {error:.2g} on 4 probe crops; {_ms(t0)})")
     return 0
 
 
@@ -364,6 +408,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             args = parser.parse_args(argv)
             if args.command in ("synth", *LAZY_COMMANDS):
                 return args.func(args)
+            if args.command == "export":
+                return _cmd_export(args)
             return _cmd_list() if args.command == "list" else _cmd_estimate(args)
         except SystemExit as e:  # --help / --version
             return e.code if isinstance(e.code, int) else 0

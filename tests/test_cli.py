@@ -184,3 +184,21 @@ class TestErrors:
         run = subprocess.run([str(script), "estimate", "--faces", "x"], capture_output=True, text=True, env=env, timeout=120)
         assert run.returncode == 2
         assert run.stderr.startswith("kornia-ilum: error: argument --faces: invalid choice") and "Traceback" not in run.stderr
+
+
+class TestExport:
+    def test_writes_a_checked_onnx_file(self, tmp_path, capsys) -> None:
+        target = tmp_path / "uniform.onnx"
+        assert main(["export", "--onnx", str(target), "--estimator", "uniform"]) == 0
+        printed = capsys.readouterr().out
+        assert f"wrote {target}" in printed and "difference to PyTorch" in printed
+        assert target.read_bytes()[:2] == b"\x08\x0a" or target.stat().st_size > 1000
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["uniform.onnx"]
+
+    def test_bad_targets_are_one_line_errors(self, tmp_path, capsys) -> None:
+        assert main(["export", "--onnx", str(tmp_path / "a.txt")]) == 2
+        assert main(["export", "--onnx", str(tmp_path / "missing" / "a.onnx")]) == 1
+        assert main(["export", "--onnx", str(tmp_path / "a.onnx"), "--estimator", "nope"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 3 and all(line.startswith("kornia-ilum: error: ") for line in err)
+        assert not list(tmp_path.iterdir())

@@ -42,7 +42,7 @@ def _heavy_loaded(setup: str, heavy: tuple[str, ...], tmp_path: Path) -> str:
 @pytest.mark.slow  # a subprocess
 def test_import_writes_nothing_and_loads_no_dynamo(tmp_path):
     heavy = ("torch._dynamo", "torch._inductor", "sympy", "scipy", "matplotlib", "mitsuba", "cv2",
-             "OpenImageIO", "safetensors", "skimage")
+             "OpenImageIO", "safetensors", "skimage", "onnxruntime", "onnx", "onnxscript")
     loaded = _heavy_loaded("import kornia_ilum", heavy, tmp_path)
     assert loaded == "", f"import kornia_ilum loaded {loaded}"
     _assert_nothing_written(tmp_path)

@@ -112,7 +112,7 @@ def check_tensor(
     if not isinstance(x, torch.Tensor):
         want = f" of shape {_fmt(shape)}" if shape is not None else ""
         raise TypeCheckError(f"{name} must be a torch.Tensor{want}, got {type(x).__name__}")
-    got = tuple(x.shape)
+    got = tuple(int(d) if isinstance(d, torch.Tensor) else d for d in x.shape)  # jit.trace: 0-d tensors
     if shape is not None:
         dims = list(shape)
         if dims and dims[0] == "*":
@@ -137,7 +137,7 @@ def check_tensor(
         raise EmptyTensorError(
             f"{name} must not be empty, got shape {got} (expected{expected} with sizes > 0)"
         )
-    if torch.compiler.is_compiling():
+    if torch.compiler.is_compiling() or torch.jit.is_tracing():  # a value scan would be baked into the graph
         return
     if not (finite or nonnegative) or not x.is_floating_point() or x.numel() == 0:
         return
@@ -168,7 +168,8 @@ def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
         ...
         kornia_ilum.core.errors.NonFiniteError: image must be finite, but it holds NaN or Inf
     """
-    if not checks_active() or torch.compiler.is_compiling() or not x.is_floating_point() or x.numel() == 0:
+    if (not checks_active() or torch.compiler.is_compiling() or torch.jit.is_tracing() or not x.is_floating_point()
+            or x.numel() == 0):
         return None
     lo, hi = (float(v) for v in torch.aminmax(x.detach()))  # one pass; NaN propagates into both
     if not (math.isfinite(lo) and math.isfinite(hi)):

@@ -3,7 +3,9 @@
 Estimators come from entry points of the group ``kornia_ilum.estimators`` (the built-in ``ours`` and
 plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estimator`. Weight files load only
 through :func:`read_weights`, which checks their SHA-256. :class:`TestTimeAugmented` wraps any estimator to
-average its estimate over jittered sub-crops and the mirror of each crop.
+average its estimate over jittered sub-crops and the mirror of each crop. :mod:`~kornia_ilum.estimators.runtime`
+exports any estimator to ONNX and runs it with ONNX Runtime behind the same contract
+(``create_estimator(name, runtime="onnx")``).
 """
 
 from kornia_ilum.estimators.base import (
@@ -24,6 +26,7 @@ from kornia_ilum.estimators.registry import (
     list_estimators,
     register_estimator,
 )
+from kornia_ilum.estimators.runtime import PARITY_ATOL, RUNTIMES, OnnxEstimator, export_onnx, parity, with_runtime
 from kornia_ilum.estimators.tta import (
     TestTimeAugmented,
     average_estimates,
@@ -52,4 +55,10 @@ __all__ = [
     "crop_windows",
     "mirror_sh",
     "average_estimates",
+    "PARITY_ATOL",
+    "RUNTIMES",
+    "OnnxEstimator",
+    "export_onnx",
+    "parity",
+    "with_runtime",
 ]

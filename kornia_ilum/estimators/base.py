@@ -145,7 +145,8 @@ class LightingEstimate:
 
     def __post_init__(self) -> None:
         check_tensor(self.mirror_ball, "mirror_ball", ["B", "3", "S", "S"], finite=False)
-        batch, _, height, width = self.mirror_ball.shape
+        # sizes are 0-d tensors under torch.jit.trace, symbols under torch.export (kept: int() would fix them)
+        batch, _, height, width = (int(d) if isinstance(d, Tensor) else d for d in self.mirror_ball.shape)
         if height != width:
             raise ShapeError(f"mirror_ball must be square (B, 3, S, S), got {tuple(self.mirror_ball.shape)}")
         check_tensor(self.valid, "valid", [str(height), str(width)], floating=False, finite=False)
@@ -295,6 +296,10 @@ class LightingEstimate:
         return path
 
 
+# a pytree node: torch.export and torch.onnx.export(dynamo=True) take an estimator itself, its result flattened
+torch.export.register_dataclass(LightingEstimate, serialized_type_name="kornia_ilum.LightingEstimate")
+
+
 @dataclass(frozen=True)
 class WeightFile:
     r"""One pretrained weight file of an estimator: a ``.safetensors`` file and its SHA-256.
@@ -388,7 +393,7 @@ def check_crops(crops: Tensor, size: int = 256, *, values: bool = True) -> None:
             "convert 8-bit images with image.float() / 255"
         )
     check_tensor(crops, "crops", ["B", "3", str(size), str(size)], finite=False)
-    if not values or not checks_active() or torch.compiler.is_compiling():
+    if not values or not checks_active() or torch.compiler.is_compiling() or torch.jit.is_tracing():
         return
     lo, hi = (float(v) for v in torch.aminmax(crops.detach()))  # one pass; NaN propagates into both
     if lo != lo or hi != hi or abs(lo) == float("inf") or abs(hi) == float("inf"):

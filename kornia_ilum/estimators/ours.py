@@ -199,7 +199,7 @@ class OursEstimator(LightingEstimator):
                     crops, scale = normalize_exposure(crops.to(work))
                 log_scale = torch.log(scale)[:, None, None, None]
             else:
-                log_scale = crops.new_zeros(len(crops), 1, 1, 1, dtype=work)
+                log_scale = crops.new_zeros(crops.shape[0], 1, 1, 1, dtype=work)
         latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
         x = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
         features = []

@@ -35,8 +35,10 @@ import warnings
 from types import MappingProxyType
 from typing import Any
 
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimator
 from kornia_ilum.estimators.pretrained import set_pretrained_lookup
+from kornia_ilum.estimators.runtime import RUNTIMES, with_runtime
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -225,7 +227,7 @@ def estimator_info(name: str) -> EstimatorInfo:
     return _resolve(name).info
 
 
-def create_estimator(name: str, pretrained: bool = True, **kw: Any) -> LightingEstimator:
+def create_estimator(name: str, pretrained: bool = True, runtime: str = "eager", **kw: Any) -> LightingEstimator:
     r"""Build a registered estimator by name.
 
     Args:
@@ -234,6 +236,9 @@ def create_estimator(name: str, pretrained: bool = True, **kw: Any) -> LightingE
             :meth:`~kornia_ilum.estimators.LightingEstimator.from_pretrained` (SHA-256 checked,
             safetensors). Estimators without trained parameters (``info.needs_weights == False``) are the
             same either way. ``False`` builds ``cls(**kw)`` untrained.
+        runtime: what computes the estimate (:func:`~kornia_ilum.estimators.runtime.with_runtime`):
+            ``"eager"`` (PyTorch, the default), ``"onnx"`` (ONNX Runtime, ``pip install kornia_ilum[onnx]``)
+            or ``"auto"`` (ONNX Runtime where it is installed and passes the parity check, else eager).
         **kw: constructor arguments (and ``weights_dir`` with ``pretrained=True``).
 
     Returns:
@@ -241,6 +246,7 @@ def create_estimator(name: str, pretrained: bool = True, **kw: Any) -> LightingE
 
     Raises:
         ValueError: unknown name; the message lists the valid names.
+        ValueCheckError: unknown runtime.
         MissingWeightsError: ``pretrained=True`` for an estimator that ships no trained weights yet, or
             whose weight file is missing.
         WeightsChecksumError: a weight file fails its SHA-256 check.
@@ -251,7 +257,10 @@ def create_estimator(name: str, pretrained: bool = True, **kw: Any) -> LightingE
         256
     """
     cls = _resolve(name)
-    return cls.from_pretrained(**kw) if pretrained else cls(**kw)
+    if runtime not in RUNTIMES:  # before the weights are read
+        raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    model = cls.from_pretrained(**kw) if pretrained else cls(**kw)
+    return with_runtime(model, runtime)
 
 
 def register_estimator(name: str, target: type[LightingEstimator] | str, clobber: bool = False) -> None:

@@ -343,6 +343,16 @@ def _area_operator_f64(src: tuple[str, int], tgt: tuple[str, int]) -> tuple[torc
     return _csr(t, s, vals, (n_tgt, n_src)), _csr(s, t, vals, (n_src, n_tgt))
 
 
+@lru_cache(maxsize=16)
+def _area_dense(src: tuple[str, int], tgt: tuple[str, int]) -> torch.Tensor:
+    """``M`` of :func:`_area_operator_f64` as a dense float64 matrix: for :func:`torch.export` (ONNX)."""
+    from torch.fx.experimental.proxy_tensor import disable_proxy_modes_tracing  # lazy: export only
+
+    # a constant of the graph, built for real: neither traced nor faked
+    with disable_proxy_modes_tracing(), torch._subclasses.fake_tensor.unset_fake_temporarily():
+        return _area_operator_f64(src, tgt)[0].to_dense()
+
+
 @compiler_disable
 def _apply_sparse(x: torch.Tensor, mat: torch.Tensor, mat_t: torch.Tensor) -> torch.Tensor:
     """``(B, C, N) -> (B, C, T)`` through the CSR operator (kept out of ``torch.compile`` graphs)."""
@@ -507,6 +517,8 @@ def _resample(x: torch.Tensor, src: tuple[str, int], tgt: tuple[str, int], mode:
     mode, tensors, mask = _constants(src, tgt, mode, work.dtype, work.device)
     if src == tgt:
         out = work
+    elif mode == "area" and torch.compiler.is_exporting():  # CSR has no export path: the same table, dense
+        out = (work.flatten(2) @ _area_dense(src, tgt).to(work).T).reshape(*x.shape[:2], *_shape(*tgt))
     elif mode == "area":
         out = _apply_sparse(work.flatten(2), *tensors).reshape(*x.shape[:2], *_shape(*tgt))
     else:

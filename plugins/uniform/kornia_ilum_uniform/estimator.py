@@ -141,7 +141,8 @@ def uniform_lighting(
     ellipse = face_ellipse(crops.shape[-1], device=crops.device)
     peak = srgb.amax(dim=1)  # (B, S, S)
     keep = ellipse & (peak < clip_threshold) & (peak >= dark_threshold)
-    weights = torch.where(keep.any(dim=(-2, -1), keepdim=True), keep, ellipse).to(work.dtype)  # fallback
+    # the ellipse where nothing is kept (as floats: ONNX Runtime has no Where on booleans)
+    weights = torch.where(keep.any(dim=(-2, -1), keepdim=True), keep.to(work.dtype), ellipse.to(work.dtype))
     mean = (linear * weights[:, None]).sum(dim=(-2, -1)) / weights.sum(dim=(-2, -1))[:, None]
     return (mean / a).to(crops.dtype)
 
@@ -197,7 +198,7 @@ class UniformEstimator(LightingEstimator):
         radiance = uniform_lighting(crops, self.albedo, self.clip_threshold, self.dark_threshold)  # (B, 3)
         mirror_ball = radiance[:, :, None, None] * self.valid
         sh = torch.cat(
-            [radiance[:, None] * math.sqrt(4 * math.pi), radiance.new_zeros(len(radiance), 8, 3)], 1
+            [radiance[:, None] * math.sqrt(4 * math.pi), radiance.new_zeros(radiance.shape[0], 8, 3)], 1
         )
         return LightingEstimate(
             mirror_ball=mirror_ball,
