@@ -106,7 +106,7 @@ class SHEstimator(LightingEstimator):
         "(9 x 3 coefficients) of linear HDR lighting, reconstructed on a 32 x 32 mirror ball",
         paper=PAPER,
         input_size=_INPUT_SIZE,
-        weights=(WeightFile("sh.safetensors", "92e3a853df41dc9e34a78850601039c25b067f20d2939ac4592878178c87caba"),),
+        weights=(WeightFile("sh.safetensors", "8063d78c1a7b03615e898e6e919a8c860cd2d3fa814e82b60d673910606dfe26"),),
         install_hint="pip install ./plugins/sh (package kornia_ilum_sh); its weights ship inside it "
         "(kornia_ilum_sh/weights/); reinstall it",
     )
