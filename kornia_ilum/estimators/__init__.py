@@ -26,7 +26,15 @@ from kornia_ilum.estimators.registry import (
     list_estimators,
     register_estimator,
 )
-from kornia_ilum.estimators.runtime import PARITY_ATOL, RUNTIMES, OnnxEstimator, export_onnx, parity, with_runtime
+from kornia_ilum.estimators.runtime import (
+    PARITY_ATOL,
+    RUNTIMES,
+    OnnxEstimator,
+    export_onnx,
+    parity,
+    probe_parity,
+    with_runtime,
+)
 from kornia_ilum.estimators.tta import (
     TestTimeAugmented,
     average_estimates,
@@ -60,5 +68,6 @@ __all__ = [
     "OnnxEstimator",
     "export_onnx",
     "parity",
+    "probe_parity",
     "with_runtime",
 ]

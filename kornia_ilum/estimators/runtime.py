@@ -41,6 +41,7 @@ __all__ = [
     "OnnxEstimator",
     "export_onnx",
     "parity",
+    "probe_parity",
     "with_runtime",
 ]
 
@@ -244,9 +245,13 @@ def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, thread
         except ImportError:
             return estimator
     fast = OnnxEstimator(export_onnx(estimator), info=estimator.info, threads=threads)
-    if runtime == "auto":
-        size = estimator.info.input_size
-        probe = torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0))
-        if parity(estimator, fast, probe) > PARITY_ATOL:
-            return estimator
+    if runtime == "auto" and probe_parity(estimator, fast) > PARITY_ATOL:
+        return estimator
     return fast
+
+
+def probe_parity(reference: LightingEstimator, candidate: LightingEstimator) -> float:
+    r""":func:`parity` on the probe batch every runtime is checked on: 4 seeded random crops of the
+    reference's input size (``with_runtime("auto")`` and ``kornia-ilum export`` use it)."""
+    size = reference.info.input_size
+    return parity(reference, candidate, torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0)))
