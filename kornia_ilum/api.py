@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import time
 from typing import Any, Literal
 
 import numpy as np
@@ -36,9 +37,11 @@ from kornia_ilum.detection import (
 from kornia_ilum.estimators import (
     DEFAULT_ESTIMATOR,
     LightingEstimate,
+    RUNTIMES,
     LightingEstimator,
     TestTimeAugmented,
     create_estimator,
+    with_runtime,
 )
 from kornia_ilum.io import read_ldr
 
@@ -53,15 +56,17 @@ _ACCEPTED = (
 
 
 @functools.lru_cache(maxsize=8)
-def cached_estimator(name: str, device: torch.device) -> LightingEstimator:
+def cached_estimator(name: str, device: torch.device, runtime: str = "eager") -> LightingEstimator:
     """The registered estimator ``name`` that :func:`estimate_lighting` uses: built with ``pretrained=True``
-    once per ``(name, device)`` in this process (the 8 most recent are kept), in eval mode.
+    once per ``(name, device, runtime)`` in this process (the 8 most recent are kept), in eval mode, computed by
+    ``runtime`` (:func:`~kornia_ilum.estimators.with_runtime`).
 
     Raises:
         ValueError: ``name`` is not registered.
+        ValueCheckError: an unknown runtime, or one that cannot run on ``device``.
         MissingWeightsError: the estimator ships no trained weights yet.
     """
-    return create_estimator(name, pretrained=True).to(device).eval()
+    return with_runtime(create_estimator(name, pretrained=True).to(device).eval(), runtime)
 
 
 @functools.lru_cache(maxsize=8)
@@ -175,12 +180,16 @@ def _module_dtype(module: torch.nn.Module) -> torch.dtype:
     return torch.float32
 
 
-def _resolve_estimator(estimator: str | LightingEstimator | None, device: torch.device) -> LightingEstimator:
+def _resolve_estimator(estimator: str | LightingEstimator | None, device: torch.device,
+                       runtime: str = "eager") -> LightingEstimator:
     if estimator is None:
         estimator = DEFAULT_ESTIMATOR
     if isinstance(estimator, str):
-        return cached_estimator(estimator, device)
+        return cached_estimator(estimator, device, runtime)
     if isinstance(estimator, LightingEstimator):
+        if runtime != "eager":
+            raise ValueCheckError(f"runtime={runtime!r} applies to an estimator given by name; wrap an instance "
+                                  "yourself: kornia_ilum.estimators.with_runtime(estimator, runtime)")
         on = _module_device(estimator)
         if on is not None and (
             on.type != device.type or None not in (on.index, device.index) and on.index != device.index
@@ -224,6 +233,8 @@ def estimate_lighting(
     bgr: bool = False,
     device: str | torch.device | None = None,
     tta: int | None = None,
+    runtime: str = "eager",
+    timings: dict[str, float] | None = None,
 ) -> LightingEstimate:
     r"""Estimate HDR lighting from portrait photograph(s): detect the faces, crop them, run an estimator.
 
@@ -259,6 +270,12 @@ def estimate_lighting(
             :class:`~kornia_ilum.estimators.TestTimeAugmented` (``jitters=N``, its default zoom and shift),
             ``2N`` passes of the estimator per face, in one batch (``benchmarks/bench_tta.py`` measures
             the cost). The estimate of a mirrored crop is then exactly the mirrored estimate.
+        runtime: what computes a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`, see
+            :func:`~kornia_ilum.estimators.with_runtime`): ``"eager"`` (PyTorch float32, the default),
+            ``"bf16"``, ``"onnx"``, ``"onnx-int8"`` or ``"auto"`` (the fastest that runs here and passes its
+            parity check; ``kornia-ilum bench`` measures them).
+        timings: a dict that receives the milliseconds of each stage of this call: ``"check"`` (the input's
+            conversion and value scan), ``"detect"``, ``"crop"`` and ``"estimate"``.
 
     Returns:
         A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``
@@ -275,7 +292,8 @@ def estimate_lighting(
         NonFiniteError: ``image`` holds NaN or Inf.
         ValueCheckError: a float ``image`` has values outside ``[0, 1]``; ``faces``, ``fallback``,
             ``bgr`` or ``tta`` has an invalid value (``tta`` is an int that is not positive); an estimator
-            instance is on another device.
+            instance is on another device; ``runtime`` is unknown, cannot run here, or is given with an
+            estimator instance.
         ValueError: ``estimator`` or ``detector`` is an unknown name (the message lists the valid ones).
         HDRIOError: the image file is missing or unreadable (the message names the path); its subclass
             :class:`~kornia_ilum.core.errors.TruncatedImageError` when the file ends before its image data do.
@@ -318,10 +336,21 @@ def estimate_lighting(
         raise TypeCheckError(f"bgr must be a bool, got {type(bgr).__name__}")
     if tta is not None:
         check_positive_int(tta, "tta")
+    if runtime not in RUNTIMES:
+        raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    clock = [time.perf_counter()]
+
+    def lap(stage: str) -> None:
+        clock.append(time.perf_counter())
+        if timings is not None:
+            timings[stage] = 1e3 * (clock[-1] - clock[-2])
+
     batch, what = _as_batch(image, bgr)
     dev = torch.device(device) if device is not None else batch.device
     batch = batch.to(dev)
-    est = _resolve_estimator(estimator, dev)
+    est = _resolve_estimator(estimator, dev, runtime)
+    clock[-1] = time.perf_counter()  # a first call builds the models: not a stage of the estimate
+    lap("check")
     if tta is not None:
         est = TestTimeAugmented(est, jitters=tta)  # no state of its own: cheap to build per call
     det = _resolve_detector(detector, dev)
@@ -329,7 +358,9 @@ def estimate_lighting(
     height, width = batch.shape[-2:]
 
     crop_boxes, boxes, index = [], [], []
-    for i, found in enumerate(det.detect(batch, check_values=False)):  # checked once, in _as_batch
+    detections = det.detect(batch, check_values=False)  # checked once, in _as_batch
+    lap("detect")
+    for i, found in enumerate(detections):
         if found.shape[0] > 0:
             kept = _pick(found, faces).to(dev)
             crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
@@ -349,6 +380,7 @@ def estimate_lighting(
         index.append(torch.full((kept.shape[0],), i, dtype=torch.int64, device=dev))
     index_all = torch.cat(index)
     crops = crop_faces(batch, torch.cat(crop_boxes), size=size, index=index_all, check_values=False)
+    lap("crop")
 
     was_training = est.training
     est.eval()
@@ -358,4 +390,5 @@ def estimate_lighting(
             result = est(crops.to(_module_dtype(est)), check_values=False)
     finally:
         est.train(was_training)
+    lap("estimate")
     return dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)

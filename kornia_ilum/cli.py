@@ -41,13 +41,15 @@ from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
 from kornia_ilum.estimators import (
     DEFAULT_ESTIMATOR,
+    LREC_RTOL,
     PARITY_ATOL,
+    RUNTIMES,
     OnnxEstimator,
     create_estimator,
     estimator_info,
-    export_onnx,
     list_estimators,
-    probe_parity,
+    onnx_model,
+    runtime_parity,
 )
 from kornia_ilum.io import read_ldr
 from kornia_ilum.synth.cli import (
@@ -170,19 +172,31 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
     est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
     est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
+    est.add_argument("--runtime", choices=RUNTIMES, default="eager",
+                     help="what computes the estimate: eager (PyTorch float32, default), bf16, onnx, onnx-int8, or "
+                     "auto (the fastest that runs here and passes its parity check; kornia-ilum bench measures "
+                     "them; the ONNX runtimes export once per machine into the cache, ~/.cache/kornia_ilum)")
     est.add_argument("--tta", type=positive_int, metavar="N", default=None,
                      help="average each face's estimate over N jittered crops and their mirror images "
                      "(2N estimator passes; more stable under the crop; default: off)")
 
     exp = sub.add_parser(
-        "export", help="export an estimator to ONNX, checked against PyTorch",
+        "export", help="export an estimator to ONNX (float32 or int8), checked against PyTorch; or the probe",
         description="Export a registered estimator, with its shipped weights, to an ONNX file: sRGB face crops "
         "(B, 3, S, S) in, the estimate's fields out (mirror_ball in the units of the photo, valid, and "
-        "log_mirror_ball or sh), with a dynamic batch. The file is written only if ONNX Runtime reproduces "
-        f"PyTorch's log(1 + L) within {PARITY_ATOL:g} on a probe batch. Needs pip install 'kornia_ilum[onnx]'.",
+        "log_mirror_ball or sh), with a dynamic batch. The file is written only if it passes its runtime's parity "
+        f"check: for --runtime onnx, ONNX Runtime reproduces PyTorch's log(1 + L) within {PARITY_ATOL:g} on a "
+        f"probe batch; for --runtime onnx-int8, L_rec on the shipped probe's check half moves by at most "
+        f"{LREC_RTOL:.0%}. Needs pip install 'kornia_ilum[onnx]'. With --probe DIR, write the runtimes' probe "
+        "instead (64 training portraits of --cache under --hdri, with their lighting; the int8 calibration).",
     )
-    exp.add_argument("--onnx", required=True, metavar="FILE", help="the .onnx file to write")
+    exp.add_argument("--onnx", metavar="FILE", help="the .onnx file to write")
     exp.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default)")
+    exp.add_argument("--runtime", choices=("onnx", "onnx-int8"), default="onnx",
+                     help="float32 (default) or static int8 calibrated on the shipped probe")
+    exp.add_argument("--probe", metavar="DIR", help="write probe.jpg and probe.safetensors into DIR instead")
+    exp.add_argument("--cache", nargs="+", default=[], metavar="DIR", help="light-stage caches (with --probe)")
+    exp.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="real maps' folders (with --probe)")
 
     sub.add_parser("list", help="list the estimators and face detectors",
                    description="List the registered lighting estimators and face detectors, "
@@ -278,6 +292,10 @@ def _cmd_list() -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.probe is not None:
+        return _cmd_export_probe(args)
+    if args.onnx is None:
+        raise _UsageError("export needs --onnx FILE (or --probe DIR)")
     name = args.estimator or DEFAULT_ESTIMATOR
     if name not in list_estimators():
         raise _UsageError(f"unknown estimator {name!r}; choose one of: {', '.join(list_estimators())}")
@@ -288,15 +306,32 @@ def _cmd_export(args: argparse.Namespace) -> int:
         raise HDRIOError(f"cannot write {target}: the folder {target.parent} does not exist")
     t0 = time.perf_counter()
     estimator = create_estimator(name)
-    model = export_onnx(estimator)
+    model = onnx_model(estimator, args.runtime, cache=False)
     size = estimator.info.input_size
-    error = probe_parity(estimator, OnnxEstimator(model))
-    if error > PARITY_ATOL:
-        raise RuntimeError(f"the ONNX export of {name!r} differs from PyTorch by {error:.3g} in log(1 + L) "
-                           f"(at most {PARITY_ATOL:g}); nothing was written")
+    value, tol, passed = runtime_parity(estimator, OnnxEstimator(model, runtime=args.runtime), args.runtime)
+    what = ("max |log(1 + L)| difference to PyTorch" if args.runtime == "onnx"
+            else "largest relative change of L_rec on the probe's check half")
+    if not passed:
+        raise RuntimeError(f"the {args.runtime} export of {name!r} fails its parity check: {what} {value:.3g} "
+                           f"(at most {tol:g}); nothing was written")
     atomic_write(target, lambda tmp: tmp.write_bytes(model))
-    print(f"wrote {target} ({len(model) / 2**20:.1f} MiB, estimator {name!r}, input (B, 3, {size}, {size}); "
-          f"max |log(1 + L)| difference to PyTorch {error:.2g} on 4 probe crops; {_ms(t0)})")
+    print(f"wrote {target} ({len(model) / 2**20:.1f} MiB, estimator {name!r}, runtime {args.runtime}, input "
+          f"(B, 3, {size}, {size}); {what} {value:.2g}; {_ms(t0)})")
+    return 0
+
+
+def _cmd_export_probe(args: argparse.Namespace) -> int:
+    from kornia_ilum.train.data import write_training_probe  # lazy: the training data load the light stage
+
+    folder = Path(args.probe)
+    if not folder.is_dir():
+        raise HDRIOError(f"cannot write the probe into {folder}: no such folder")
+    if not args.cache:
+        raise _UsageError("--probe needs --cache DIR ... (light-stage caches with train subjects)")
+    t0 = time.perf_counter()
+    meta = write_training_probe(folder, args.cache, args.hdri)
+    print(f"wrote {folder / 'probe.jpg'} and {folder / 'probe.safetensors'} ({meta['samples']} training portraits "
+          f"of {len(meta['subjects'])} subjects, skin tones {meta['skin_tones']}; {_ms(t0)})")
     return 0
 
 
@@ -334,20 +369,21 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
             raise HDRIOError(f"cannot read {p}: {why}")
 
     t0 = time.perf_counter()
-    cached_estimator(estimator, device)  # built once (and checked: missing weights fail here)
+    chosen = cached_estimator(estimator, device, args.runtime).runtime  # built once (missing weights fail here)
     cached_detector(args.detector, device)
-    print(f"loaded estimator {estimator!r} and detector {args.detector!r} in {_ms(t0)}")
+    print(f"loaded estimator {estimator!r} (runtime {chosen}) and detector {args.detector!r} in {_ms(t0)}")
 
     written: set[Path] = set()
     for path, stem in zip(args.images or [None], stems):
         t0 = time.perf_counter()
         image = skimage.data.astronaut() if path is None else read_ldr(path)
-        t1 = time.perf_counter()
+        stages = {"read": 1e3 * (time.perf_counter() - t0)}
         light = estimate_lighting(
             image, estimator=estimator, detector=args.detector, faces=args.faces, fallback=args.fallback,
-            device=device, tta=args.tta,
+            device=device, tta=args.tta, runtime=args.runtime, timings=stages,
         )
-        t2 = time.perf_counter()
+        for key in ("write", "preview"):
+            stages[key] = 0.0
         for face in range(len(light)):
             files = [(out(stem, face), "lighting")] + ([(preview(stem, face), "preview")] if preview else [])
             for target, kind in files:
@@ -358,21 +394,25 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
                 written.add(target)
                 target.parent.mkdir(parents=True, exist_ok=True)
                 box = ", ".join(f"{v:.0f}" for v in light.boxes[face].tolist())
+                t1 = time.perf_counter()
                 if kind == "lighting":
                     light.save(target, index=face, latlong_height=args.latlong, half=args.half)
                     what = (
                         f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
                     )
+                    stages["write"] += 1e3 * (time.perf_counter() - t1)
                     print(f"wrote {target} ({what}, face {face} of {stem}, box [{box}])")
                 else:
                     light.preview(target, index=face, size=args.preview_size)
+                    stages["preview"] += 1e3 * (time.perf_counter() - t1)
                     n = args.preview_size
                     print(f"wrote {target} (preview {3 * n}x{n}: diffuse, matte silver, mirror spheres)")
+        if not preview:
+            del stages["preview"]
+        split = ", ".join(f"{k} {v:.0f} ms" for k, v in stages.items())
         print(
-            f"{stem}: {len(light)} face{'s' if len(light) != 1 else ''}, read {1e3 * (t1 - t0):.0f} ms, "
-            f"estimate_lighting {1e3 * (t2 - t1):.0f} ms (detector {args.detector}, estimator {estimator}"
-            f"{f', tta {args.tta}' if args.tta else ''}), "
-            f"total {_ms(t0)}"
+            f"{stem}: {len(light)} face{'s' if len(light) != 1 else ''} (detector {args.detector}, estimator "
+            f"{estimator}, runtime {chosen}{f', tta {args.tta}' if args.tta else ''}): {split}; total {_ms(t0)}"
         )
     return 0
 

@@ -103,3 +103,15 @@ def tiny_cache(tmp_path_factory):
     build_cache("mannequin", [0, 2], out, renderer=Auto(spp=4), views=SampledViews(1, size=48),
                 workers=Workers(processes=1), progress=False)
     return out
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _export_cache(tmp_path_factory):
+    """The runtimes' export cache (``KORNIA_ILUM_CACHE``) in the session's temporary folder, never ``~/.cache``."""
+    old = os.environ.get("KORNIA_ILUM_CACHE")
+    os.environ["KORNIA_ILUM_CACHE"] = str(tmp_path_factory.mktemp("export_cache"))
+    yield
+    if old is None:
+        os.environ.pop("KORNIA_ILUM_CACHE", None)
+    else:
+        os.environ["KORNIA_ILUM_CACHE"] = old

@@ -3,7 +3,9 @@ r"""Colour transfer functions: sRGB (IEC 61966-2-1), gamma 2.2, and 8-bit quanti
 The sRGB pair is Kornia's (:func:`kornia.color.linear_rgb_to_rgb` and
 :func:`kornia.color.rgb_to_linear_rgb`, which use the exact IEC 61966-2-1 piecewise curve). The
 wrappers here only add kornia_ilum's argument checks (named arguments, NaN/Inf) so that every
-public entry point fails the same way.
+public entry point fails the same way. While :func:`torch.onnx.export` traces them they compute the same curve
+with a blend by the mask in place of ``where``: ONNX Runtime's ``Where`` costs about 0.4 ms per 196,608 values
+on 2 cores, twenty times a ``Mul`` (``kornia-ilum bench``; the exported estimators convert every crop twice).
 """
 
 from __future__ import annotations
@@ -54,6 +56,9 @@ def linear_to_srgb(image: torch.Tensor) -> torch.Tensor:
         tensor([0.7354, 0.7354, 0.7354])
     """
     check_tensor(image, "image", ["*", "3", "H", "W"])
+    if torch.compiler.is_exporting():
+        t = 0.0031308
+        return _blend(image > t, 1.055 * torch.pow(image.clamp(min=t), 1 / 2.4) - 0.055, 12.92 * image)
     return linear_rgb_to_rgb(image)
 
 
@@ -71,7 +76,15 @@ def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
         tensor([0.2140, 0.2140, 0.2140])
     """
     check_tensor(image, "image", ["*", "3", "H", "W"])
+    if torch.compiler.is_exporting():
+        return _blend(image > 0.04045, torch.pow((image + 0.055).clamp(min=0.0) / 1.055, 2.4), image / 12.92)
     return rgb_to_linear_rgb(image)
+
+
+def _blend(mask: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``where(mask, a, b)`` as ``b + mask (a - b)``: the form the ONNX export takes (module docstring); equal up
+    to one rounding of ``a - b`` for finite values."""
+    return b + mask.to(a.dtype) * (a - b)
 
 
 def gamma_encode(x: torch.Tensor, gamma: float = 2.2, *, knee: float = GAMMA_KNEE) -> torch.Tensor:

@@ -5,7 +5,8 @@ plugin packages such as ``kornia_ilum_uniform``) and from :func:`register_estima
 through :func:`read_weights`, which checks their SHA-256. :class:`TestTimeAugmented` wraps any estimator to
 average its estimate over jittered sub-crops and the mirror of each crop. :mod:`~kornia_ilum.estimators.runtime`
 exports any estimator to ONNX and runs it with ONNX Runtime behind the same contract
-(``create_estimator(name, runtime="onnx")``).
+(``create_estimator(name, runtime="onnx")``), in int8 or bfloat16 too, and :mod:`~kornia_ilum.estimators.probe`
+holds the light-stage portraits that calibrate and check them.
 """
 
 from kornia_ilum.estimators.base import (
@@ -27,12 +28,21 @@ from kornia_ilum.estimators.registry import (
     register_estimator,
 )
 from kornia_ilum.estimators.runtime import (
+    AUTO_ORDER,
+    LREC_RTOL,
     PARITY_ATOL,
     RUNTIMES,
+    Bf16Estimator,
     OnnxEstimator,
+    cache_dir,
     export_onnx,
+    native_bf16,
+    onnx_model,
     parity,
     probe_parity,
+    quantize_int8,
+    runtime_available,
+    runtime_parity,
     with_runtime,
 )
 from kornia_ilum.estimators.tta import (
@@ -63,11 +73,20 @@ __all__ = [
     "crop_windows",
     "mirror_sh",
     "average_estimates",
+    "AUTO_ORDER",
+    "LREC_RTOL",
     "PARITY_ATOL",
     "RUNTIMES",
+    "Bf16Estimator",
     "OnnxEstimator",
+    "cache_dir",
     "export_onnx",
+    "native_bf16",
+    "onnx_model",
     "parity",
     "probe_parity",
+    "quantize_int8",
+    "runtime_available",
+    "runtime_parity",
     "with_runtime",
 ]

@@ -237,8 +237,9 @@ def create_estimator(name: str, pretrained: bool = True, runtime: str = "eager",
             safetensors). Estimators without trained parameters (``info.needs_weights == False``) are the
             same either way. ``False`` builds ``cls(**kw)`` untrained.
         runtime: what computes the estimate (:func:`~kornia_ilum.estimators.runtime.with_runtime`):
-            ``"eager"`` (PyTorch, the default), ``"onnx"`` (ONNX Runtime, ``pip install kornia_ilum[onnx]``)
-            or ``"auto"`` (ONNX Runtime where it is installed and passes the parity check, else eager).
+            ``"eager"`` (PyTorch, the default), ``"bf16"`` (bfloat16 autocast, where the CPU has it),
+            ``"onnx"`` / ``"onnx-int8"`` (ONNX Runtime in float32 / int8, ``pip install kornia_ilum[onnx]``)
+            or ``"auto"`` (the fastest of those that run here and pass their parity check, else eager).
         **kw: constructor arguments (and ``weights_dir`` with ``pretrained=True``).
 
     Returns:
@@ -246,7 +247,7 @@ def create_estimator(name: str, pretrained: bool = True, runtime: str = "eager",
 
     Raises:
         ValueError: unknown name; the message lists the valid names.
-        ValueCheckError: unknown runtime.
+        ValueCheckError: unknown runtime, or one that cannot run here (the message says why).
         MissingWeightsError: ``pretrained=True`` for an estimator that ships no trained weights yet, or
             whose weight file is missing.
         WeightsChecksumError: a weight file fails its SHA-256 check.

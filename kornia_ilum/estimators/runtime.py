@@ -1,4 +1,5 @@
-r"""Runtimes: the same estimator's estimate, computed by eager PyTorch or by ONNX Runtime.
+r"""Runtimes: the same estimator's estimate, computed by eager PyTorch, in bfloat16, or by ONNX Runtime (float32
+or int8).
 
 An estimator is exported as it is, not through a copy of its graph: :func:`export_onnx` hands the estimator
 itself to :func:`torch.onnx.export` (the ``torch.export`` path; :class:`~kornia_ilum.estimators.LightingEstimate`
@@ -9,16 +10,32 @@ where the estimator has them), its batch is dynamic, and its metadata names the 
 
 :class:`OnnxEstimator` runs such a file with ONNX Runtime behind the estimator contract (``forward(crops) ->
 LightingEstimate``, the same input checks), so it goes wherever an estimator goes. :func:`with_runtime` turns a
-created estimator into the runtime asked for (``create_estimator(name, runtime=...)``); ``"auto"`` takes ONNX
-Runtime where it is installed and the exported estimator passes :func:`parity` on a probe batch, else eager.
+created estimator into the runtime asked for (``create_estimator(name, runtime=...)``), one of :data:`RUNTIMES`:
 
-ONNX Runtime (``pip install kornia_ilum[onnx]``) is imported only when a runtime other than eager is asked for.
+- ``"eager"``: the estimator itself, PyTorch in its own dtype (float32);
+- ``"bf16"``: :class:`Bf16Estimator`, channels-last and bfloat16 autocast, only where the device computes
+  bfloat16 natively (:func:`native_bf16`: a CPU with AVX-512 BF16 or AMX, or CUDA; elsewhere a bfloat16
+  matmul is emulated, orders of magnitude slower than float32);
+- ``"onnx"``: ONNX Runtime in float32, within :data:`PARITY_ATOL` of eager (:func:`parity`);
+- ``"onnx-int8"``: ONNX Runtime with static int8 quantisation (:func:`quantize_int8`: per-channel int8 weights,
+  uint8 activations of the convolutions and the fully connected layers, the first convolution kept in float32),
+  calibrated on the light-stage training portraits of the shipped probe (:mod:`~kornia_ilum.estimators.probe`),
+  within :data:`LREC_RTOL` of eager's ``L_rec`` (:func:`~kornia_ilum.estimators.probe.probe_lrec_change`);
+- ``"auto"``: the first of :data:`AUTO_ORDER` that is available here and passes its parity check, else eager.
+
+The exported and quantised models are cached by the digest of the estimator's state, its name and the
+versions that made them (:func:`onnx_model`), in :func:`cache_dir`, so the export (5 to 40 s) is paid once per
+machine and weights. ``kornia-ilum bench`` measures what each runtime gives on the machine at hand.
+
+ONNX Runtime (``pip install kornia_ilum[onnx]``) is imported only when an ONNX runtime is asked for.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
+import hashlib
+import json
 import logging
 import os
 import warnings
@@ -29,28 +46,50 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from kornia_ilum.core.check import check_positive_int
+from kornia_ilum.core.check import check_positive_int, checks_active
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
-from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators.base import (
+    EstimatorInfo,
+    LightingEstimate,
+    LightingEstimator,
+    check_crop_range,
+    check_crops,
+)
 
 __all__ = [
+    "AUTO_ORDER",
     "ESTIMATE_FIELDS",
+    "LREC_RTOL",
     "PARITY_ATOL",
     "RUNTIMES",
+    "Bf16Estimator",
     "OnnxEstimator",
+    "cache_dir",
     "export_onnx",
+    "native_bf16",
+    "onnx_model",
     "parity",
     "probe_parity",
+    "quantize_int8",
+    "runtime_available",
+    "runtime_parity",
     "with_runtime",
 ]
 
 #: The runtimes :func:`with_runtime` knows, ``"auto"`` first.
-RUNTIMES: tuple[str, ...] = ("auto", "eager", "onnx")
+RUNTIMES: tuple[str, ...] = ("auto", "eager", "bf16", "onnx", "onnx-int8")
+#: What ``"auto"`` tries, in order: the fastest first, as ``kornia-ilum bench`` measured them on the project's
+#: CPUs (AMD EPYC Zen 4, 2 cores, ``ours``: int8 3.7 ms, ONNX float32 5.4 ms, bfloat16 10.8 ms, eager 13.1 ms
+#: at batch 1; docs/bench.rst).
+AUTO_ORDER: tuple[str, ...] = ("onnx-int8", "onnx", "bf16")
 #: The fields of :class:`~kornia_ilum.estimators.LightingEstimate` an exported estimator may output, in order.
 ESTIMATE_FIELDS: tuple[str, ...] = ("mirror_ball", "valid", "log_mirror_ball", "sh")
 #: The largest difference of ``log(1 + L)`` from eager float32 that a float32 runtime may have.
 PARITY_ATOL = 1e-4
+#: The largest relative change of mean ``L_rec`` (any sphere) from eager float32 that a reduced-precision
+#: runtime (``"bf16"``, ``"onnx-int8"``) may have on the probe's check half.
+LREC_RTOL = 0.01
 
 _OPSET = 18
 
@@ -149,12 +188,17 @@ class OnnxEstimator(LightingEstimator):
     r"""An exported estimator (:func:`export_onnx`) run by ONNX Runtime, behind the estimator contract.
 
     ``forward`` checks the crops as every estimator does, runs the session on the CPU in float32 and returns a
-    :class:`~kornia_ilum.estimators.LightingEstimate` on the crops' device, in float32.
+    :class:`~kornia_ilum.estimators.LightingEstimate` on the crops' device, in float32. The value scan of the
+    crops runs in NumPy, on one thread: a parallel PyTorch reduction just before the session left PyTorch's
+    OpenMP threads spinning against ONNX Runtime's and doubled the time of a batch of one (``ours``: 15.4 ms
+    against 7.3 ms on 2 cores).
 
     Args:
-        model: the ONNX model: its bytes, or a path to a ``.onnx`` file written by :func:`export_onnx`.
+        model: the ONNX model: its bytes, or a path to a ``.onnx`` file written by :func:`export_onnx` (or
+            :func:`quantize_int8`).
         info: the estimator's metadata (by default one made from the model's own: its name and input size).
         threads: ONNX Runtime's intra-op threads (``None``: its default, one per physical core).
+        runtime: the name the runtime goes by (``"onnx"`` or ``"onnx-int8"``), for ``repr`` and ``bench``.
 
     Raises:
         ValueCheckError: the model was not written by :func:`export_onnx` (no ``kornia_ilum`` metadata).
@@ -169,7 +213,7 @@ class OnnxEstimator(LightingEstimator):
                          needs_weights=False)
 
     def __init__(self, model: bytes | str | os.PathLike[str], info: EstimatorInfo | None = None,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, runtime: str = "onnx") -> None:
         super().__init__()
         ort = _onnxruntime()
         if threads is not None:
@@ -188,16 +232,227 @@ class OnnxEstimator(LightingEstimator):
             name=meta["kornia_ilum.estimator"], description="an exported estimator run by ONNX Runtime",
             paper="see the estimator's own", input_size=int(meta["kornia_ilum.input_size"]),
             needs_weights=False)
-        self.runtime = "onnx"
+        self.runtime = runtime
+
+    def forward(self, crops: Tensor, *, check_values: bool = True) -> LightingEstimate:
+        check_crops(crops, self.info.input_size, values=False)
+        feed = crops.detach().to("cpu", torch.float32).contiguous().numpy()
+        if check_values and checks_active():
+            check_crop_range(float(feed.min()), float(feed.max()))  # NumPy: one thread (class docstring)
+        return self._run(feed, crops.device)
 
     def predict(self, crops: Tensor) -> LightingEstimate:
-        feed = crops.detach().to("cpu", torch.float32).contiguous().numpy()
+        return self._run(crops.detach().to("cpu", torch.float32).contiguous().numpy(), crops.device)
+
+    def _run(self, feed: Any, device: torch.device) -> LightingEstimate:
         outputs = self.session.run(list(self.fields), {"crops": feed})
-        found = {name: torch.from_numpy(out).to(crops.device) for name, out in zip(self.fields, outputs)}
-        return LightingEstimate(**found)
+        return LightingEstimate(**{name: torch.from_numpy(out).to(device) for name, out in zip(self.fields, outputs)})
 
     def extra_repr(self) -> str:
-        return f"estimator={self.info.name!r}, outputs={self.fields}"
+        return f"estimator={self.info.name!r}, runtime={self.runtime!r}, outputs={self.fields}"
+
+
+def native_bf16(device: str | torch.device = "cpu") -> bool:
+    r"""Whether ``device`` computes bfloat16 natively: CUDA, or a CPU with AVX-512 BF16 or AMX (oneDNN's check).
+
+    Elsewhere (an AVX2-only CPU such as AMD Zen 3) bfloat16 is emulated, orders of magnitude slower than float32.
+
+    Examples:
+        >>> isinstance(native_bf16(), bool)
+        True
+    """
+    device = torch.device(device)
+    if device.type == "cuda":
+        return True
+    return device.type == "cpu" and bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+
+
+class Bf16Estimator(LightingEstimator):
+    r"""An estimator run channels-last under bfloat16 autocast; the estimate comes back in float32.
+
+    The networks' convolutions and matrix products run in bfloat16 (autocast's list), the rest as the estimator
+    has it (``ours`` keeps its exposure normalisation and output in float32). Its parity with eager float32 is
+    ``L_rec``'s (:data:`LREC_RTOL`), not the float32 runtimes' :data:`PARITY_ATOL`.
+
+    Args:
+        estimator: the estimator (converted to channels-last in place).
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> fast = Bf16Estimator(create_estimator("ours", pretrained=False))
+        >>> fast(torch.rand(1, 3, 256, 256)).mirror_ball.dtype
+        torch.float32
+    """
+
+    info = EstimatorInfo("bf16", "an estimator under bfloat16 autocast", "none: a runtime", needs_weights=False)
+
+    def __init__(self, estimator: LightingEstimator) -> None:
+        super().__init__()
+        self.estimator = _check_estimator(estimator).to(memory_format=torch.channels_last)
+        self.info = estimator.info  # type: ignore[misc]  # per instance: the wrapped estimator's
+        self.runtime = "bf16"
+
+    def predict(self, crops: Tensor) -> LightingEstimate:
+        crops = crops.contiguous(memory_format=torch.channels_last)
+        with torch.autocast(crops.device.type, dtype=torch.bfloat16):
+            est = self.estimator.predict(crops)
+        fields = {f: getattr(est, f) for f in ESTIMATE_FIELDS if getattr(est, f) is not None}
+        return LightingEstimate(**{f: (v.float().contiguous() if v.is_floating_point() else v)
+                                   for f, v in fields.items()})
+
+
+def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
+    r"""Static int8 quantisation of an exported estimator, calibrated on ``calibration``'s crops.
+
+    ONNX Runtime's :func:`~onnxruntime.quantization.quantize_static` in QDQ form: per-channel symmetric int8
+    weights and uint8 activations (min-max ranges over ``calibration``) for the **encoder**: the convolutions
+    after the first one and before the first fully connected layer (``Gemm``). The first convolution stays
+    float32 (three input channels: in int8 it took 0.93 ms of ``ours``'s 3.7 at batch 1, in float32 0.30), and
+    so do the fully connected layers and everything after them (the decoder, whose rounding lands on the log
+    radiance itself), the exposure normalisation, resampling matrices and ``exp``. Measured on ``ours`` and the
+    1024 portraits of the eval split (``kornia-ilum evaluate --runtime onnx-int8``): every convolution and
+    ``Gemm`` but the first in int8 moved ``L_rec`` by +1.27 % / -0.04 % / +0.44 % (diffuse / matte silver /
+    mirror), the encoder alone by +0.79 % / +0.42 % / +0.34 %, at 4.0 against 4.4 ms per crop.
+
+    Args:
+        model: from :func:`export_onnx`.
+        calibration: ``(N, 3, S, S)`` sRGB crops at the model's input size, from the training distribution
+            (the probe's :data:`~kornia_ilum.estimators.probe.CALIBRATION` half), never the eval split.
+
+    Returns:
+        the quantised model, with the exported model's metadata.
+
+    Raises:
+        ValueCheckError: the model has no convolution before a fully connected layer (nothing to quantise).
+    """
+    _onnxruntime()
+    import tempfile
+
+    import onnx
+    from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
+    from onnxruntime.quantization.shape_inference import quant_pre_process
+
+    batches = [{"crops": calibration[i : i + 8].float().contiguous().numpy()} for i in range(0, len(calibration), 8)]
+
+    class _Reader(CalibrationDataReader):
+        def __init__(self) -> None:
+            self.items = iter(batches)
+
+        def get_next(self) -> dict | None:
+            return next(self.items, None)
+
+    proto = onnx.load_from_string(model)
+    encoder = []
+    for node in proto.graph.node:  # topological order
+        if node.op_type in ("Gemm", "MatMul"):
+            break
+        if node.op_type == "Conv":
+            encoder.append(node.name)
+    if len(encoder) < 2:
+        raise ValueCheckError("the model has no convolution between its first one and its first fully connected "
+                              "layer: nothing for the int8 runtime to quantise")
+    with tempfile.TemporaryDirectory(prefix="kornia_ilum_int8_") as tmp, _quiet_exporter():
+        src, pre, out = (Path(tmp) / f for f in ("model.onnx", "pre.onnx", "int8.onnx"))
+        src.write_bytes(model)
+        quant_pre_process(str(src), str(pre), skip_symbolic_shape=True)
+        quantize_static(str(pre), str(out), _Reader(), quant_format=QuantFormat.QDQ, per_channel=True,
+                        activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8,
+                        op_types_to_quantize=["Conv"], nodes_to_quantize=encoder[1:])
+        quantized = onnx.load(str(out))
+    del quantized.metadata_props[:]
+    quantized.metadata_props.extend(proto.metadata_props)
+    return quantized.SerializeToString()
+
+
+def cache_dir() -> Path:
+    r"""Where exported models are cached: ``$KORNIA_ILUM_CACHE``, else ``$XDG_CACHE_HOME/kornia_ilum``, else
+    ``~/.cache/kornia_ilum``. Nothing is written there until a model is exported.
+
+    Examples:
+        >>> cache_dir().name in ("kornia_ilum",) or "KORNIA_ILUM_CACHE" in os.environ
+        True
+    """
+    if os.environ.get("KORNIA_ILUM_CACHE"):
+        return Path(os.environ["KORNIA_ILUM_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "kornia_ilum"
+
+
+def _state_digest(estimator: LightingEstimator) -> str:
+    """SHA-256 of the estimator's class, input size and state (names, dtypes, shapes, values)."""
+    h = hashlib.sha256(f"{type(estimator).__module__}.{type(estimator).__qualname__}:"
+                       f"{estimator.info.input_size}".encode())
+    for name, value in sorted(estimator.state_dict().items()):
+        t = value.detach().to("cpu").contiguous()
+        h.update(f"{name}:{t.dtype}:{tuple(t.shape)}".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()
+
+
+def onnx_model(estimator: LightingEstimator, runtime: str = "onnx", *, cache: bool = True) -> bytes:
+    r"""The exported model of ``estimator`` for an ONNX runtime (``"onnx"`` or ``"onnx-int8"``), from the cache.
+
+    The cache file is named after the estimator, the runtime, the digest of the estimator's state (so new
+    weights never meet an old export) and the versions of PyTorch, ONNX Runtime and the opset; it is written
+    atomically. A cache file that ONNX cannot parse is made again. Where the cache folder cannot be written
+    the model is made in memory (with a warning).
+
+    Args:
+        estimator: the estimator.
+        runtime: ``"onnx"`` (:func:`export_onnx`) or ``"onnx-int8"`` (then :func:`quantize_int8` on the probe's
+            calibration half).
+        cache: read and write :func:`cache_dir`; ``False`` always exports.
+
+    Raises:
+        ValueCheckError: another runtime.
+    """
+    _check_estimator(estimator)
+    if runtime not in ("onnx", "onnx-int8"):
+        raise ValueCheckError(f"runtime must be 'onnx' or 'onnx-int8', got {runtime!r}")
+    _onnxruntime()
+    path = _cache_path(estimator, runtime, ".onnx")
+    if cache and path.is_file():
+        data = path.read_bytes()
+        if _parses(data):
+            return data
+    data = export_onnx(estimator)
+    if runtime == "onnx-int8":
+        from kornia_ilum.estimators.probe import CALIBRATION, fit_crops, load_probe
+
+        data = quantize_int8(data, fit_crops(estimator, load_probe().part(CALIBRATION).crops))
+    if cache:
+        _cache_write(path, data)
+    return data
+
+
+def _cache_path(estimator: LightingEstimator, runtime: str, suffix: str) -> Path:
+    """The cache file of ``estimator`` under ``runtime``: named after everything that decides its content."""
+    versions = f"torch{torch.__version__}-opset{_OPSET}"
+    if runtime.startswith("onnx"):
+        versions += f"-ort{_onnxruntime().__version__}"
+    if suffix == ".json":  # a parity check's result also depends on the CPU's kernels
+        versions += f"-{torch.backends.cpu.get_cpu_capability()}"
+    name = f"{estimator.info.name}-{runtime}-{_state_digest(estimator)[:16]}-{versions}".replace("+", "_")
+    return cache_dir() / ("onnx" if suffix == ".onnx" else "parity") / f"{name}{suffix}"
+
+
+def _cache_write(path: Path, data: bytes) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda tmp: tmp.write_bytes(data))
+    except OSError as e:
+        warnings.warn(f"could not write the cache file {path} ({e}); set KORNIA_ILUM_CACHE to a writable folder",
+                      RuntimeWarning, stacklevel=3)
+
+
+def _parses(data: bytes) -> bool:
+    import onnx
+
+    try:
+        onnx.load_from_string(data)
+    except Exception:  # a truncated or foreign file: made again
+        return False
+    return True
 
 
 def parity(reference: LightingEstimator, candidate: LightingEstimator, crops: Tensor) -> float:
@@ -217,16 +472,83 @@ def parity(reference: LightingEstimator, candidate: LightingEstimator, crops: Te
     return float((torch.log1p(a.clamp(min=0)) - torch.log1p(b.clamp(min=0))).abs().amax())
 
 
-def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, threads: int | None = None) -> LightingEstimator:
-    r"""The estimator computed by another runtime: ``"eager"`` (itself), ``"onnx"``, or ``"auto"``.
+def probe_parity(reference: LightingEstimator, candidate: LightingEstimator) -> float:
+    r""":func:`parity` on the probe batch every float32 runtime is checked on: 4 seeded random crops of the
+    reference's input size (``with_runtime("auto")`` and ``kornia-ilum export`` use it)."""
+    size = reference.info.input_size
+    return parity(reference, candidate, torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0)))
 
-    ``"auto"`` exports to ONNX where ONNX Runtime is installed and keeps it only if it passes :func:`parity`
-    within :data:`PARITY_ATOL` on a seeded probe batch; otherwise, and where ONNX Runtime is missing, the
-    estimator itself.
+
+def runtime_parity(reference: LightingEstimator, candidate: LightingEstimator, runtime: str) -> tuple[float, float, bool]:
+    r"""The parity check of ``runtime``: ``(value, tolerance, passed)``.
+
+    Float32 runtimes (``"eager"``, ``"onnx"``): :func:`probe_parity` within :data:`PARITY_ATOL`. Reduced
+    precision (``"bf16"``, ``"onnx-int8"``): :func:`~kornia_ilum.estimators.probe.probe_lrec_change` within
+    :data:`LREC_RTOL`.
+    """
+    if runtime in ("bf16", "onnx-int8"):
+        from kornia_ilum.estimators.probe import probe_lrec_change
+
+        value, tol = probe_lrec_change(reference, candidate), LREC_RTOL
+    else:
+        value, tol = probe_parity(reference, candidate), PARITY_ATOL
+    return value, tol, value <= tol
+
+
+def _passes(reference: LightingEstimator, candidate: LightingEstimator, runtime: str, cache: bool) -> bool:
+    """:func:`runtime_parity`'s verdict, cached beside the exports (the int8 and bfloat16 checks take seconds)."""
+    path = _cache_path(reference, runtime, ".json")
+    if cache and path.is_file():
+        try:
+            return bool(json.loads(path.read_text())["passed"])
+        except (ValueError, KeyError, OSError):
+            pass  # a damaged verdict: checked again
+    value, tol, passed = runtime_parity(reference, candidate, runtime)
+    if cache:
+        _cache_write(path, json.dumps({"runtime": runtime, "value": value, "tolerance": tol,
+                                       "passed": passed}).encode())
+    return passed
+
+
+def runtime_available(runtime: str, device: str | torch.device = "cpu") -> str | None:
+    r"""``None`` where ``runtime`` can run on ``device``, else the reason it cannot.
+
+    Examples:
+        >>> runtime_available("eager") is None
+        True
+    """
+    if runtime not in RUNTIMES:
+        raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    if runtime == "bf16" and not native_bf16(device):
+        return f"{torch.device(device)} has no native bfloat16 (it would be emulated, slower than float32)"
+    if runtime.startswith("onnx"):
+        if torch.device(device).type != "cpu":
+            return "the ONNX runtimes run on the CPU"
+        try:
+            _onnxruntime()
+        except ImportError as e:
+            return str(e)
+    return None
+
+
+def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, threads: int | None = None,
+                 cache: bool = True) -> LightingEstimator:
+    r"""The estimator computed by another runtime (one of :data:`RUNTIMES`; the module docstring).
+
+    ``"auto"`` takes the first of :data:`AUTO_ORDER` that :func:`runtime_available` allows here and that passes
+    :func:`runtime_parity`, else the estimator itself; the runtime chosen is the result's ``runtime``
+    attribute. A runtime asked for by name is not checked here (``kornia-ilum export`` and the tests check it).
+
+    Args:
+        estimator: a created estimator (on the CPU for the ONNX runtimes).
+        runtime: the runtime.
+        threads: ONNX Runtime's intra-op threads.
+        cache: use the export cache (:func:`onnx_model`).
 
     Raises:
-        ValueCheckError: an unknown runtime (the message lists :data:`RUNTIMES`).
-        ImportError: ``"onnx"`` without ONNX Runtime.
+        ValueCheckError: an unknown runtime (the message lists :data:`RUNTIMES`), or one that cannot run here
+            (the message says why).
+        ImportError: an ONNX runtime without ONNX Runtime.
 
     Examples:
         >>> from kornia_ilum.estimators import create_estimator
@@ -237,21 +559,28 @@ def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, thread
     _check_estimator(estimator)
     if runtime not in RUNTIMES:
         raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    device = next((p.device for p in estimator.parameters()), torch.device("cpu"))
+    if runtime == "auto":
+        for candidate in AUTO_ORDER:
+            if runtime_available(candidate, device) is not None:
+                continue
+            try:
+                fast = with_runtime(copy.deepcopy(estimator) if candidate == "bf16" else estimator, candidate,
+                                    threads=threads, cache=cache)
+            except ValueCheckError:  # no form for this runtime (int8 of a model without an encoder)
+                continue
+            if _passes(estimator, fast, candidate, cache):
+                return fast
+        return estimator
     if runtime == "eager":
         return estimator
-    if runtime == "auto":
-        try:
-            _onnxruntime()
-        except ImportError:
-            return estimator
-    fast = OnnxEstimator(export_onnx(estimator), info=estimator.info, threads=threads)
-    if runtime == "auto" and probe_parity(estimator, fast) > PARITY_ATOL:
-        return estimator
-    return fast
-
-
-def probe_parity(reference: LightingEstimator, candidate: LightingEstimator) -> float:
-    r""":func:`parity` on the probe batch every runtime is checked on: 4 seeded random crops of the
-    reference's input size (``with_runtime("auto")`` and ``kornia-ilum export`` use it)."""
-    size = reference.info.input_size
-    return parity(reference, candidate, torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0)))
+    if runtime == "bf16":
+        reason = runtime_available("bf16", device)
+        if reason is not None:
+            raise ValueCheckError(f"runtime 'bf16' cannot run here: {reason}")
+        return Bf16Estimator(estimator)
+    _onnxruntime()  # the install hint first
+    if device.type != "cpu":
+        raise ValueCheckError(f"runtime {runtime!r} runs on the CPU; the estimator is on {device}")
+    return OnnxEstimator(onnx_model(estimator, runtime, cache=cache), info=estimator.info, threads=threads,
+                         runtime=runtime)

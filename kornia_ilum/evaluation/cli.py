@@ -16,6 +16,7 @@ from pathlib import Path
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR
+from kornia_ilum.estimators import RUNTIMES
 from kornia_ilum.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
 from kornia_ilum.evaluation.curve import equal_budget, format_equal_budget, learning_curve, read_curve, write_curve
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
@@ -145,6 +146,10 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--tta", type=positive_int, default=None, metavar="N",
                      help="also score every estimator with test-time augmentation over N jittered crops and "
                      "their mirrors (as NAME+ttaN; 2N passes per crop)")
+    cmd.add_argument("--runtime", action="append", default=[], metavar="RUNTIME",
+                     choices=[r for r in RUNTIMES if r not in ("auto", "eager")],
+                     help="also score every estimator computed by this runtime (bf16, onnx, onnx-int8), as "
+                     "NAME+RUNTIME; repeat for several")
     cmd.add_argument("--curve", action="append", default=[], metavar="RUN",
                      help="instead of the tables: the learning curve of a training run kept with "
                      "--snapshot-every, L_rec of each snapshot, written to RUN/curve.csv and RUN/curve.png "
@@ -224,7 +229,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                           **options) if checks else None
     results = evaluate(eval_set, getattr(args, "estimator", None), weights,
                        oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner,
-                       tta=getattr(args, "tta", None))
+                       tta=getattr(args, "tta", None), runtimes=getattr(args, "runtime", None) or ())
     if checks:
         results["checks"] = {"names": list(checks), **options, **about_photos,
                              "context_set": None if context_set is None else context_set.description}

@@ -19,6 +19,7 @@ per channel (:func:`kornia_ilum.metrics.relative_radiance`). Oracles (:func:`ora
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import os
@@ -32,7 +33,7 @@ import torch
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
 from kornia_ilum.core.progress import progress as bar
-from kornia_ilum.detection.crop import CROP_SCALE, crop_faces
+from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.estimators import (
     LightingEstimator,
     TestTimeAugmented,
@@ -40,7 +41,10 @@ from kornia_ilum.estimators import (
     estimator_registry,
     list_estimators,
     read_weights,
+    runtime_available,
+    with_runtime,
 )
+from kornia_ilum.estimators.probe import fit_crops
 from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.metrics import reconstruction_loss, relative_radiance
@@ -295,31 +299,6 @@ def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
     return out
 
 
-def fit_crops(estimator: Any, crops: torch.Tensor) -> torch.Tensor:
-    r"""``crops`` at the side that ``estimator`` takes (``estimator.info.input_size``): as they are when they
-    have it (or the estimator has no ``info``), else resized by :func:`~kornia_ilum.detection.crop_faces` with
-    each whole crop as its box (bilinear, antialiased) and clamped to ``[0, 1]``.
-
-    The eval set's crops are 256 px, the paper's size; an estimator that takes another size (``sipr``: 128)
-    is scored on the same crops resized to it, as :func:`~kornia_ilum.estimate_lighting` cuts its crops at that
-    size.
-
-    Examples:
-        >>> class Small:
-        ...     info = type("Info", (), {"input_size": 128})
-        >>> tuple(fit_crops(Small(), torch.rand(2, 3, 256, 256)).shape)
-        (2, 3, 128, 128)
-    """
-    info = getattr(estimator, "info", None)
-    size = getattr(info, "input_size", None)
-    if size is None or crops.shape[-1] == crops.shape[-2] == size:
-        return crops
-    n, _, h, w = crops.shape
-    whole = torch.tensor([[0.0, 0.0, w, h]], device=crops.device).expand(n, 4)  # each whole crop: a resize
-    resized = crop_faces(crops, whole, size, torch.arange(n, device=crops.device), check_values=False)
-    return resized.clamp_(0.0, 1.0)
-
-
 def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:
     r"""``estimator`` on uint8 crops, in batches: float crops in ``[0, 1]`` in, ``(N, 3, 32, 32)`` float32 out.
 
@@ -396,6 +375,7 @@ def evaluate(
     *,
     checks: Callable[[LightingEstimator, torch.Tensor], dict[str, Any]] | None = None,
     tta: int | None = None,
+    runtimes: Sequence[str] = (),
 ) -> dict[str, Any]:
     r"""Score the estimators and the oracles on ``eval_set`` (and run ``checks`` on the estimators).
 
@@ -413,6 +393,9 @@ def evaluate(
         tta: also score each estimator wrapped in
             :class:`~kornia_ilum.estimators.TestTimeAugmented` with ``jitters=tta`` (``2 tta`` passes per crop),
             as ``"name+ttaN"``, checks included.
+        runtimes: also score each estimator computed by these runtimes
+            (:func:`~kornia_ilum.estimators.with_runtime`: ``"bf16"``, ``"onnx"``, ``"onnx-int8"``), as
+            ``"name+runtime"``, checks included; a runtime that cannot run here is skipped with the reason.
 
     Returns:
         ``{"methods": {name: {"scores": {key: tensor}, "seconds": float}}, "skipped": {name: reason}}``
@@ -438,6 +421,12 @@ def evaluate(
         variants = [(label, model)]
         if tta is not None:
             variants.append((f"{label}+tta{tta}", TestTimeAugmented(model, jitters=tta)))
+        for runtime in runtimes:
+            reason = runtime_available(runtime)
+            if reason is not None:
+                skipped[f"{label}+{runtime}"] = reason
+                continue
+            variants.append((f"{label}+{runtime}", with_runtime(copy.deepcopy(model), runtime)))
         for variant, estimator in variants:
             t0 = time.perf_counter()
             pred = predict(estimator, eval_set.images, batch_size)

@@ -350,7 +350,9 @@ def _area_dense(src: tuple[str, int], tgt: tuple[str, int]) -> torch.Tensor:
 
     # a constant of the graph, built for real: neither traced nor faked
     with disable_proxy_modes_tracing(), torch._subclasses.fake_tensor.unset_fake_temporarily():
-        return _area_operator_f64(src, tgt)[0].to_dense()
+        with torch.inference_mode():  # the cached operator is an inference tensor if built under inference_mode
+            dense = _area_operator_f64(src, tgt)[0].to_dense()
+        return dense.clone()  # a normal tensor again: the export may not hold an inference tensor
 
 
 @compiler_disable

@@ -16,18 +16,22 @@ step ``t0`` falls in. The streams depend on ``W`` and the world size, which a ch
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+import itertools
+import os
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import torch
 from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
 from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.estimators.probe import PROBE_SAMPLES, write_probe
 from kornia_ilum.synth.environments import EnvironmentSampler, HDRFolderSource, default_sources
 from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
 from kornia_ilum.train.config import TrainConfig
 
-__all__ = ["TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset"]
+__all__ = ["PROBE_SEED", "TRAINING_PORTRAITS", "StepBatches", "batch_loader", "collate", "training_dataset",
+           "write_training_probe"]
 
 #: What training changes in the :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` defaults
 #: (before ``TrainConfig.data``): no sphere targets in the samples (the losses make their own); a plain backdrop
@@ -66,6 +70,39 @@ def training_dataset(config: TrainConfig) -> PortraitDataset:
     return PortraitDataset(fields, PortraitConfig(**{**TRAINING_PORTRAITS, **overrides, "split": "train",
                                                      "environments": _training_environments(config)}),
                            seed=config.seed)
+
+
+#: The seed of the shipped probe's portraits (training runs use 0 and 1).
+PROBE_SEED = 7
+
+
+def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | os.PathLike[str]],
+                         hdri: Sequence[str | os.PathLike[str]] = (), samples: int = PROBE_SAMPLES,
+                         seed: int = PROBE_SEED) -> dict[str, Any]:
+    r"""Write the runtimes' probe (:mod:`kornia_ilum.estimators.probe`) from the training portraits.
+
+    ``samples`` portraits of :func:`training_dataset` (the ``"train"`` subjects of ``cache`` under the
+    procedural environments and the ``"train"`` maps of ``hdri``, :data:`TRAINING_PORTRAITS`), one lighting per
+    view and a chunk of 8 views, so the probe spans many subjects; drawn with ``seed``, not a training run's.
+
+    Returns:
+        the probe's metadata (also stored in ``probe.safetensors``).
+    """
+    config = TrainConfig(out=str(folder), cache=[str(c) for c in cache], hdri=[str(h) for h in hdri], seed=seed,
+                         data={"fields_per_chunk": 8, "lightings_per_field": 1, "env_pool": 8, "env_refresh": 8,
+                               "shuffle": 1})
+    dataset = training_dataset(config)
+    images, balls, tones, subjects = [], [], [], []
+    for sample in itertools.islice(dataset, samples):
+        images.append(sample["image"])
+        balls.append(sample["mirror_ball"].float())
+        tones.append(int(sample["skin_tone"]))
+        subjects.append(int(sample["subject_seed"]))
+    meta = {"samples": len(images), "split": "train", "seed": seed, "caches": config.cache, "hdri": config.hdri,
+            "subjects": sorted(set(subjects)), "skin_tones": {str(t): tones.count(t) for t in sorted(set(tones))},
+            "portraits": "TRAINING_PORTRAITS, one lighting per view, 8 views per chunk"}
+    write_probe(folder, torch.stack(images).float() / 255.0, torch.stack(balls), meta)
+    return meta
 
 
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:

@@ -9,12 +9,18 @@ import torch
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import NonFiniteError, TypeCheckError, ValueCheckError
 from kornia_ilum.estimators import (
+    LREC_RTOL,
     PARITY_ATOL,
+    Bf16Estimator,
     LightingEstimate,
     OnnxEstimator,
     create_estimator,
     export_onnx,
+    native_bf16,
+    onnx_model,
     parity,
+    runtime_available,
+    runtime_parity,
     with_runtime,
 )
 from kornia_ilum.estimators import runtime as runtime_module
@@ -96,7 +102,7 @@ def test_runtimes_by_name(monkeypatch) -> None:
     assert with_runtime(est, "eager") is est
     assert isinstance(with_runtime(est, "auto"), OnnxEstimator)
     assert isinstance(create_estimator("uniform", runtime="onnx"), OnnxEstimator)
-    with pytest.raises(ValueCheckError, match="runtime must be one of auto, eager, onnx"):
+    with pytest.raises(ValueCheckError, match="runtime must be one of auto, eager, bf16, onnx, onnx-int8"):
         create_estimator("ours", runtime="tensorrt")
     with pytest.raises(TypeCheckError, match="LightingEstimator"):
         with_runtime(torch.nn.Identity(), "onnx")
@@ -105,15 +111,15 @@ def test_runtimes_by_name(monkeypatch) -> None:
         raise ImportError("no onnxruntime here")
 
     monkeypatch.setattr(runtime_module, "_onnxruntime", missing)
-    assert with_runtime(est, "auto") is est  # auto never fails for want of ONNX Runtime
+    assert with_runtime(est, "auto").runtime in ("bf16", "eager")  # auto never fails for want of ONNX Runtime
     with pytest.raises(ImportError):
         with_runtime(est, "onnx")
 
 
-def test_auto_keeps_eager_when_the_export_fails_parity(monkeypatch) -> None:
+def test_auto_keeps_eager_when_every_runtime_fails_parity(monkeypatch) -> None:
     est = create_estimator("uniform")
-    monkeypatch.setattr(runtime_module, "parity", lambda *a: 1.0)
-    assert with_runtime(est, "auto") is est
+    monkeypatch.setattr(runtime_module, "runtime_parity", lambda *a: (1.0, 0.0, False))
+    assert with_runtime(est, "auto", cache=False) is est
 
 
 def test_torch_export_takes_the_estimator_itself() -> None:
@@ -138,3 +144,76 @@ def test_checks_pass_under_jit_trace_and_still_check_shapes() -> None:
 
     with pytest.raises(Exception, match=r"x must have shape \(B, 4\), got \(2, 3\)"):
         torch.jit.trace(g, torch.rand(2, 3))
+
+
+# --------------------------------------------------------------------- reduced precision, the cache, auto
+@pytest.mark.parametrize("name", NAMES)
+def test_bf16_moves_l_rec_by_at_most_lrec_rtol_or_is_refused_where_it_would_be_emulated(name) -> None:
+    est = create_estimator(name)
+    if not native_bf16():
+        with pytest.raises(ValueCheckError, match="no native bfloat16"):
+            with_runtime(est, "bf16")
+        return
+    fast = with_runtime(create_estimator(name), "bf16")
+    assert isinstance(fast, Bf16Estimator) and fast.runtime == "bf16"
+    value, tol, passed = runtime_parity(est, fast, "bf16")
+    assert tol == LREC_RTOL and passed, f"{name}: L_rec moved by {value:.4f} under bf16"
+    assert fast(_crops(est, 2)).mirror_ball.dtype == torch.float32
+
+
+@pytest.mark.parametrize("name", ("ours", "sh", "sipr"))
+def test_int8_is_measured_on_the_probe_and_auto_takes_it_only_within_tolerance(name) -> None:
+    est = create_estimator(name)
+    fast = with_runtime(est, "onnx-int8")
+    assert isinstance(fast, OnnxEstimator) and fast.runtime == "onnx-int8"
+    value, tol, passed = runtime_parity(est, fast, "onnx-int8")
+    assert 0.0 < value < 0.05 and tol == LREC_RTOL  # int8 changes the estimate, and not by much
+    chosen = with_runtime(est, "auto", cache=False)
+    assert chosen.runtime in ("onnx-int8", "onnx", "bf16", "eager")
+    assert (chosen.runtime == "onnx-int8") == passed  # int8 is first in AUTO_ORDER: taken exactly when it passes
+    # quantised: the encoder's weights are int8, so the file is smaller than the float32 export
+    assert len(onnx_model(est, "onnx-int8")) < 0.9 * len(onnx_model(est, "onnx"))
+
+
+def test_int8_needs_an_encoder_to_quantise() -> None:
+    with pytest.raises(ValueCheckError, match="nothing for the int8 runtime to quantise"):
+        with_runtime(create_estimator("uniform"), "onnx-int8")
+
+
+def test_exports_are_cached_by_the_state_and_remade_when_damaged(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("KORNIA_ILUM_CACHE", str(tmp_path))
+    est = create_estimator("uniform")
+    first = onnx_model(est, "onnx")
+    files = list((tmp_path / "onnx").iterdir())
+    assert len(files) == 1 and files[0].read_bytes() == first and files[0].name.startswith("uniform-onnx-")
+
+    def fail(*a, **k):
+        raise AssertionError("exported again")
+
+    monkeypatch.setattr(runtime_module, "export_onnx", fail)
+    assert onnx_model(est, "onnx") == first  # from the cache
+    files[0].write_bytes(b"not an onnx model")
+    monkeypatch.undo()
+    monkeypatch.setenv("KORNIA_ILUM_CACHE", str(tmp_path))
+    assert onnx_model(est, "onnx") == first and files[0].read_bytes() == first  # remade
+    # another state (new weights), another file
+    trained, untrained = create_estimator("sh"), create_estimator("sh", pretrained=False)
+    names = {runtime_module._cache_path(e, "onnx", ".onnx").name for e in (trained, untrained)}
+    assert len(names) == 2
+
+
+def test_auto_caches_its_verdict(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("KORNIA_ILUM_CACHE", str(tmp_path))
+    est = create_estimator("uniform")
+    first = with_runtime(est, "auto").runtime
+    verdicts = sorted(p.name for p in (tmp_path / "parity").iterdir())
+    assert verdicts and all(v.startswith("uniform-") for v in verdicts)
+    monkeypatch.setattr(runtime_module, "runtime_parity", lambda *a: pytest.fail("checked again"))
+    assert with_runtime(est, "auto").runtime == first
+
+
+def test_onnx_runtimes_refuse_another_device_and_report_availability() -> None:
+    assert runtime_available("onnx") is None
+    assert runtime_available("onnx", "cuda") == "the ONNX runtimes run on the CPU"
+    with pytest.raises(ValueCheckError, match="runtime must be one of"):
+        runtime_available("tensorrt")
