@@ -70,14 +70,15 @@ def cached_estimator(name: str, device: torch.device, runtime: str = "eager") ->
 
 
 @functools.lru_cache(maxsize=8)
-def cached_detector(name: str, device: torch.device) -> FaceDetector:
+def cached_detector(name: str, device: torch.device, max_side: int | None = None) -> FaceDetector:
     """The registered detector ``name`` that :func:`estimate_lighting` uses: built once per
-    ``(name, device)`` in this process (the 8 most recent are kept), in eval mode.
+    ``(name, device, max_side)`` in this process (the 8 most recent are kept), in eval mode; ``max_side``
+    detects on a downscaled copy (:class:`~kornia_ilum.detection.FaceDetector`).
 
     Raises:
         ValueError: ``name`` is not registered.
     """
-    return create_detector(name).to(device).eval()
+    return create_detector(name, max_side=max_side).to(device).eval()
 
 
 def _numpy_to_tensor(array: np.ndarray, bgr: bool) -> torch.Tensor:
@@ -369,7 +370,7 @@ def estimate_lighting(
             crop_boxes.append(kept)
         else:
             where = what if batch.shape[0] == 1 else f"{what} {i} of the batch of {batch.shape[0]}"
-            name = detector if isinstance(detector, str) else type(detector).__name__
+            name = detector if isinstance(detector, str) else (det.name or type(detector).__name__)
             hints = ["detector='yunet' (a stronger detector)"] if name != "yunet" else []
             hints += [
                 "detector='none' if the image already is a face crop",

@@ -111,6 +111,12 @@ def _add_evaluate_parser(sub: argparse._SubParsersAction) -> None:
     add_evaluate_parser(sub)
 
 
+def _add_bench_parser(sub: argparse._SubParsersAction) -> None:
+    from kornia_ilum.bench.cli import add_bench_parser  # lazy: the bench loads the evaluation
+
+    add_bench_parser(sub)
+
+
 def _add_ablate_parser(sub: argparse._SubParsersAction) -> None:
     from kornia_ilum.ablation import add_ablate_parser  # lazy: the ablations train and evaluate
 
@@ -125,6 +131,7 @@ LAZY_COMMANDS = {
     "train": (_add_train_parser, "train an estimator on the light stage"),
     "evaluate": (_add_evaluate_parser, "score the estimators and two oracles on the held-out eval set"),
     "ablate": (_add_ablate_parser, "the paper's ablations: one training run per row, and the table"),
+    "bench": (_add_bench_parser, "run time against error: every estimator and runtime, on this machine"),
 }
 
 
@@ -172,6 +179,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
     est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
     est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
+    est.add_argument("--detect-side", type=positive_int, metavar="N", default=None,
+                     help="detect faces on a copy of the image at most N pixels on its longer side (faster; the "
+                     "smallest face found grows by the same factor), then crop from the full image")
     est.add_argument("--runtime", choices=RUNTIMES, default="eager",
                      help="what computes the estimate: eager (PyTorch float32, default), bf16, onnx, onnx-int8, or "
                      "auto (the fastest that runs here and passes its parity check; kornia-ilum bench measures "
@@ -370,7 +380,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     chosen = cached_estimator(estimator, device, args.runtime).runtime  # built once (missing weights fail here)
-    cached_detector(args.detector, device)
+    detector = cached_detector(args.detector, device, args.detect_side)
     print(f"loaded estimator {estimator!r} (runtime {chosen}) and detector {args.detector!r} in {_ms(t0)}")
 
     written: set[Path] = set()
@@ -379,7 +389,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         image = skimage.data.astronaut() if path is None else read_ldr(path)
         stages = {"read": 1e3 * (time.perf_counter() - t0)}
         light = estimate_lighting(
-            image, estimator=estimator, detector=args.detector, faces=args.faces, fallback=args.fallback,
+            image, estimator=estimator, detector=detector, faces=args.faces, fallback=args.fallback,
             device=device, tta=args.tta, runtime=args.runtime, timings=stages,
         )
         for key in ("write", "preview"):

@@ -25,7 +25,7 @@ from kornia_ilum.core.errors import (
     ValueCheckError,
 )
 from kornia_ilum.detection import create_detector, crop_faces
-from kornia_ilum.estimators import LightingEstimate, TestTimeAugmented, create_estimator
+from kornia_ilum.estimators import PARITY_ATOL, LightingEstimate, TestTimeAugmented, create_estimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
 from kornia_ilum_uniform import SKIN_ALBEDO
@@ -191,6 +191,25 @@ class TestEstimateLighting:
         estimate_lighting(astronaut)  # None = DEFAULT_ESTIMATOR = "ours": the same cached model
         assert calls == ["ours"]
         api.cached_estimator.cache_clear()
+
+    def test_runtime_and_stage_timings(self, astronaut, astronaut_estimate):
+        timings = {}
+        fast = estimate_lighting(astronaut, runtime="onnx", timings=timings)
+        assert list(timings) == ["check", "detect", "crop", "estimate"] and all(v >= 0 for v in timings.values())
+        a, b = torch.log1p(fast.mirror_ball), torch.log1p(astronaut_estimate.mirror_ball)
+        assert float((a - b).abs().amax()) <= PARITY_ATOL
+        with pytest.raises(ValueCheckError, match="runtime must be one of"):
+            estimate_lighting(astronaut, runtime="tensorrt")
+        with pytest.raises(ValueCheckError, match="applies to an estimator given by name"):
+            estimate_lighting(astronaut, estimator=create_estimator("uniform"), runtime="onnx")
+
+    def test_downscaled_detection_crops_from_the_full_image(self, astronaut, astronaut_estimate):
+        small = create_detector("opencv", max_side=256)  # the astronaut is 512 x 512
+        est = estimate_lighting(astronaut, detector=small)
+        torch.testing.assert_close(est.boxes, astronaut_estimate.boxes, atol=12, rtol=0)  # in full-image pixels
+        assert api.cached_detector("opencv", torch.device("cpu"), 256).max_side == 256
+        with pytest.raises(ValueCheckError, match="max_side"):
+            create_detector("opencv", max_side=0)
 
     def test_yunet(self, astronaut, shared_data):
         detector = create_detector("yunet", weights_path=shared_data / "weights" / "yunet_final.pth")

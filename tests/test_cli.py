@@ -97,8 +97,21 @@ class TestEstimate:
     def test_tta(self, tmp_path, capsys, astronaut):
         exr = tmp_path / "tta.exr"
         assert main(["estimate", "-o", str(exr), "--tta", "2"]) == 0
-        assert "estimator ours, tta 2)" in capsys.readouterr().out
+        assert "estimator ours, runtime eager, tta 2)" in capsys.readouterr().out
         torch.testing.assert_close(read_hdr(exr), estimate_lighting(astronaut, tta=2).mirror_ball[0])
+
+    def test_runtime_detect_side_and_the_stages_of_the_timing_line(self, tmp_path, capsys, astronaut):
+        exr, png = tmp_path / "fast.exr", tmp_path / "fast.png"
+        argv = ["estimate", "-o", str(exr), "--preview", str(png), "--runtime", "onnx", "--detect-side", "256"]
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        assert "(runtime onnx)" in out and exr.is_file() and png.is_file()
+        line = next(x for x in out.splitlines() if x.startswith("astronaut: 1 face"))
+        for stage in ("read", "check", "detect", "crop", "estimate", "write", "preview", "total"):
+            assert f"{stage} " in line, stage
+        ref = estimate_lighting(astronaut).mirror_ball[0]
+        assert float((torch.log1p(read_hdr(exr)) - torch.log1p(ref)).abs().amax()) < 0.05  # boxes differ a little
+        assert main(["estimate", "--runtime", "tensorrt"]) == 2
 
     def test_tta_usage(self, capsys):
         assert main(["estimate", "--tta", "0"]) == 2
@@ -194,6 +207,21 @@ class TestExport:
         assert f"wrote {target}" in printed and "difference to PyTorch" in printed
         assert target.read_bytes()[:2] == b"\x08\x0a" or target.stat().st_size > 1000
         assert sorted(p.name for p in tmp_path.iterdir()) == ["uniform.onnx"]
+
+    def test_int8_is_written_only_if_it_passes_its_lrec_check(self, tmp_path, capsys) -> None:
+        target = tmp_path / "sh_int8.onnx"
+        status = main(["export", "--onnx", str(target), "--estimator", "sh", "--runtime", "onnx-int8"])
+        out, err = capsys.readouterr()
+        if status == 0:  # the verdict depends on the CPU's int8 kernels: both outcomes are checked
+            assert "runtime onnx-int8" in out and "relative change of L_rec" in out and target.is_file()
+        else:
+            assert status == 1 and "fails its parity check" in err and not list(tmp_path.iterdir())
+
+    def test_writes_the_probe(self, tmp_path, capsys) -> None:
+        assert main(["export", "--probe", str(tmp_path / "missing")]) == 1
+        assert main(["export", "--probe", str(tmp_path)]) == 2  # no --cache
+        assert main(["export"]) == 2
+        assert not list(tmp_path.iterdir())
 
     def test_bad_targets_are_one_line_errors(self, tmp_path, capsys) -> None:
         assert main(["export", "--onnx", str(tmp_path / "a.txt")]) == 2

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from types import MappingProxyType
 from typing import Any
 
+from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import TypeCheckError
 from kornia_ilum.detection.detectors import (
     FaceDetector,
@@ -63,8 +64,12 @@ def list_detectors(pattern: str = "*") -> list[str]:
     return sorted(n for n in _REGISTRY if fnmatch.fnmatchcase(n, pattern))
 
 
-def create_detector(name: str = DEFAULT_DETECTOR, **kwargs: Any) -> FaceDetector:
+def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None = None, **kwargs: Any) -> FaceDetector:
     """Build the detector registered as ``name`` with ``kwargs`` (e.g. ``weights_path=`` for ``"yunet"``).
+
+    ``max_side`` makes it detect on a copy whose longer side is at most that many pixels
+    (:attr:`FaceDetector.max_side <kornia_ilum.detection.FaceDetector>`): faster, but blind to faces smaller than
+    its window at that scale.
 
     Raises:
         ValueError: ``name`` is not registered; the message lists the registered names.
@@ -79,9 +84,12 @@ def create_detector(name: str = DEFAULT_DETECTOR, **kwargs: Any) -> FaceDetector
         ...
         ValueError: unknown detector 'haar'; registered detectors: none, opencv, yunet
     """
+    if max_side is not None:
+        check_positive_int(max_side, "max_side")
     detector = _factory(name)(**kwargs)
     if not isinstance(detector, FaceDetector):
         raise TypeCheckError(f"detector {name!r} must build a FaceDetector, got {type(detector).__name__}")
+    detector.max_side = max_side
     return detector
 
 

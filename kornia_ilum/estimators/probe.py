@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -27,12 +28,13 @@ import torch
 from torch import Tensor
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import crop_faces
 from kornia_ilum.io import read_ldr, write_ldr
 from kornia_ilum.metrics import reconstruction_loss
 
-__all__ = ["CALIBRATION", "CHECK", "PROBE_SAMPLES", "Probe", "fit_crops", "load_probe", "probe_lrec_change",
-           "write_probe"]
+__all__ = ["CALIBRATION", "CHECK", "PROBE_SAMPLES", "Probe", "fit_crops", "load_probe", "probe_digest",
+           "probe_lrec", "probe_lrec_change", "write_probe"]
 
 #: Portraits in the shipped probe.
 PROBE_SAMPLES = 320
@@ -90,8 +92,6 @@ def write_probe(folder: str | os.PathLike[str], crops: Tensor, mirror_ball: Tens
                          f"32, 32) mirror balls, got {tuple(crops.shape)} and {tuple(mirror_ball.shape)}")
     rows = n // _COLUMNS
     mosaic = crops.reshape(rows, _COLUMNS, 3, _TILE, _TILE).permute(2, 0, 3, 1, 4).reshape(3, rows * _TILE, -1)
-    from kornia_ilum.core.files import atomic_write
-
     folder = Path(folder)
     write_ldr(folder / "probe.jpg", mosaic.clamp(0, 1), quality=95)
     tensors = {"mirror_ball": mirror_ball.to(torch.bfloat16).contiguous()}
@@ -130,6 +130,17 @@ def load_probe(folder: str | os.PathLike[str] | None = None) -> Probe:
     return _load(str(Path(os.fspath(folder)) if folder is not None else _default_dir()))
 
 
+@functools.lru_cache(maxsize=2)
+def probe_digest(folder: str | os.PathLike[str] | None = None) -> str:
+    """The first 12 hex digits of the SHA-256 of the probe's two files: part of the name of every cache file that
+    depends on the probe (int8 models, parity verdicts), so a new probe never meets an old verdict."""
+    path = Path(os.fspath(folder)) if folder is not None else _default_dir()
+    h = hashlib.sha256()
+    for name in ("probe.jpg", "probe.safetensors"):
+        h.update((path / name).read_bytes())
+    return h.hexdigest()[:12]
+
+
 def fit_crops(estimator: Any, crops: Tensor) -> Tensor:
     r"""``crops`` at the side that ``estimator`` takes (``estimator.info.input_size``): as they are when they
     have it (or the estimator has no ``info``), else resized by :func:`~kornia_ilum.detection.crop_faces` with
@@ -156,7 +167,13 @@ def fit_crops(estimator: Any, crops: Tensor) -> Tensor:
 
 
 def probe_lrec(estimator: Any, probe: Probe, batch_size: int = 16) -> dict[str, float]:
-    r"""Mean ``L_rec`` per sphere of ``estimator`` against the probe's true lighting."""
+    r"""Mean ``L_rec`` per sphere of ``estimator`` against the probe's true lighting.
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> sorted(probe_lrec(create_estimator("uniform"), load_probe().part(slice(0, 8))))
+        ['diffuse', 'matte_silver', 'mirror']
+    """
     preds = []
     with torch.inference_mode():
         for i in range(0, len(probe), batch_size):

@@ -222,6 +222,9 @@ class OnnxEstimator(LightingEstimator):
         options = ort.SessionOptions()
         if threads is not None:
             options.intra_op_num_threads = threads
+        # no spinning between runs: ONNX Runtime's idle threads would spin against PyTorch's and OpenCV's in a
+        # pipeline (kornia-ilum bench: Haar's detection went from 71 to 96 ms beside a spinning session)
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         self.session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
         meta = self.session.get_modelmeta().custom_metadata_map
         if "kornia_ilum.outputs" not in meta:
@@ -432,6 +435,10 @@ def _cache_path(estimator: LightingEstimator, runtime: str, suffix: str) -> Path
         versions += f"-ort{_onnxruntime().__version__}"
     if suffix == ".json":  # a parity check's result also depends on the CPU's kernels
         versions += f"-{torch.backends.cpu.get_cpu_capability()}"
+    if suffix == ".json" or runtime == "onnx-int8":  # calibrated or checked on the probe
+        from kornia_ilum.estimators.probe import probe_digest
+
+        versions += f"-probe{probe_digest()}"
     name = f"{estimator.info.name}-{runtime}-{_state_digest(estimator)[:16]}-{versions}".replace("+", "_")
     return cache_dir() / ("onnx" if suffix == ".onnx" else "parity") / f"{name}{suffix}"
 

@@ -54,6 +54,7 @@ from kornia_ilum.evaluation.evaluate import (
     load_estimator,
     oracle_predictions,
     predict,
+    probe_eval_set,
     score,
 )
 from kornia_ilum.evaluation.report import format_markdown, paired_differences, summarize, write_report
@@ -70,6 +71,7 @@ __all__ = [
     "ORACLES",
     "EvalSet",
     "build_eval_set",
+    "probe_eval_set",
     "fit_crops",
     "check_runner",
     "composite_background",

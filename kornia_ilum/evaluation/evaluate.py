@@ -44,7 +44,7 @@ from kornia_ilum.estimators import (
     runtime_available,
     with_runtime,
 )
-from kornia_ilum.estimators.probe import fit_crops
+from kornia_ilum.estimators.probe import CHECK, fit_crops, load_probe, probe_digest
 from kornia_ilum.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields
 from kornia_ilum.geometry import mirror_ball_solid_angles, mirror_ball_valid
 from kornia_ilum.metrics import reconstruction_loss, relative_radiance
@@ -59,6 +59,7 @@ __all__ = [
     "ORACLES",
     "EvalSet",
     "build_eval_set",
+    "probe_eval_set",
     "fit_crops",
     "evaluate",
     "load_checkpoint",
@@ -238,6 +239,32 @@ def build_eval_set(
     return EvalSet(torch.stack(images), torch.stack(balls), label, tone, subject, source,
                    alpha=torch.stack(alphas), nominal_boxes=torch.stack(nominal) if nominal else None,
                    description=description)
+
+
+def probe_eval_set(part: slice = CHECK) -> EvalSet:
+    r"""The shipped probe's portraits (:mod:`~kornia_ilum.estimators.probe`) as an :class:`EvalSet`.
+
+    Light-stage **training** portraits (train subjects, train environments): not the held-out split, so its
+    scores are no evidence of accuracy; what it gives is the same tables, computed the same way, where no
+    light-stage cache is at hand (``kornia-ilum bench`` without ``--cache``, and CI). By default its check part
+    (:data:`~kornia_ilum.estimators.probe.CHECK`, 256 portraits, never used to calibrate).
+
+    Examples:
+        >>> small = probe_eval_set(slice(64, 72))
+        >>> len(small), small.description["source"]
+        (8, 'probe')
+    """
+    probe = load_probe()
+    per = probe.meta["per_sample"]
+    index = range(len(probe))[part]
+    pick = lambda key: [per[key][i] for i in index]  # noqa: E731
+    images = (probe.crops[part] * 255.0).round().to(torch.uint8)
+    description = {"source": "probe", "split": probe.meta.get("split"), "samples": len(index),
+                   "part": [part.start, part.stop], "probe": probe_digest(),
+                   "labels": {k: pick("label").count(k) for k in ("indoor", "outdoor")},
+                   "skin_tones": {str(t): pick("skin_tone").count(t) for t in sorted(set(pick("skin_tone")))}}
+    return EvalSet(images, probe.mirror_ball[part].clone(), pick("label"), pick("skin_tone"), pick("subject_seed"),
+                   pick("source"), description=description)
 
 
 def _nominal_box(sample: dict[str, Any], render_size: int, size: int) -> torch.Tensor:

@@ -92,15 +92,18 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
                          data={"fields_per_chunk": 8, "lightings_per_field": 1, "env_pool": 8, "env_refresh": 8,
                                "shuffle": 1})
     dataset = training_dataset(config)
-    images, balls, tones, subjects = [], [], [], []
+    images, balls, tones, subjects, labels, sources = [], [], [], [], [], []
     for sample in itertools.islice(dataset, samples):
         images.append(sample["image"])
         balls.append(sample["mirror_ball"].float())
         tones.append(int(sample["skin_tone"]))
         subjects.append(int(sample["subject_seed"]))
+        labels.append(str(sample["label"]))
+        sources.append(str(sample["source"]))
     meta = {"samples": len(images), "split": "train", "seed": seed, "caches": config.cache, "hdri": config.hdri,
             "subjects": sorted(set(subjects)), "skin_tones": {str(t): tones.count(t) for t in sorted(set(tones))},
-            "portraits": "TRAINING_PORTRAITS, one lighting per view, 8 views per chunk"}
+            "portraits": "TRAINING_PORTRAITS, one lighting per view, 8 views per chunk",
+            "per_sample": {"label": labels, "skin_tone": tones, "subject_seed": subjects, "source": sources}}
     write_probe(folder, torch.stack(images).float() / 255.0, torch.stack(balls), meta)
     return meta
 

@@ -307,3 +307,19 @@ class TestEncodeSrgb8:
             encode_srgb8(torch.tensor([float("nan")]))
         with pytest.raises(TypeCheckError):
             encode_srgb8(torch.tensor([1, 2]))
+
+
+def test_the_exported_srgb_curves_are_the_eager_ones():
+    """Under torch.export the sRGB pair is a blend by the mask, not where (ONNX Runtime's Where is slow)."""
+    from kornia_ilum.color import linear_to_srgb, srgb_to_linear
+
+    class RoundTrip(torch.nn.Module):
+        def forward(self, x):
+            return srgb_to_linear(x), linear_to_srgb(x)
+
+    x = torch.cat([torch.linspace(0, 1, 3 * 64 * 64 - 4), torch.tensor([0.0, 0.0031308, 0.04045, 1.0])])
+    x = x.reshape(1, 3, 64, 64)
+    program = torch.export.export(RoundTrip(), (x,))
+    assert not any(n.target is torch.ops.aten.where.self for n in program.graph.nodes)
+    for got, want in zip(program.module()(x), RoundTrip()(x)):
+        torch.testing.assert_close(got, want, atol=1e-7, rtol=1e-6)

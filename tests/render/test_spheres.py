@@ -248,3 +248,20 @@ class TestRenderSpheres:
             # the pyramid keeps a constant map constant to 0.03 % (32 -> 16), and the mirror shows it as is
             rtol = 4e-4 if name == "mirror" and size < 32 else 1e-4
             torch.testing.assert_close(render[0][:, valid], want[:, valid], rtol=rtol, atol=1e-12)
+
+
+def test_the_preview_quadrature_stays_within_its_tolerance():
+    """render_spheres(..., supersamples=PREVIEW_SUPERSAMPLES), the pictures' fields, against the metrics'."""
+    from kornia_ilum.render import PREVIEW_RTOL, PREVIEW_SUPERSAMPLES
+
+    g = torch.Generator().manual_seed(0)
+    lighting = torch.rand(4, 3, 32, 32, generator=g) ** 8 * 50 * mirror_ball_valid(32)
+    lighting[:, :, 10, 12] += 3000.0  # a sun
+    for size in (16, 32, 64):
+        exact = render_spheres(lighting, size)
+        quick = render_spheres(lighting, size, supersamples=PREVIEW_SUPERSAMPLES)
+        for name in BRDFS:
+            scale = exact[name].amax(dim=(1, 2, 3), keepdim=True)
+            assert float(((quick[name] - exact[name]).abs() / scale).amax()) <= PREVIEW_RTOL, (size, name)
+    with pytest.raises(ValueCheckError):
+        render_spheres(lighting, 32, supersamples=0)

@@ -1,0 +1,105 @@
+r"""``kornia-ilum bench``: run time against error for every estimator and runtime, on the machine at hand.
+
+:func:`add_bench_parser` adds the command to the subparsers of ``kornia-ilum``; :func:`run_bench_command` runs
+:func:`~kornia_ilum.bench.run_bench` and writes ``bench.md``, ``bench.json`` and ``bench.png``
+(:func:`~kornia_ilum.bench.write_bench`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+from kornia_ilum.bench.report import format_bench, write_bench
+from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
+from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.errors import MissingWeightsError
+from kornia_ilum.detection import DEFAULT_DETECTOR, create_detector, list_detectors
+
+__all__ = ["add_bench_parser", "run_bench_command"]
+
+_HELP = """\
+Time every registered estimator under every runtime that runs here (eager float32, bf16, ONNX Runtime float32
+and int8), at batch 1 and 32, against the machine's own limits measured in the same run (fp32, bf16 and int8
+matmul peaks, memory bandwidth); score each on the held-out eval split (--cache, as kornia-ilum evaluate builds
+it) or, without a cache, on the shipped probe's 256 light-stage training portraits (labelled so: no evidence of
+accuracy); and time one photo end to end (640x480 and 1280x720: read, check, detect, crop, estimate, write),
+today's path against the fast one. Writes OUT/bench.md, OUT/bench.json and OUT/bench.png (run time against
+error, the Pareto front outlined). --quick: batches 1 and 4, 3 timed calls, one photo size, 32 probe portraits:
+the same code path in seconds (CI).
+
+examples:
+  kornia-ilum bench --out bench/
+  kornia-ilum bench --cache lightstage/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out bench/
+  kornia-ilum bench --quick --estimator ours --estimator uniform --out /tmp/bench
+"""
+
+
+def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``bench`` to the subparsers of ``kornia-ilum``."""
+    cmd = subparsers.add_parser("bench", help="run time against error: every estimator and runtime, this machine",
+                                description=_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    cmd.add_argument("--out", default="bench", metavar="DIR", help="where the reports go (default: bench/)")
+    cmd.add_argument("--estimator", action="append", default=None, metavar="NAME",
+                     help="an estimator to bench (repeat; default: all that ship weights)")
+    cmd.add_argument("--runtime", action="append", default=None, choices=BENCH_RUNTIMES,
+                     help="a runtime to bench (repeat; default: all; eager is always timed)")
+    cmd.add_argument("--cache", action="append", default=[], metavar="DIR",
+                     help="light-stage caches: score on their held-out eval split (repeat for several)")
+    cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="the real maps' folders, with --cache")
+    cmd.add_argument("--samples", type=positive_int, default=1024, metavar="N",
+                     help="eval portraits with --cache (default 1024, as kornia-ilum evaluate)")
+    cmd.add_argument("--detector", action="append", default=None, metavar="NAME",
+                     help=f"a detector of the end-to-end rows (repeat; default: {DEFAULT_DETECTOR}, and yunet "
+                     "where its weights are found)")
+    cmd.add_argument("--detect-side", type=positive_int, default=320, metavar="N",
+                     help="the longer side of the fast rows' downscaled detection (default 320)")
+    cmd.add_argument("--threads", type=positive_int, default=None, metavar="N",
+                     help="torch and ONNX Runtime threads (default: torch's, one per core)")
+    cmd.add_argument("--compile", action="store_true", help="also time the eager estimator under torch.compile")
+    cmd.add_argument("--quick", action="store_true", help="a few crops and calls, the same code path (CI)")
+    cmd.set_defaults(func=run_bench_command)
+    return cmd
+
+
+def _detectors(asked: list[str] | None) -> list[str]:
+    if asked:
+        unknown = [d for d in asked if d not in list_detectors()]
+        if unknown:
+            raise ValueError(f"unknown detector {unknown[0]!r}; registered detectors: {', '.join(list_detectors())}")
+        return asked
+    found = [DEFAULT_DETECTOR]
+    try:
+        create_detector("yunet")
+        found.append("yunet")
+    except MissingWeightsError:
+        pass
+    return found
+
+
+def run_bench_command(args: argparse.Namespace) -> int:
+    """Run ``kornia-ilum bench`` with parsed ``args``; returns the exit status."""
+    from kornia_ilum.evaluation import build_eval_set, probe_eval_set  # lazy: as the command's own import
+    from kornia_ilum.estimators.probe import CHECK
+
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
+    t0 = time.perf_counter()
+    if args.cache:
+        eval_set = build_eval_set(args.cache, args.hdri, args.samples)
+        what = (f"the held-out eval split ({len(eval_set)} portraits of {len(eval_set.description['subjects'])} "
+                f"eval subjects, kornia-ilum evaluate's set)")
+    else:
+        part = slice(CHECK.start, CHECK.start + 32) if args.quick else CHECK
+        eval_set = probe_eval_set(part)
+        what = (f"the shipped probe's check part ({len(eval_set)} light-stage TRAINING portraits: not the held-out "
+                "split, no evidence of accuracy; pass --cache for that)")
+    result = run_bench(eval_set, what, args.estimator, args.runtime or BENCH_RUNTIMES, quick=args.quick,
+                       e2e_detectors=_detectors(args.detector), detect_side=args.detect_side, compile=args.compile)
+    print(format_bench(result))
+    for path in write_bench(result, args.out):
+        print(f"wrote {path}")
+    print(f"bench took {time.perf_counter() - t0:.0f} s")
+    return 0

@@ -1,0 +1,215 @@
+r"""One bench run: every estimator under every runtime, timed and scored in the same process.
+
+:func:`run_bench` measures, in this order (all on the current torch thread count):
+
+1. the machine's limits (:func:`~kornia_ilum.bench.machine.machine_limits`);
+2. for each estimator and each runtime that runs here (:func:`~kornia_ilum.estimators.runtime_available`; an
+   estimator without a form for a runtime, such as int8 of a model without an encoder, is left out with the
+   reason): its speed at batch 1 and 32 (:func:`~kornia_ilum.bench.speed.estimator_speed`), the speed-up over
+   its own eager row, and the GFLOP/s reached against the peak of the precision used; the runtime's parity
+   check (:func:`~kornia_ilum.estimators.runtime_parity`) and what ``"auto"`` picks;
+3. the error of every row and of the oracles, by :func:`~kornia_ilum.evaluation.evaluate` on ``eval_set``
+   (the held-out split where a cache is given, else the probe's check part, labelled as such);
+4. one photo end to end per size of :data:`~kornia_ilum.bench.speed.E2E_SIZES` and detector: today's path
+   (eager, detection at full resolution) first, then the fast runtime, then the fast runtime with detection on
+   a copy of at most ``detect_side`` pixels.
+
+With ``compile=True`` the eager estimator under :func:`torch.compile` is a row too (its compile time in the
+notes).
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+
+from kornia_ilum.api import cached_detector
+from kornia_ilum.bench.machine import machine_limits
+from kornia_ilum.bench.report import PAPER, pareto_front
+from kornia_ilum.bench.speed import E2E_SIZES, end_to_end, estimator_flops, estimator_speed, portrait_photo, run_info
+from kornia_ilum.core.errors import MissingWeightsError, ValueCheckError
+from kornia_ilum.detection import DEFAULT_DETECTOR
+from kornia_ilum.estimators import (
+    AUTO_ORDER,
+    DEFAULT_ESTIMATOR,
+    RUNTIMES,
+    create_estimator,
+    list_estimators,
+    runtime_available,
+    runtime_parity,
+    with_runtime,
+)
+from kornia_ilum.evaluation import ORACLES, EvalSet, oracle_predictions, predict, score, summarize
+
+__all__ = ["BENCH_RUNTIMES", "PEAK_OF", "run_bench"]
+
+#: The runtimes a bench tries for every estimator.
+BENCH_RUNTIMES: tuple[str, ...] = tuple(r for r in RUNTIMES if r != "auto")
+#: The machine peak each runtime's GFLOP/s is compared with.
+PEAK_OF = {"eager": "fp32_gflops", "compile": "fp32_gflops", "onnx": "fp32_gflops", "bf16": "bf16_gflops",
+           "onnx-int8": "int8_gops"}
+
+
+def _label(name: str, runtime: str) -> str:
+    return name if runtime == "eager" else f"{name}+{runtime}"
+
+
+def run_bench(
+    eval_set: EvalSet,
+    error_what: str,
+    estimators: Sequence[str] | None = None,
+    runtimes: Sequence[str] = BENCH_RUNTIMES,
+    *,
+    quick: bool = False,
+    e2e_detectors: Sequence[str] = (DEFAULT_DETECTOR,),
+    detect_side: int = 320,
+    compile: bool = False,
+    progress: bool = True,
+) -> dict[str, Any]:
+    r"""Time and score the estimators under the runtimes (module docstring).
+
+    Args:
+        eval_set: what the error is measured on.
+        error_what: one line saying what ``eval_set`` is (printed above the table).
+        estimators: registered names (default: all that ship weights).
+        runtimes: of :data:`BENCH_RUNTIMES`; ``"eager"`` is always timed (the baseline of its speed-ups).
+        quick: batches 1 and 4, 3 timed calls, one photo size: the same code path in seconds (CI).
+        e2e_detectors: the detectors of the end-to-end rows (registered names).
+        detect_side: the longer side of the downscaled detection of the fast end-to-end rows.
+        compile: also time the eager estimator under :func:`torch.compile`.
+        progress: print a line per step.
+
+    Returns:
+        the JSON-ready result: ``machine``, ``software``, ``rows`` (estimator x runtime, then the oracles),
+        ``pareto``, ``auto``, ``per_tone``, ``e2e``, ``error``, ``paper``, ``notes``.
+    """
+    say = print if progress else (lambda *a, **k: None)
+    batches = (1, 4) if quick else (1, 32)
+    repeats = 3 if quick else 20
+    big = batches[1]
+    machine = machine_limits(quick=quick)
+    say(f"machine: {machine['cpu']}, fp32 {machine['fp32_gflops']:.0f} GFLOP/s, int8 {machine['int8_gops']:.0f} "
+        f"GOP/s, copy {machine['copy_gbps']:.1f} GB/s")
+    names = list(estimators) if estimators else [n for n in list_estimators() if n != "untrained"]
+    runtimes = ["eager"] + [r for r in runtimes if r not in ("eager", "auto")]
+    rows: list[dict[str, Any]] = []
+    models: dict[str, Any] = {}
+    notes: list[str] = []
+    auto: dict[str, str] = {}
+    for name in names:
+        try:
+            base = create_estimator(name)
+        except MissingWeightsError as e:
+            notes.append(f"{name}: skipped ({e})")
+            continue
+        flops = estimator_flops(base)
+        variants = [(r, None) for r in runtimes] + ([("compile", None)] if compile else [])
+        for runtime, _ in variants:
+            reason = runtime_available(runtime) if runtime != "compile" else None
+            if reason is not None:
+                notes.append(f"{name} under {runtime}: not run here ({reason})")
+                continue
+            t0 = time.perf_counter()
+            try:
+                if runtime == "compile":
+                    model = torch.compile(copy.deepcopy(base))
+                else:
+                    model = with_runtime(copy.deepcopy(base) if runtime == "bf16" else base, runtime)
+            except ValueCheckError as e:
+                notes.append(f"{name} under {runtime}: no such form ({e})")
+                continue
+            built = time.perf_counter() - t0
+            speed = estimator_speed(model, batches, repeats)
+            if runtime == "compile":
+                notes.append(f"{name} under torch.compile: compiled and warmed up in {built + speed['b1_ms'] / 1e3:.0f} s "
+                             "(the default inductor backend)")
+            row: dict[str, Any] = {"label": _label(name, runtime), "estimator": name, "runtime": runtime,
+                                   "gflop": flops / 1e9, "build_s": built}
+            for b in batches:
+                tag = "b1" if b == 1 else "b32"
+                row[f"{tag}_ms_per_crop"] = speed[f"b{b}_ms_per_crop"]
+                row[f"{tag}_crops_per_s"] = speed[f"b{b}_crops_per_s"]
+                peak = machine[PEAK_OF[runtime]]
+                gflops = flops / 1e9 * speed[f"b{b}_crops_per_s"]
+                row[f"{tag}_gflops"] = gflops
+                row[f"{tag}_peak_fraction"] = gflops / peak if peak else None
+            if runtime not in ("eager", "compile"):
+                value, tol, passed = runtime_parity(base, model, runtime)
+                row["parity"] = {"value": value, "tolerance": tol, "passed": passed}
+            rows.append(row)
+            models[row["label"]] = model
+            say(f"{row['label']}: batch 1 {row['b1_ms_per_crop']:.2f} ms, batch {big} "
+                f"{row['b32_ms_per_crop']:.2f} ms/crop ({built:.1f} s to build)")
+        eager = next(r for r in rows if r["label"] == name)
+        for r in rows:
+            if r["estimator"] == name:
+                r["b1_speedup"] = eager["b1_ms_per_crop"] / r["b1_ms_per_crop"]
+                r["b32_speedup"] = eager["b32_ms_per_crop"] / r["b32_ms_per_crop"]
+        passing = [r for r in rows if r["estimator"] == name and r["runtime"] not in ("eager", "compile")
+                   and r["parity"]["passed"]]
+        picks = [r["runtime"] for o in AUTO_ORDER for r in passing if r["runtime"] == o]
+        auto[name] = picks[0] if picks else "eager"
+
+    say(f"error: {error_what}")
+    t0 = time.perf_counter()
+    results = _score(models, eval_set)
+    summary = summarize(results, eval_set, reference="__none__")
+    for r in rows + [{"label": o, "estimator": o, "runtime": "oracle"} for o in ORACLES]:
+        if r["runtime"] == "oracle":
+            rows.append(r)
+        t1 = summary["table1_l_rec"].get(r["label"])
+        if t1 is not None:
+            r["l_rec"] = t1["all"]
+            r["l_rec_groups"] = {g: t1[g] for g in ("indoor", "outdoor")}
+            r["relative_radiance"] = summary["table2_relative_radiance"][r["label"]]["all"]["mean"]
+    per_tone = {label: {t: v["diffuse"] for t, v in per.items()} for label, per in summary["per_skin_tone"].items()}
+    say(f"scored {len(results['methods'])} methods in {time.perf_counter() - t0:.0f} s")
+
+    e2e = []
+    sizes = E2E_SIZES[:1] if quick else E2E_SIZES
+    default = DEFAULT_ESTIMATOR if DEFAULT_ESTIMATOR in names else names[0]
+    fast = auto.get(default, "eager")
+    for width, height in sizes:
+        photo = portrait_photo(width, height)
+        for det_name in e2e_detectors:
+            configs = [("eager", None), (fast, None), (fast, detect_side)]
+            base_ms = None
+            for runtime, side in configs:
+                model = models[_label(default, runtime)]
+                detector = cached_detector(det_name, torch.device("cpu"), side)
+                ms = end_to_end(photo, model, detector, repeats=3 if quick else 10)
+                base_ms = base_ms or ms["total"]
+                e2e.append({"photo": f"{width}x{height}", "detector": det_name, "max_side": side,
+                            "estimator": default, "runtime": runtime, "ms": ms, "speedup": base_ms / ms["total"]})
+                say(f"e2e {width}x{height} {det_name} side {side or 'full'} {runtime}: {ms['total']:.1f} ms")
+    return {
+        "machine": machine,
+        "software": run_info(),
+        "quick": quick,
+        "batches": list(batches),
+        "rows": rows,
+        "pareto": pareto_front(rows),
+        "auto": auto,
+        "per_tone": per_tone,
+        "e2e": e2e,
+        "error": {"what": error_what, "short": eval_set.description.get("source", "eval split"),
+                  "eval_set": eval_set.description},
+        "paper": PAPER,
+        "notes": notes,
+    }
+
+
+def _score(models: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
+    """The scores of :func:`~kornia_ilum.evaluation.evaluate` for every timed model (as built) and the oracles."""
+    methods = {}
+    for label, model in models.items():
+        t0 = time.perf_counter()
+        methods[label] = {"scores": score(predict(model, eval_set.images), eval_set.mirror_ball),
+                          "seconds": round(time.perf_counter() - t0, 2)}
+    for label, pred in oracle_predictions(eval_set.mirror_ball).items():
+        methods[label] = {"scores": score(pred, eval_set.mirror_ball), "seconds": 0.0}
+    return {"methods": methods, "skipped": {}}
