@@ -131,7 +131,7 @@ LAZY_COMMANDS = {
     "train": (_add_train_parser, "train an estimator on the light stage"),
     "evaluate": (_add_evaluate_parser, "score the estimators and two oracles on the held-out eval set"),
     "ablate": (_add_ablate_parser, "the paper's ablations: one training run per row, and the table"),
-    "bench": (_add_bench_parser, "run time against error: every estimator and runtime, on this machine"),
+    "bench": (_add_bench_parser, "run time against error: every estimator and runtime, this machine"),
 }
 
 

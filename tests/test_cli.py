@@ -55,7 +55,7 @@ class TestEstimate:
         out = capsys.readouterr().out
         assert f"wrote {exr} (mirror ball 32x32, face 0 of astronaut" in out
         assert f"wrote {png} (preview 96x32" in out
-        assert "astronaut: 1 face, " in out and " ms" in out
+        assert "astronaut: 1 face (detector opencv, " in out and " ms" in out
         torch.testing.assert_close(read_hdr(exr), estimate_lighting(astronaut).mirror_ball[0])
         assert read_ldr(png).shape == (3, 32, 96)
 

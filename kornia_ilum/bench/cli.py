@@ -17,6 +17,8 @@ from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import MissingWeightsError
 from kornia_ilum.detection import DEFAULT_DETECTOR, create_detector, list_detectors
+from kornia_ilum.estimators.probe import CHECK
+from kornia_ilum.evaluation import build_eval_set, probe_eval_set
 
 __all__ = ["add_bench_parser", "run_bench_command"]
 
@@ -81,8 +83,6 @@ def _detectors(asked: list[str] | None) -> list[str]:
 
 def run_bench_command(args: argparse.Namespace) -> int:
     """Run ``kornia-ilum bench`` with parsed ``args``; returns the exit status."""
-    from kornia_ilum.evaluation import build_eval_set, probe_eval_set  # lazy: as the command's own import
-    from kornia_ilum.estimators.probe import CHECK
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)

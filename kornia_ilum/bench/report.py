@@ -125,7 +125,7 @@ def _figure(result: dict[str, Any], path: Path) -> bool:
     except ImportError:
         return False
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: as matplotlib
 
     rows = [r for r in result["rows"] if r.get("b1_ms_per_crop") is not None and r.get("l_rec")]
     fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=120)

@@ -6,7 +6,7 @@ r"""One bench run: every estimator under every runtime, timed and scored in the 
 2. for each estimator and each runtime that runs here (:func:`~kornia_ilum.estimators.runtime_available`; an
    estimator without a form for a runtime, such as int8 of a model without an encoder, is left out with the
    reason): its speed at batch 1 and 32 (:func:`~kornia_ilum.bench.speed.estimator_speed`), the speed-up over
-   its own eager row, and the GFLOP/s reached against the peak of the precision used; the runtime's parity
+   its own eager row, and the rate of operations reached against the peak of the precision used; the runtime's parity
    check (:func:`~kornia_ilum.estimators.runtime_parity`) and what ``"auto"`` picks;
 3. the error of every row and of the oracles, by :func:`~kornia_ilum.evaluation.evaluate` on ``eval_set``
    (the held-out split where a cache is given, else the probe's check part, labelled as such);
@@ -49,7 +49,7 @@ __all__ = ["BENCH_RUNTIMES", "PEAK_OF", "run_bench"]
 
 #: The runtimes a bench tries for every estimator.
 BENCH_RUNTIMES: tuple[str, ...] = tuple(r for r in RUNTIMES if r != "auto")
-#: The machine peak each runtime's GFLOP/s is compared with.
+#: The machine peak each runtime's rate of operations is compared with.
 PEAK_OF = {"eager": "fp32_gflops", "compile": "fp32_gflops", "onnx": "fp32_gflops", "bf16": "bf16_gflops",
            "onnx-int8": "int8_gops"}
 

@@ -4,7 +4,7 @@ r"""Run time of the estimators and of the whole photo-to-file path, as ``kornia-
   under one runtime, on the probe's real face crops (the time does not depend on the content, but a crop of a
   face is what the estimator sees), after warm-up calls, under :func:`torch.inference_mode`;
 - :func:`estimator_flops`: the multiply-adds of one crop (PyTorch's :class:`~torch.utils.flop_counter.FlopCounterMode`
-  on the eager estimator), to turn a time into GFLOP/s against the machine's peak;
+  on the eager estimator), to turn a time into a rate against the machine's peak;
 - :func:`end_to_end`: one photograph from its file to the written ``.exr``: read, check, detect, crop,
   estimate, write, each stage's median and the median of the whole, as :func:`~kornia_ilum.estimate_lighting`
   reports its stages (``timings=``).
@@ -12,15 +12,19 @@ r"""Run time of the estimators and of the whole photo-to-file path, as ``kornia-
 
 from __future__ import annotations
 
+import platform
 import statistics
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+import skimage.data
 import torch
 import torch.nn.functional as F
+from torch.utils.flop_counter import FlopCounterMode
 
 from kornia_ilum.api import estimate_lighting
 from kornia_ilum.bench.machine import median_seconds
@@ -62,7 +66,6 @@ def estimator_speed(estimator: LightingEstimator, batches: tuple[int, ...] = (1,
 
 def estimator_flops(estimator: LightingEstimator) -> float:
     """Floating-point operations of one crop (a multiply-add counts two), by PyTorch's flop counter."""
-    from torch.utils.flop_counter import FlopCounterMode
 
     counter = FlopCounterMode(display=False)
     with torch.inference_mode(), counter:
@@ -73,7 +76,6 @@ def estimator_flops(estimator: LightingEstimator) -> float:
 def portrait_photo(width: int, height: int) -> np.ndarray:
     """scikit-image's astronaut scaled to the photo's height and centred on a black ``width x height`` canvas:
     ``(height, width, 3)`` uint8, one face of about a fifth of the height."""
-    import skimage.data
 
     astronaut = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1)[None].float() / 255
     side = min(width, height)
@@ -117,17 +119,13 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
 
 def run_info() -> dict[str, Any]:
     """The software of the run: versions and thread counts."""
-    import platform
-
     info: dict[str, Any] = {"python": platform.python_version(), "torch": torch.__version__,
                             "torch_threads": torch.get_num_threads()}
     try:
-        import onnxruntime
+        import onnxruntime  # lazy: optional (the onnx extra)
 
         info["onnxruntime"] = onnxruntime.__version__
     except ImportError:
         info["onnxruntime"] = None
-    import cv2
-
     info["opencv"] = cv2.__version__
     return info

@@ -85,7 +85,8 @@ def metered_luminance(linear: torch.Tensor, sigma: float = METERING_SIGMA) -> to
     tracing = torch.compiler.is_compiling() or torch.compiler.is_exporting()  # no traced tensor in the cache
     build = _metering_map.__wrapped__ if tracing else _metering_map
     weight = build(int(h), int(w), float(sigma)).to(device=linear.device, dtype=linear.dtype)
-    # a product and a sum, not einsum: ONNX Runtime runs an exported Einsum (or MatMul) of this shape 7x slower
+    # a product and a sum, not einsum: ONNX Runtime runs an exported Einsum (or MatMul) of this shape several
+    # times slower (docs/bench.rst)
     return (linear * weight).sum(dim=(1, 2, 3))
 
 

@@ -4,8 +4,8 @@ The sRGB pair is Kornia's (:func:`kornia.color.linear_rgb_to_rgb` and
 :func:`kornia.color.rgb_to_linear_rgb`, which use the exact IEC 61966-2-1 piecewise curve). The
 wrappers here only add kornia_ilum's argument checks (named arguments, NaN/Inf) so that every
 public entry point fails the same way. While :func:`torch.onnx.export` traces them they compute the same curve
-with a blend by the mask in place of ``where``: ONNX Runtime's ``Where`` costs about 0.4 ms per 196,608 values
-on 2 cores, twenty times a ``Mul`` (``kornia-ilum bench``; the exported estimators convert every crop twice).
+with a blend by the mask in place of ``where``: ONNX Runtime's ``Where`` costs about twenty times a ``Mul``
+(docs/bench.rst; the exported estimators convert every crop twice).
 """
 
 from __future__ import annotations

@@ -70,10 +70,9 @@ class FaceDetector(nn.Module):
             ``"none"``, whose box already is the crop.
         max_side: ``None`` (the default) detects at the image's resolution; ``N`` detects on a copy whose
             longer side is at most ``N`` pixels (area-averaged) and scales the boxes back, so the crop is
-            still cut from the full-resolution image. A detector's cost grows with the pixels it scans: Haar
-            on a 640 x 480 photo took 71 ms, on its 320 x 240 copy 27 ms (``kornia-ilum bench``), but the
-            smallest face it finds grows by the same factor (Haar's 24-pixel window becomes 48 pixels of the
-            photo). Set it with ``create_detector(name, max_side=N)`` or ``kornia-ilum estimate --detect-side N``.
+            still cut from the full-resolution image. A detector's cost grows with the pixels it scans (Haar's
+            on a half-size copy: about a third, ``kornia-ilum bench``), but the smallest face it finds grows by
+            the same factor (Haar's 24-pixel window becomes 48 pixels of the photo). Set it with ``create_detector(name, max_side=N)`` or ``kornia-ilum estimate --detect-side N``.
 
     Examples:
         A detector that takes the central half of every image:

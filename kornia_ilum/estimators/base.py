@@ -253,8 +253,8 @@ class LightingEstimate:
         rendered at the nearest supported render size (:data:`~kornia_ilum.render.SPHERE_SIZES`) but at most
         the lighting's own (32: a larger mirror sphere only repeats its pixels), with the picture's
         quadrature (:data:`~kornia_ilum.render.PREVIEW_SUPERSAMPLES`, within 2 % of the metrics' renders), and
-        resized bilinearly to ``size`` when it is not the render size; rendering runs in float32. So the first
-        preview of a process costs about 0.07 s (2 cores), most of it building the fields once.
+        resized bilinearly to ``size`` when it is not the render size; rendering runs in float32. Most of the
+        first preview of a process is building those fields once (docs/bench.rst, "The preview").
 
         Args:
             path: destination, ``.png`` (or ``.jpg``/``.jpeg``).

@@ -101,7 +101,7 @@ def write_probe(folder: str | os.PathLike[str], crops: Tensor, mirror_ball: Tens
 
 @functools.lru_cache(maxsize=2)
 def _load(folder: str) -> Probe:
-    import safetensors
+    import safetensors  # lazy: as read_weights
 
     path = Path(folder)
     with safetensors.safe_open(str(path / "probe.safetensors"), framework="pt") as f:

@@ -24,8 +24,8 @@ created estimator into the runtime asked for (``create_estimator(name, runtime=.
 - ``"auto"``: the first of :data:`AUTO_ORDER` that is available here and passes its parity check, else eager.
 
 The exported and quantised models are cached by the digest of the estimator's state, its name and the
-versions that made them (:func:`onnx_model`), in :func:`cache_dir`, so the export (5 to 40 s) is paid once per
-machine and weights. ``kornia-ilum bench`` measures what each runtime gives on the machine at hand.
+versions that made them (:func:`onnx_model`), in :func:`cache_dir`, so the export (seconds to tens of seconds)
+is paid once per machine and weights. ``kornia-ilum bench`` measures what each runtime gives on the machine at hand.
 
 ONNX Runtime (``pip install kornia_ilum[onnx]``) is imported only when an ONNX runtime is asked for.
 """
@@ -38,6 +38,7 @@ import hashlib
 import json
 import logging
 import os
+import tempfile
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -80,8 +81,7 @@ __all__ = [
 #: The runtimes :func:`with_runtime` knows, ``"auto"`` first.
 RUNTIMES: tuple[str, ...] = ("auto", "eager", "bf16", "onnx", "onnx-int8")
 #: What ``"auto"`` tries, in order: the fastest first, as ``kornia-ilum bench`` measured them on the project's
-#: CPUs (AMD EPYC Zen 4, 2 cores, ``ours``: int8 3.7 ms, ONNX float32 5.4 ms, bfloat16 10.8 ms, eager 13.1 ms
-#: at batch 1; docs/bench.rst).
+#: CPUs (``ours`` at batch 1: int8, then ONNX float32, then bfloat16, then eager; docs/bench.rst).
 AUTO_ORDER: tuple[str, ...] = ("onnx-int8", "onnx", "bf16")
 #: The fields of :class:`~kornia_ilum.estimators.LightingEstimate` an exported estimator may output, in order.
 ESTIMATE_FIELDS: tuple[str, ...] = ("mirror_ball", "valid", "log_mirror_ball", "sh")
@@ -190,8 +190,7 @@ class OnnxEstimator(LightingEstimator):
     ``forward`` checks the crops as every estimator does, runs the session on the CPU in float32 and returns a
     :class:`~kornia_ilum.estimators.LightingEstimate` on the crops' device, in float32. The value scan of the
     crops runs in NumPy, on one thread: a parallel PyTorch reduction just before the session left PyTorch's
-    OpenMP threads spinning against ONNX Runtime's and doubled the time of a batch of one (``ours``: 15.4 ms
-    against 7.3 ms on 2 cores).
+    OpenMP threads spinning against ONNX Runtime's and doubled the time of a batch of one (docs/bench.rst).
 
     Args:
         model: the ONNX model: its bytes, or a path to a ``.onnx`` file written by :func:`export_onnx` (or
@@ -223,7 +222,7 @@ class OnnxEstimator(LightingEstimator):
         if threads is not None:
             options.intra_op_num_threads = threads
         # no spinning between runs: ONNX Runtime's idle threads would spin against PyTorch's and OpenCV's in a
-        # pipeline (kornia-ilum bench: Haar's detection went from 71 to 96 ms beside a spinning session)
+        # pipeline (kornia-ilum bench: Haar's detection took a third longer beside a spinning session)
         options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         self.session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
         meta = self.session.get_modelmeta().custom_metadata_map
@@ -310,12 +309,12 @@ def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
     ONNX Runtime's :func:`~onnxruntime.quantization.quantize_static` in QDQ form: per-channel symmetric int8
     weights and uint8 activations (min-max ranges over ``calibration``) for the **encoder**: the convolutions
     after the first one and before the first fully connected layer (``Gemm``). The first convolution stays
-    float32 (three input channels: in int8 it took 0.93 ms of ``ours``'s 3.7 at batch 1, in float32 0.30), and
-    so do the fully connected layers and everything after them (the decoder, whose rounding lands on the log
-    radiance itself), the exposure normalisation, resampling matrices and ``exp``. Measured on ``ours`` and the
-    1024 portraits of the eval split (``kornia-ilum evaluate --runtime onnx-int8``): every convolution and
-    ``Gemm`` but the first in int8 moved ``L_rec`` by +1.27 % / -0.04 % / +0.44 % (diffuse / matte silver /
-    mirror), the encoder alone by +0.79 % / +0.42 % / +0.34 %, at 4.0 against 4.4 ms per crop.
+    float32 (three input channels: in int8 it cost three times its float32 time), and so do the fully connected
+    layers and everything after them (the decoder, whose rounding lands on the log radiance itself), the
+    exposure normalisation, resampling matrices and ``exp``. Measured on ``ours`` and the 1024 portraits of the
+    eval split (``kornia-ilum evaluate --runtime onnx-int8``): every convolution and ``Gemm`` but the first in
+    int8 moved ``L_rec`` by +1.27 % / -0.04 % / +0.44 % (diffuse / matte silver / mirror), the encoder alone by
+    +0.79 % / +0.42 % / +0.34 %, for a tenth more time per crop (docs/bench.rst).
 
     Args:
         model: from :func:`export_onnx`.
@@ -329,15 +328,13 @@ def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
         ValueCheckError: the model has no convolution before a fully connected layer (nothing to quantise).
     """
     _onnxruntime()
-    import tempfile
-
-    import onnx
-    from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
-    from onnxruntime.quantization.shape_inference import quant_pre_process
+    import onnx  # lazy, as all of ONNX: only for this runtime
+    from onnxruntime import quantization as q  # lazy: the same
+    from onnxruntime.quantization.shape_inference import quant_pre_process  # lazy: the same
 
     batches = [{"crops": calibration[i : i + 8].float().contiguous().numpy()} for i in range(0, len(calibration), 8)]
 
-    class _Reader(CalibrationDataReader):
+    class _Reader(q.CalibrationDataReader):
         def __init__(self) -> None:
             self.items = iter(batches)
 
@@ -358,9 +355,9 @@ def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
         src, pre, out = (Path(tmp) / f for f in ("model.onnx", "pre.onnx", "int8.onnx"))
         src.write_bytes(model)
         quant_pre_process(str(src), str(pre), skip_symbolic_shape=True)
-        quantize_static(str(pre), str(out), _Reader(), quant_format=QuantFormat.QDQ, per_channel=True,
-                        activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8,
-                        op_types_to_quantize=["Conv"], nodes_to_quantize=encoder[1:])
+        q.quantize_static(str(pre), str(out), _Reader(), quant_format=q.QuantFormat.QDQ, per_channel=True,
+                          activation_type=q.QuantType.QUInt8, weight_type=q.QuantType.QInt8,
+                          op_types_to_quantize=["Conv"], nodes_to_quantize=encoder[1:])
         quantized = onnx.load(str(out))
     del quantized.metadata_props[:]
     quantized.metadata_props.extend(proto.metadata_props)
@@ -420,7 +417,7 @@ def onnx_model(estimator: LightingEstimator, runtime: str = "onnx", *, cache: bo
             return data
     data = export_onnx(estimator)
     if runtime == "onnx-int8":
-        from kornia_ilum.estimators.probe import CALIBRATION, fit_crops, load_probe
+        from kornia_ilum.estimators.probe import CALIBRATION, fit_crops, load_probe  # lazy: reads the probe
 
         data = quantize_int8(data, fit_crops(estimator, load_probe().part(CALIBRATION).crops))
     if cache:
@@ -436,7 +433,7 @@ def _cache_path(estimator: LightingEstimator, runtime: str, suffix: str) -> Path
     if suffix == ".json":  # a parity check's result also depends on the CPU's kernels
         versions += f"-{torch.backends.cpu.get_cpu_capability()}"
     if suffix == ".json" or runtime == "onnx-int8":  # calibrated or checked on the probe
-        from kornia_ilum.estimators.probe import probe_digest
+        from kornia_ilum.estimators.probe import probe_digest  # lazy: reads the probe
 
         versions += f"-probe{probe_digest()}"
     name = f"{estimator.info.name}-{runtime}-{_state_digest(estimator)[:16]}-{versions}".replace("+", "_")
@@ -453,7 +450,7 @@ def _cache_write(path: Path, data: bytes) -> None:
 
 
 def _parses(data: bytes) -> bool:
-    import onnx
+    import onnx  # lazy: as ONNX Runtime
 
     try:
         onnx.load_from_string(data)
@@ -494,7 +491,7 @@ def runtime_parity(reference: LightingEstimator, candidate: LightingEstimator, r
     :data:`LREC_RTOL`.
     """
     if runtime in ("bf16", "onnx-int8"):
-        from kornia_ilum.estimators.probe import probe_lrec_change
+        from kornia_ilum.estimators.probe import probe_lrec_change  # lazy: reads the probe
 
         value, tol = probe_lrec_change(reference, candidate), LREC_RTOL
     else:

@@ -610,8 +610,8 @@ def render_spheres(
         brdfs: the spheres to render, names from :data:`BRDFS`.
         supersamples: sub-samples per lighting pixel and axis of the fields' quadrature: 8 (the default) for
             the metrics and losses; :data:`PREVIEW_SUPERSAMPLES` (2, 16 times fewer) for pictures: its fields
-            build in a twentieth of the time (a 64 px sphere's: 0.9 s of a process's first preview), and its
-            renders are within :data:`PREVIEW_RTOL` of the default's (``tests/render/test_spheres.py``).
+            build in about a twentieth of the time (they are most of a process's first preview, docs/bench.rst),
+            and its renders are within :data:`PREVIEW_RTOL` of the default's (``tests/render/test_spheres.py``).
 
     Returns:
         ``{name: render}`` with linear renders ``(B, 3, size, size)`` in the dtype and device of

@@ -217,36 +217,3 @@ def test_onnx_runtimes_refuse_another_device_and_report_availability() -> None:
     assert runtime_available("onnx", "cuda") == "the ONNX runtimes run on the CPU"
     with pytest.raises(ValueCheckError, match="runtime must be one of"):
         runtime_available("tensorrt")
-
-
-# --------------------------------------------------------------------------------------------- the probe
-def test_the_probe_holds_training_portraits_only_with_their_lighting() -> None:
-    from kornia_ilum.estimators.probe import CALIBRATION, CHECK, PROBE_SAMPLES, load_probe
-    from kornia_ilum.synth.environments.real import hdri_split
-    from kornia_ilum.synth.lightstage.subjects import subject_split
-
-    probe = load_probe()
-    assert len(probe) == PROBE_SAMPLES and probe.crops.shape == (PROBE_SAMPLES, 3, 256, 256)
-    assert probe.mirror_ball.shape == (PROBE_SAMPLES, 3, 32, 32) and float(probe.mirror_ball.amin()) >= 0
-    assert 0.0 <= float(probe.crops.amin()) and float(probe.crops.amax()) <= 1.0
-    assert probe.meta["split"] == "train"
-    assert all(subject_split(s) == "train" for s in probe.meta["subjects"])  # never an eval subject
-    real = [src.removeprefix("real:") for src in probe.meta["per_sample"]["source"] if src.startswith("real:")]
-    assert real and all(hdri_split(name) == "train" for name in real)  # never an eval map
-    assert CALIBRATION.stop == CHECK.start  # calibrated on one part, checked on the other
-
-
-def test_write_probe_round_trips_and_checks_shapes(tmp_path) -> None:
-    from kornia_ilum.core.errors import ShapeError
-    from kornia_ilum.estimators.probe import load_probe, write_probe
-
-    crops = torch.rand(8, 3, 256, 256)
-    balls = torch.rand(8, 3, 32, 32) * 100
-    per = {"label": ["indoor"] * 8, "skin_tone": [1] * 8, "subject_seed": [0] * 8, "source": ["sky"] * 8}
-    write_probe(tmp_path, crops, balls, {"split": "train", "per_sample": per})
-    back = load_probe(tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["probe.jpg", "probe.safetensors"]
-    assert (back.crops - crops).abs().mean() < 0.05  # JPEG
-    torch.testing.assert_close(back.mirror_ball, balls, rtol=1e-2, atol=0.0)  # bfloat16
-    with pytest.raises(ShapeError):
-        write_probe(tmp_path, torch.rand(7, 3, 256, 256), torch.rand(7, 3, 32, 32), {})
