@@ -123,7 +123,13 @@ def run_bench(
                 notes.append(f"{name} under {runtime}: no such form ({e})")
                 continue
             built = time.perf_counter() - t0
-            speed = estimator_speed(model, batches, repeats)
+            try:
+                speed = estimator_speed(model, batches, repeats)
+            except Exception as e:  # torch.compile fails in its own ways (graph breaks, backends): a note
+                if runtime != "compile":
+                    raise
+                notes.append(f"{name} under torch.compile: failed ({type(e).__name__}: {str(e).splitlines()[0]})")
+                continue
             if runtime == "compile":
                 notes.append(f"{name} under torch.compile: compiled and warmed up in {built + speed['b1_ms'] / 1e3:.0f} s "
                              "(the default inductor backend)")
