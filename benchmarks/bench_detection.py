@@ -1,6 +1,7 @@
 """Benchmark: how often the face detectors find the light stage's eval subjects in composited portraits.
 
-Run: ``python benchmarks/bench_detection.py --cache DIR [DIR ...] [--count 120] [--upscale 512] [--render-eval K]``
+Run: ``python benchmarks/bench_detection.py --cache DIR [DIR ...] [--count 120] [--upscale 512] [--max-side N ...]
+[--render-eval K]``
 
 For ``--count`` renders (cycling over the caches' EVAL-split subject-views, :func:`subject_split`) it relights
 the field under an environment of :class:`EnvironmentSampler` (procedural skies and rooms plus the real maps
@@ -155,6 +156,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hdri", nargs="*", default=None, help="folders of real maps (default: shared hdri, hdri_more)")
     p.add_argument("--detectors", nargs="+", default=["yunet", "opencv"], choices=("yunet", "opencv"))
     p.add_argument("--yunet-weights", default=None, help="YuNet weights (default: $KORNIA_ILUM_YUNET_WEIGHTS, else the shared data's)")
+    p.add_argument("--max-side", type=int, nargs="*", default=[], metavar="N",
+                   help="also run each detector on a copy of each frame at most N px on its longer side (the "
+                   "fast path's downscaled detection; columns NAME@N), on the same renders")
     p.add_argument("--seed", type=int, default=0, help="environment seed (0)")
     p.add_argument("--min-subjects", type=int, default=10, help="eval subjects wanted (10)")
     p.add_argument("--render-eval", type=int, default=0, metavar="K", help="render K more eval seeds first")
@@ -185,7 +189,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.detectors:
         weights = args.yunet_weights or default_yunet_weights()
         kw = {"weights_path": weights} if name == "yunet" and weights else {}
-        detectors[name] = create_detector(name, **kw)
+        for side in [None, *args.max_side]:  # the same detector on downscaled copies: speed against faces
+            detectors[name if side is None else f"{name}@{side}"] = create_detector(name, max_side=side, **kw)
 
     rows, t0, fields = [], time.perf_counter(), {}
     seconds = {n: 0.0 for n in detectors}

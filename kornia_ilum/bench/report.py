@@ -43,14 +43,10 @@ def pareto_front(rows: list[dict[str, Any]]) -> list[str]:
         >>> pareto_front(rows)
         ['a', 'b']
     """
-    timed = [r for r in rows if r.get("b1_ms_per_crop") is not None and r.get("l_rec")]
-    front = []
-    for r in timed:
-        t, e = r["b1_ms_per_crop"], r["l_rec"]["diffuse"]
-        if not any(o["b1_ms_per_crop"] <= t and o["l_rec"]["diffuse"] <= e
-                   and (o["b1_ms_per_crop"] < t or o["l_rec"]["diffuse"] < e) for o in timed):
-            front.append(r["label"])
-    return front
+    timed = [(r["label"], r["b1_ms_per_crop"], round(r["l_rec"]["diffuse"], 4)) for r in rows
+             if r.get("b1_ms_per_crop") is not None and r.get("l_rec")]  # errors equal to 4 decimals tie
+    return [label for label, t, e in timed
+            if not any(ot <= t and oe <= e and (ot < t or oe < e) for _, ot, oe in timed)]
 
 
 def format_bench(result: dict[str, Any]) -> str:
@@ -128,23 +124,31 @@ def _figure(result: dict[str, Any], path: Path) -> bool:
     import matplotlib.pyplot as plt  # lazy: as matplotlib
 
     rows = [r for r in result["rows"] if r.get("b1_ms_per_crop") is not None and r.get("l_rec")]
-    fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=120)
+    fig, ax = plt.subplots(figsize=(8.5, 4.8), dpi=120)
     names = sorted({r["estimator"] for r in rows})
     colours = {n: plt.get_cmap("tab10")(i) for i, n in enumerate(names)}
     markers = {"eager": "o", "bf16": "s", "onnx": "^", "onnx-int8": "D", "compile": "P"}
     front = set(result.get("pareto", []))
     for r in rows:
         ax.scatter(r["b1_ms_per_crop"], r["l_rec"]["diffuse"], color=colours[r["estimator"]],
-                   marker=markers.get(r["runtime"], "o"), s=60 if r["label"] in front else 30,
+                   marker=markers.get(r["runtime"], "o"), s=70 if r["label"] in front else 35,
                    edgecolors="black" if r["label"] in front else "none", zorder=3)
-        ax.annotate(r["label"], (r["b1_ms_per_crop"], r["l_rec"]["diffuse"]), fontsize=7, xytext=(4, 3),
-                    textcoords="offset points")
+        if r["runtime"] == "eager" or r["label"] in front:  # the rest: by colour and marker (the legends)
+            ax.annotate(r["label"], (r["b1_ms_per_crop"], r["l_rec"]["diffuse"]), fontsize=7, xytext=(5, 4),
+                        textcoords="offset points")
+    ax.set_xscale("log")
     for r in result["rows"]:
         if r["runtime"] == "oracle" and r.get("l_rec"):
             ax.axhline(r["l_rec"]["diffuse"], color="grey", linestyle="--", linewidth=0.8)
-            ax.annotate(r["label"], (ax.get_xlim()[0], r["l_rec"]["diffuse"]), fontsize=7, color="grey",
-                        xytext=(2, 2), textcoords="offset points")
-    ax.set_xscale("log")
+            ax.text(0.01, r["l_rec"]["diffuse"], f" {r['label']}", transform=ax.get_yaxis_transform(), fontsize=7,
+                    color="grey", va="bottom")
+    used = sorted({r["runtime"] for r in rows}, key=list(markers).index)
+    runtime_legend = ax.legend([plt.Line2D([], [], marker=markers[u], color="grey", linestyle="") for u in used],
+                               used, title="runtime", fontsize=7, title_fontsize=7, loc="upper left",
+                               bbox_to_anchor=(1.01, 1.0))
+    ax.add_artist(runtime_legend)
+    ax.legend([plt.Line2D([], [], marker="o", color=colours[n], linestyle="") for n in names], names,
+              title="estimator", fontsize=7, title_fontsize=7, loc="lower left", bbox_to_anchor=(1.01, 0.0))
     ax.set_xlabel(f"ms per crop at batch 1 ({result['machine']['threads']} threads, {result['machine']['cpu']})",
                   fontsize=8)
     ax.set_ylabel("diffuse L_rec (" + result["error"]["short"] + ")", fontsize=8)
