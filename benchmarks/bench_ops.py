@@ -20,13 +20,13 @@ which it reports as PASS/FAIL (exit code 1 on FAIL).
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 from collections.abc import Callable
 
 import torch
 
+from kornia_ilum.bench import median_seconds
 from kornia_ilum.color import encode_srgb8, linear_to_srgb, quantize
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_latlong, mirror_ball_to_lights
 from kornia_ilum.render import Relight, relight, render_spheres, sphere_reflectance_field
@@ -34,15 +34,8 @@ from kornia_ilum.sh import sh_basis, sh_project
 
 
 def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 2) -> float:
-    """Median wall time of ``fn`` in milliseconds."""
-    for _ in range(warmup):
-        fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
+    """Median wall time of ``fn`` in milliseconds (:func:`kornia_ilum.bench.median_seconds`)."""
+    return 1e3 * median_seconds(fn, repeats, warmup)
 
 
 def row(name: str, ms: float, base_ms: float, extra: str = "") -> None:
