@@ -94,8 +94,9 @@ def metered_luminance(linear: torch.Tensor, sigma: float = METERING_SIGMA) -> to
 def _metering_map(height: int, width: int, sigma: float) -> torch.Tensor:
     """``LUMINANCE[c] * centre_weights(height, width, sigma)``, ``(3, H, W)`` float64: built once per size (its
     float64 ``exp`` cost a third of :func:`normalize_exposure`'s time when it was built per call)."""
-    lum = torch.tensor(LUMINANCE, dtype=torch.float64)
-    return lum[:, None, None] * centre_weights(height, width, sigma)
+    with torch.inference_mode(False):  # a normal tensor even when first built under inference_mode: autograd
+        lum = torch.tensor(LUMINANCE, dtype=torch.float64)  # may save it for backward later
+        return lum[:, None, None] * centre_weights(height, width, sigma)
 
 
 def normalize_exposure(

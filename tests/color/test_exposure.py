@@ -69,3 +69,14 @@ def test_module_and_errors():
         centre_weights(4, 4, sigma=0.0)
     with pytest.raises(ShapeError):
         metered_luminance(torch.rand(3, 8, 8))
+
+
+def test_the_cached_metering_map_serves_autograd_after_inference_mode():
+    from kornia_ilum.color.exposure import _metering_map
+
+    _metering_map.cache_clear()
+    with torch.inference_mode():
+        metered_luminance(torch.rand(1, 3, 8, 8, dtype=torch.float64))  # built here first
+    x = torch.rand(1, 3, 8, 8, dtype=torch.float64, requires_grad=True)
+    metered_luminance(x).sum().backward()
+    assert x.grad is not None and torch.isfinite(x.grad).all()
