@@ -25,14 +25,13 @@ import sys
 from pathlib import Path
 
 import cv2
-import skimage.data
 import torch
-import torch.nn.functional as F
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ops import median_ms  # noqa: E402  (the shared timing helper)
 
 from kornia_ilum import estimate_lighting  # noqa: E402
+from kornia_ilum.bench import portrait_photo  # noqa: E402
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes  # noqa: E402
 from kornia_ilum.estimators import create_estimator  # noqa: E402
 
@@ -41,10 +40,9 @@ DEFAULT_YUNET = Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", ROOT / ".." / "sh
 
 
 def test_image() -> torch.Tensor:
-    """The astronaut, resized to 480 x 480 and centred on a black 640 x 480 canvas: ``(1, 3, 480, 640)``."""
-    astronaut = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1)[None].float() / 255
-    face = F.interpolate(astronaut, size=(480, 480), mode="bilinear", antialias=True, align_corners=False)
-    return F.pad(face.clamp(0, 1), (80, 80, 0, 0))
+    """The astronaut, resized to 480 x 480 and centred on a black 640 x 480 canvas: ``(1, 3, 480, 640)``
+    (:func:`kornia_ilum.bench.portrait_photo`, the photo of ``kornia-ilum bench``'s end-to-end rows)."""
+    return torch.from_numpy(portrait_photo(640, 480)).permute(2, 0, 1)[None].float() / 255
 
 
 def main() -> int:

@@ -196,9 +196,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         "(B, 3, S, S) in, the estimate's fields out (mirror_ball in the units of the photo, valid, and "
         "log_mirror_ball or sh), with a dynamic batch. The file is written only if it passes its runtime's parity "
         f"check: for --runtime onnx, ONNX Runtime reproduces PyTorch's log(1 + L) within {PARITY_ATOL:g} on a "
-        f"probe batch; for --runtime onnx-int8, L_rec on the shipped probe's check half moves by at most "
+        f"probe batch; for --runtime onnx-int8, L_rec on the shipped probe's check part (256 portraits) moves by at most "
         f"{LREC_RTOL:.0%}. Needs pip install 'kornia_ilum[onnx]'. With --probe DIR, write the runtimes' probe "
-        "instead (64 training portraits of --cache under --hdri, with their lighting; the int8 calibration).",
+        "instead (320 training portraits of --cache under --hdri, with their lighting; the int8 calibration).",
     )
     exp.add_argument("--onnx", metavar="FILE", help="the .onnx file to write")
     exp.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default)")
@@ -320,7 +320,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     size = estimator.info.input_size
     value, tol, passed = runtime_parity(estimator, OnnxEstimator(model, runtime=args.runtime), args.runtime)
     what = ("max |log(1 + L)| difference to PyTorch" if args.runtime == "onnx"
-            else "largest relative change of L_rec on the probe's check half")
+            else "largest relative change of L_rec on the probe's check part")
     if not passed:
         raise RuntimeError(f"the {args.runtime} export of {name!r} fails its parity check: {what} {value:.3g} "
                            f"(at most {tol:g}); nothing was written")

@@ -107,8 +107,7 @@ def run_bench(
             notes.append(f"{name}: skipped ({e})")
             continue
         flops = estimator_flops(base)
-        variants = [(r, None) for r in runtimes] + ([("compile", None)] if compile else [])
-        for runtime, _ in variants:
+        for runtime in runtimes + (["compile"] if compile else []):
             reason = runtime_available(runtime) if runtime != "compile" else None
             if reason is not None:
                 notes.append(f"{name} under {runtime}: not run here ({reason})")
@@ -158,18 +157,15 @@ def run_bench(
             if r["estimator"] == name:
                 r["b1_speedup"] = eager["b1_ms_per_crop"] / r["b1_ms_per_crop"]
                 r["b32_speedup"] = eager["b32_ms_per_crop"] / r["b32_ms_per_crop"]
-        passing = [r for r in rows if r["estimator"] == name and r["runtime"] not in ("eager", "compile")
-                   and r["parity"]["passed"]]
-        picks = [r["runtime"] for o in AUTO_ORDER for r in passing if r["runtime"] == o]
-        auto[name] = picks[0] if picks else "eager"
+        passed = {r["runtime"] for r in rows if r["estimator"] == name and r.get("parity", {}).get("passed")}
+        auto[name] = next((o for o in AUTO_ORDER if o in passed), "eager")  # with_runtime("auto")'s rule
 
     say(f"error: {error_what}")
     t0 = time.perf_counter()
     results = _score(models, eval_set)
     summary = summarize(results, eval_set, reference="__none__")
-    for r in rows + [{"label": o, "estimator": o, "runtime": "oracle"} for o in ORACLES]:
-        if r["runtime"] == "oracle":
-            rows.append(r)
+    rows += [{"label": o, "estimator": o, "runtime": "oracle"} for o in ORACLES]
+    for r in rows:
         t1 = summary["table1_l_rec"].get(r["label"])
         if t1 is not None:
             r["l_rec"] = t1["all"]
@@ -185,7 +181,7 @@ def run_bench(
     for width, height in sizes:
         photo = portrait_photo(width, height)
         for det_name in e2e_detectors:
-            configs = [("eager", None), (fast, None), (fast, detect_side)]
+            configs = [("eager", None), (fast, None), (fast, detect_side)]  # today's path first: the baseline
             base_ms = None
             for runtime, side in configs:
                 model = models[_label(default, runtime)]

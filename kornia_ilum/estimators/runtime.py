@@ -88,7 +88,7 @@ ESTIMATE_FIELDS: tuple[str, ...] = ("mirror_ball", "valid", "log_mirror_ball", "
 #: The largest difference of ``log(1 + L)`` from eager float32 that a float32 runtime may have.
 PARITY_ATOL = 1e-4
 #: The largest relative change of mean ``L_rec`` (any sphere) from eager float32 that a reduced-precision
-#: runtime (``"bf16"``, ``"onnx-int8"``) may have on the probe's check half.
+#: runtime (``"bf16"``, ``"onnx-int8"``) may have on the probe's check part.
 LREC_RTOL = 0.01
 
 _OPSET = 18
@@ -321,7 +321,7 @@ def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
     Args:
         model: from :func:`export_onnx`.
         calibration: ``(N, 3, S, S)`` sRGB crops at the model's input size, from the training distribution
-            (the probe's :data:`~kornia_ilum.estimators.probe.CALIBRATION` half), never the eval split.
+            (the probe's :data:`~kornia_ilum.estimators.probe.CALIBRATION` part), never the eval split.
 
     Returns:
         the quantised model, with the exported model's metadata.
@@ -402,7 +402,7 @@ def onnx_model(estimator: LightingEstimator, runtime: str = "onnx", *, cache: bo
     Args:
         estimator: the estimator.
         runtime: ``"onnx"`` (:func:`export_onnx`) or ``"onnx-int8"`` (then :func:`quantize_int8` on the probe's
-            calibration half).
+            calibration part).
         cache: read and write :func:`cache_dir`; ``False`` always exports.
 
     Raises:
