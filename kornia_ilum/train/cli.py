@@ -70,6 +70,10 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="export the mean of the snapshots of the run's last fraction F of steps (stochastic "
                      "weight averaging; needs --snapshot-every; rerunning a finished run with it only "
                      "re-exports; default: 0, the last step's weights)")
+    cmd.add_argument("--calibrate-energy", type=int, default=d.calibrate_energy, metavar="N",
+                     help="at export, scale each colour channel so that the median estimated energy is the "
+                     "truth's on N fresh training portraits (L_rec's bias to dark; docs/training.rst; "
+                     "rerunning a finished run with it only re-exports; default: 0, off)")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--lambda-crop", type=float, default=d.lambda_crop,
@@ -95,7 +99,7 @@ def run_train(args: argparse.Namespace) -> int:
                          threads=args.threads, device=args.device, bf16=args.bf16,
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
                          log_every=args.log_every, snapshot_every=args.snapshot_every,
-                         average_tail=args.average_tail,
+                         average_tail=args.average_tail, calibrate_energy=args.calibrate_energy,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
                          lambda_energy=args.lambda_energy, init=args.init, model=dict(args.model),
                          data=dict(args.data))

@@ -86,6 +86,10 @@ class TrainConfig:
             nearer it than any one of them (measured once: docs/training.rst, "Twice the portraits"). Needs
             ``snapshot_every``; the networks have no batch statistics to recompute. Only the export depends on
             it, so a finished run exported again with it trains nothing.
+        calibrate_energy: after training, scale each output channel so that the median ratio of estimated to
+            true energy is 1 on this many fresh portraits of the training distribution (0: off;
+            :func:`~kornia_ilum.train.calibration.calibrate_energy`, which says why ``L_rec`` leaves a bias).
+            Only the export depends on it, as for ``average_tail``.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
@@ -122,6 +126,7 @@ class TrainConfig:
     log_every: int = 10
     snapshot_every: int = 0
     average_tail: float = 0.0
+    calibrate_energy: int = 0
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
     init: str | None = None
@@ -135,6 +140,9 @@ class TrainConfig:
         every = self.snapshot_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 0:
             raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
+        calibrate = self.calibrate_energy
+        if isinstance(calibrate, bool) or not isinstance(calibrate, int) or calibrate < 0:
+            raise ValueCheckError(f"calibrate_energy must be a non-negative integer, got {calibrate!r}")
         if not 0 <= self.average_tail < 1:
             raise ValueCheckError(f"average_tail must be in [0, 1), got {self.average_tail!r}")
         if self.average_tail > 0 and not self.snapshot_every:
@@ -167,7 +175,8 @@ class TrainConfig:
     def data_key(self) -> dict[str, Any]:
         """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree (a
         setting that a checkpoint predates counts as its default there)."""
-        skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every", "average_tail"}
+        skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every", "average_tail",
+                "calibrate_energy"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 
 

@@ -126,6 +126,16 @@ class Recipe:
         samples = dataset.samples(PROBE_STREAM)
         return collate([next(samples) for _ in range(PROBE_SIZE)])
 
+    def scale_output(self, estimator: nn.Module, gain: torch.Tensor) -> None:
+        """Multiply the lighting that ``estimator`` outputs by ``gain`` (``(3,)``, R, G, B), in place: the
+        energy calibration of :func:`~kornia_ilum.train.calibration.calibrate_energy`.
+
+        Raises:
+            ValueCheckError: the recipe cannot scale its estimator's output (the default).
+        """
+        raise ValueCheckError(f"the recipe of {self.name!r} cannot scale its estimator's output, so its energy "
+                              "cannot be calibrated")
+
 
 class OursRecipe(Recipe):
     """``ours``: :class:`~kornia_ilum.train.models.MultiScaleOurs` with the MSG-GAN discriminator."""
@@ -141,6 +151,11 @@ class OursRecipe(Recipe):
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
+
+    def scale_output(self, estimator: nn.Module, gain: torch.Tensor) -> None:
+        # ours outputs log radiance from its head: a gain is a constant on the head's bias, exactly
+        with torch.no_grad():
+            estimator.head.bias.add_(torch.log(gain).to(estimator.head.bias))
 
 
 def crop_pairs(crops: torch.Tensor, target: torch.Tensor, boxes: torch.Tensor, pairs: int

@@ -1,0 +1,79 @@
+r"""Energy calibration at export: scale each output channel so that the estimated energy is right on the median.
+
+The paper's ``L_rec`` compares gamma-encoded, soft-clipped spheres with an L1 norm. It is not symmetric in the
+scale of the light: a lighting too dark by a factor costs less than one too bright by it
+(``benchmarks/lrec_scale.py``; docs/training.rst, "Why the energy drifts low"), so under uncertainty a
+network trained on it settles below the true energy. :func:`calibrate_energy` measures that bias after
+training, on fresh portraits of the **training** distribution (training subjects, training environments, a
+data stream that no training step draws), and folds it into the estimator's output as one gain per channel:
+
+.. math::
+
+    g_c = \exp\Big(\operatorname{median}_i \log \frac{E_c(\text{true}_i)}{E_c(\text{pred}_i)}\Big),
+
+with :math:`E_c` the lighting's radiance summed over the sphere (:func:`~kornia_ilum.metrics.total_radiance`).
+A gain changes no direction and no ratio between two estimates (the crop and transfer checks keep their
+values); it moves the median of the energy's ratio to the truth to 1 on the training distribution. It never
+reads the evaluation split. The recipe applies the gain (:meth:`~kornia_ilum.train.recipes.Recipe.scale_output`;
+for ``ours``, a constant added to the head's log-radiance bias: exact).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.metrics import total_radiance
+from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.train.data import collate
+from kornia_ilum.train.recipes import PROBE_STREAM, Recipe
+
+__all__ = ["CALIBRATION_STREAM", "calibrate_energy", "energy_log_ratios"]
+
+#: The data stream of the calibration portraits: neither a training stream (``rank * workers + k``) nor the
+#: float16 probe's (:data:`~kornia_ilum.train.recipes.PROBE_STREAM`).
+CALIBRATION_STREAM = PROBE_STREAM - 1
+
+
+def energy_log_ratios(estimator: torch.nn.Module, dataset: PortraitDataset, samples: int,
+                      batch: int = 32) -> torch.Tensor:
+    r"""``log(E_true / E_pred)`` per portrait and channel, :math:`(N, 3)` float64, on ``samples`` portraits of
+    ``dataset``'s :data:`CALIBRATION_STREAM` (the estimator runs in float32, without gradients).
+
+    Raises:
+        ValueCheckError: ``samples`` is not positive, or an estimate has no energy in some channel.
+    """
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
+        raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
+    stream = dataset.samples(CALIBRATION_STREAM)
+    ratios = []
+    with torch.no_grad():
+        for start in range(0, samples, batch):
+            chunk = collate([next(stream) for _ in range(min(batch, samples - start))])
+            pred = estimator(chunk["image"].float() / 255.0).mirror_ball
+            ratios.append(torch.log(total_radiance(chunk["mirror_ball"], torch.float64))
+                          - torch.log(total_radiance(pred, torch.float64)))
+    out = torch.cat(ratios)
+    if not torch.isfinite(out).all():
+        raise ValueCheckError("an estimate or a truth of the calibration portraits has no energy in a channel; "
+                              "the energy cannot be calibrated")
+    return out
+
+
+def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: PortraitDataset,
+                     samples: int) -> dict[str, Any]:
+    r"""Scale ``estimator``'s output per channel, in place, by the gain of the module's docstring.
+
+    Returns:
+        ``{"samples", "gain", "median_ratio_before", "median_ratio_after"}`` (the ratios are
+        ``E_pred / E_true`` per channel, R, G, B), for the run's ``summary.json``.
+    """
+    before = energy_log_ratios(estimator, dataset, samples)
+    gain = torch.exp(before.median(0).values)
+    recipe.scale_output(estimator, gain)
+    after = energy_log_ratios(estimator, dataset, samples)
+    return {"samples": samples, "gain": gain.tolist(),
+            "median_ratio_before": torch.exp(-before.median(0).values).tolist(),
+            "median_ratio_after": torch.exp(-after.median(0).values).tolist()}
