@@ -139,7 +139,7 @@ class OursEstimator(LightingEstimator):
         input_size=_INPUT_SIZE,
         weights=(
             WeightFile(
-                "ours.safetensors", "37c3a5085c9452a4d84e8370e8cacfc1a5b21206906193de071bfc6318e799bb"
+                "ours.safetensors", "9435f49c599dae2a11b39529a13224fa66f68aaa779fe59d4475f6a066db6385"
             ),
         ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",

@@ -223,7 +223,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         about_photos = {"photo_names": names, "photos_left_out": no_face, "detector": detector}
         for name, reason in no_face.items():
             print(f"exposure check: {name} left out: {reason}")
-    weights = dict(getattr(args, "weights", None) or [])
+    weights = list(getattr(args, "weights", None) or [])
     batch_size = getattr(args, "batch_size", 32)
     runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, batch_size=batch_size,
                           **options) if checks else None

@@ -396,7 +396,7 @@ def load_checkpoint(name: str, weights: str | os.PathLike[str]) -> tuple[Lightin
 def evaluate(
     eval_set: EvalSet,
     estimators: Sequence[str] | None = None,
-    weights: dict[str, str | os.PathLike[str]] | None = None,
+    weights: Mapping[str, str | os.PathLike[str]] | Sequence[tuple[str, str | os.PathLike[str]]] | None = None,
     oracles: bool = True,
     batch_size: int = 32,
     *,
@@ -409,8 +409,8 @@ def evaluate(
     Args:
         eval_set: from :func:`build_eval_set`.
         estimators: registered names (``None``: all of :func:`~kornia_ilum.estimators.list_estimators`).
-        weights: ``{name: checkpoint.safetensors}``, each scored as ``"name@file"`` (the class of ``name``,
-            :func:`load_checkpoint`).
+        weights: ``{name: checkpoint.safetensors}``, or ``(name, checkpoint)`` pairs to score several files of
+            one class, each scored as ``"name@file"`` (the class of ``name``, :func:`load_checkpoint`).
         oracles: also score :data:`ORACLES`.
         batch_size: crops per forward pass.
         checks: called as ``checks(estimator, prediction)`` for every scored estimator (not the oracles, which
@@ -435,7 +435,13 @@ def evaluate(
         check_positive_int(tta, "tta")
     names = list(list_estimators() if estimators is None else estimators)
     jobs: list[tuple[str, str, Any]] = [(n, n, None) for n in names]
-    jobs += [(f"{n}@{Path(p).name}", n, p) for n, p in (weights or {}).items()]
+    pairs = list(weights.items() if isinstance(weights, Mapping) else weights or ())
+    jobs += [(f"{n}@{Path(p).name}", n, p) for n, p in pairs]
+    labels = [label for label, _, _ in jobs]
+    repeated = sorted({label for label in labels if labels.count(label) > 1})
+    if repeated:
+        raise ValueCheckError(f"two methods would both be reported as {repeated}: give the weight files "
+                              "different names")
     methods: dict[str, Any] = {}
     skipped: dict[str, str] = {}
     gt = eval_set.mirror_ball

@@ -10,7 +10,9 @@ r"""Training of the lighting estimators on the virtual light stage (``kornia-ilu
 - :func:`training_losses`, :data:`BRDF_WEIGHTS` (:mod:`kornia_ilum.train.losses`): the losses;
 - :class:`MultiScaleOurs`, :class:`MSGDiscriminator` (:mod:`kornia_ilum.train.models`): the training-only
   networks of ``ours``;
-- :func:`export_weights`, :func:`read_log`, :func:`save_snapshot`, :func:`average_snapshots`.
+- :func:`export_weights`, :func:`read_log`, :func:`save_snapshot`, :func:`average_snapshots`;
+- :func:`~kornia_ilum.train.calibration.calibrate_energy` (:mod:`kornia_ilum.train.calibration`): the energy
+  gain of ``--calibrate-energy`` at export.
 
 ``import kornia_ilum`` never imports this package; importing it loads the light stage's data code
 (:mod:`kornia_ilum.synth`). The data and the networks are built by :func:`train`.

@@ -166,6 +166,17 @@ class TestWeights:
         assert "sha256" not in results["methods"]["uniform"]  # nothing to record: no weight file
         assert results["skipped"] == {}
 
+    def test_several_files_of_one_class_are_all_scored(self, eval_set, tmp_path) -> None:
+        (tmp_path / "b").mkdir()
+        first, second = tmp_path / "a.safetensors", tmp_path / "c.safetensors"
+        same_name = tmp_path / "b" / "a.safetensors"
+        for path in (first, second, same_name):
+            _checkpoint(path)
+        results = evaluate(eval_set, [], [("ours", first), ("ours", second)], oracles=False)
+        assert set(results["methods"]) == {"ours@a.safetensors", "ours@c.safetensors"}
+        with pytest.raises(ValueCheckError, match="different names"):
+            evaluate(eval_set, [], [("ours", first), ("ours", same_name)], oracles=False)
+
 
 def test_evaluate_scores_each_estimator_with_test_time_augmentation_too(eval_set) -> None:
     """``tta=N`` adds ``name+ttaN``: the wrapped estimator's scores and checks, beside the plain ones."""
