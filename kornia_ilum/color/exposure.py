@@ -22,6 +22,7 @@ from torch import nn
 
 from kornia_ilum.color.transfer import linear_to_srgb, srgb_to_linear
 from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.dtypes import HALF, saturating_cast
 from kornia_ilum.core.errors import ValueCheckError
 
 __all__ = [
@@ -117,7 +118,7 @@ def normalize_exposure(
 
     Returns:
         ``(normalised, scale)``: :math:`(B, 3, H, W)` sRGB in ``[0, 1]`` and :math:`(B,)`, both in the dtype of
-        ``srgb``.
+        ``srgb`` (half precision computed in float32, saturating on the way back).
 
     Examples:
         >>> x = torch.rand(2, 3, 16, 16)
@@ -129,6 +130,9 @@ def normalize_exposure(
     """
     if not key > 0:
         raise ValueCheckError(f"key must be positive, got {key}")
+    if srgb.dtype in HALF:  # a dark crop's gain and its gradient overflow float16: computed in float32
+        normalised, scale = normalize_exposure(saturating_cast(srgb, torch.float32), key, sigma)
+        return saturating_cast(normalised, srgb.dtype), saturating_cast(scale, srgb.dtype)
     linear = srgb_to_linear(srgb)
     metered = metered_luminance(linear, sigma).clamp(min=_DARKEST)
     gain = (key / metered)[:, None, None, None]

@@ -17,6 +17,7 @@ from kornia.color import linear_rgb_to_rgb, rgb_to_linear_rgb
 from torch import nn
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.dtypes import HALF, saturating_cast
 from kornia_ilum.core.errors import ValueCheckError
 
 __all__ = [
@@ -49,7 +50,7 @@ def linear_to_srgb(image: torch.Tensor) -> torch.Tensor:
         image: linear RGB of shape :math:`(*, 3, H, W)`.
 
     Returns:
-        sRGB-encoded image of the same shape.
+        sRGB-encoded image of the same shape and dtype (half precision computed in float32, saturating).
 
     Examples:
         >>> linear_to_srgb(torch.full((3, 1, 1), 0.5)).flatten()
@@ -59,6 +60,8 @@ def linear_to_srgb(image: torch.Tensor) -> torch.Tensor:
     if torch.compiler.is_exporting():
         t = 0.0031308
         return _blend(image > t, 1.055 * torch.pow(image.clamp(min=t), 1 / 2.4) - 0.055, 12.92 * image)
+    if image.dtype in HALF:  # computed in float32, saturating on the way back (kornia_ilum.core.dtypes)
+        return saturating_cast(linear_rgb_to_rgb(saturating_cast(image, torch.float32)), image.dtype)
     return linear_rgb_to_rgb(image)
 
 
@@ -69,7 +72,8 @@ def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
         image: sRGB image of shape :math:`(*, 3, H, W)`, normally in ``[0, 1]``.
 
     Returns:
-        linear RGB of the same shape.
+        linear RGB of the same shape and dtype (half precision computed in float32; a value beyond the dtype's
+        range saturates at its largest finite value).
 
     Examples:
         >>> srgb_to_linear(torch.full((3, 1, 1), 0.5)).flatten()
@@ -78,6 +82,8 @@ def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
     check_tensor(image, "image", ["*", "3", "H", "W"])
     if torch.compiler.is_exporting():
         return _blend(image > 0.04045, torch.pow((image + 0.055).clamp(min=0.0) / 1.055, 2.4), image / 12.92)
+    if image.dtype in HALF:  # computed in float32, saturating on the way back (kornia_ilum.core.dtypes)
+        return saturating_cast(rgb_to_linear_rgb(saturating_cast(image, torch.float32)), image.dtype)
     return rgb_to_linear_rgb(image)
 
 

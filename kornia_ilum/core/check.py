@@ -89,9 +89,10 @@ def check_tensor(
         shape: expected shape as a list of dimension names. A name that is a number must match exactly,
             a leading ``"*"`` accepts any number of leading dimensions, and ``"3|1"`` accepts either size.
         floating: require a floating-point dtype.
-        finite: require every value to be finite (skipped while compiling).
+        finite: require every value to be finite (skipped while compiling, and for a ``meta`` tensor, which
+            has no values).
         nonempty: require no zero-sized dimension.
-        nonnegative: require every value to be ``>= 0`` (skipped while compiling).
+        nonnegative: require every value to be ``>= 0`` (skipped while compiling and for ``meta``).
 
     Raises:
         TypeCheckError: ``x`` is no tensor, or has the wrong dtype.
@@ -139,8 +140,8 @@ def check_tensor(
         )
     if torch.compiler.is_compiling() or torch.jit.is_tracing():  # a value scan would be baked into the graph
         return
-    if not (finite or nonnegative) or not x.is_floating_point() or x.numel() == 0:
-        return
+    if not (finite or nonnegative) or not x.is_floating_point() or x.numel() == 0 or x.is_meta:
+        return  # a meta tensor has a shape and no values: a shape-only pass checks what it can
     lo, hi = torch.aminmax(x.detach())  # one pass over the data; NaN propagates into both
     lo, hi = float(lo), float(hi)
     if finite and not (math.isfinite(lo) and math.isfinite(hi)):
@@ -155,7 +156,7 @@ def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
 
     Returns:
         ``(min, max)`` as floats; ``None`` when checks are off (:func:`checks_active`), while compiling, or for
-        an empty or integer tensor.
+        an empty, integer or ``meta`` tensor.
 
     Raises:
         NonFiniteError: ``x`` holds NaN or Inf.
@@ -169,7 +170,7 @@ def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
         kornia_ilum.core.errors.NonFiniteError: image must be finite, but it holds NaN or Inf
     """
     if (not checks_active() or torch.compiler.is_compiling() or torch.jit.is_tracing() or not x.is_floating_point()
-            or x.numel() == 0):
+            or x.numel() == 0 or x.is_meta):
         return None
     lo, hi = (float(v) for v in torch.aminmax(x.detach()))  # one pass; NaN propagates into both
     if not (math.isfinite(lo) and math.isfinite(hi)):

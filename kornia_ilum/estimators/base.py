@@ -397,7 +397,8 @@ def check_crops(crops: Tensor, size: int = 256, *, values: bool = True) -> None:
             "convert 8-bit images with image.float() / 255"
         )
     check_tensor(crops, "crops", ["B", "3", str(size), str(size)], finite=False)
-    if not values or not checks_active() or torch.compiler.is_compiling() or torch.jit.is_tracing():
+    if (not values or not checks_active() or torch.compiler.is_compiling() or torch.jit.is_tracing()
+            or crops.is_meta):
         return
     lo, hi = (float(v) for v in torch.aminmax(crops.detach()))  # one pass; NaN propagates into both
     check_crop_range(lo, hi)

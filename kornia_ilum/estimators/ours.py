@@ -39,6 +39,7 @@ training model, never run at inference and are not in the shipped weights.
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import torch
@@ -47,6 +48,7 @@ from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int, trusted
+from kornia_ilum.core.dtypes import saturating_cast
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
@@ -70,6 +72,11 @@ PAPER = (
     '"Learning Illumination from Diverse Portraits", SIGGRAPH Asia 2020 Technical Communications, '
     "doi:10.1145/3410700.3425432"
 )
+
+
+def _no_autocast(device: torch.device) -> contextlib.AbstractContextManager:
+    """Autocast off on ``device`` (nothing to turn off on ``meta``, where ``torch.autocast`` refuses)."""
+    return contextlib.nullcontext() if device.type == "meta" else torch.autocast(device.type, enabled=False)
 
 
 def build_encoder(latent_dim: int = 1024) -> tuple[nn.Sequential, nn.Linear]:
@@ -193,14 +200,15 @@ class OursEstimator(LightingEstimator):
         """
         dtype = self.head.weight.dtype
         work = torch.promote_types(dtype, torch.float32)  # the exposure and its log: never in bfloat16
-        with torch.autocast(crops.device.type, enabled=False):
+        with _no_autocast(crops.device):
             if self.normalize_exposure:
                 with trusted():  # the raw network: forward() checked the crops once, where they entered
                     crops, scale = normalize_exposure(crops.to(work))
                 log_scale = torch.log(scale)[:, None, None, None]
             else:
                 log_scale = crops.new_zeros(crops.shape[0], 1, 1, 1, dtype=work)
-        latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
+        with trusted():  # the layers' own checks would scan every activation; the crops were checked
+            latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
         x = self.from_latent(latent).reshape(-1, _BOTTLENECK_DEPTH, _BOTTLENECK_SIDE, _BOTTLENECK_SIDE)
         features = []
         for block in self.decoder:
@@ -208,18 +216,18 @@ class OursEstimator(LightingEstimator):
             features.append(x)
             x = self.upsample(x)
         log_radiance = self.head(x)
-        with torch.autocast(log_radiance.device.type, enabled=False):
+        with _no_autocast(log_radiance.device):
             return log_radiance.to(work) + log_scale, features, log_scale
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
         log_radiance, _, _ = self.decode(crops)
-        with torch.autocast(log_radiance.device.type, enabled=False):
+        with _no_autocast(log_radiance.device):
             y = log_radiance.float()
             mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)
             log_mirror_ball = torch.where(self.valid, F.softplus(y), 0.0)
-        return LightingEstimate(
-            mirror_ball=mirror_ball.to(dtype).contiguous(),
+        return LightingEstimate(  # a half-precision model saturates at its dtype's largest finite value
+            mirror_ball=saturating_cast(mirror_ball, dtype).contiguous(),
             valid=self.valid,
             log_mirror_ball=log_mirror_ball.to(dtype).contiguous(),
         )

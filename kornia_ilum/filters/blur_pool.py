@@ -37,7 +37,7 @@ def blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2) -> t
         >>> blur_pool2d(torch.ones(1, 2, 8, 8)).shape
         torch.Size([1, 2, 4, 4])
     """
-    check_tensor(input, "input", ["B", "C", "H", "W"], finite=False)
+    check_tensor(input, "input", ["B", "C", "H", "W"])
     return kornia.filters.blur_pool2d(input, kernel_size, stride)
 
 
@@ -50,5 +50,5 @@ class BlurPool2D(kornia.filters.BlurPool2D):
     """
 
     def forward(self, input: torch.Tensor) -> torch.Tensor:
-        check_tensor(input, "input", ["B", "C", "H", "W"], finite=False)
+        check_tensor(input, "input", ["B", "C", "H", "W"])
         return super().forward(input)

@@ -64,7 +64,7 @@ def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
     check_tensor(x, "x", None, finite=False, nonempty=False)
     if not (isinstance(sharpness, (int, float)) and sharpness > 0 and math.isfinite(sharpness)):
         raise ValueCheckError(f"sharpness must be a finite positive number, got {sharpness!r}")
-    if checks_active() and not torch.compiler.is_compiling() and bool(torch.isnan(x).any()):
+    if checks_active() and not torch.compiler.is_compiling() and not x.is_meta and bool(torch.isnan(x).any()):
         raise NonFiniteError("x must not hold NaN")
     return soft_clip_unchecked(x, float(sharpness))
 

@@ -358,6 +358,8 @@ def _area_dense(src: tuple[str, int], tgt: tuple[str, int]) -> torch.Tensor:
 @compiler_disable
 def _apply_sparse(x: torch.Tensor, mat: torch.Tensor, mat_t: torch.Tensor) -> torch.Tensor:
     """``(B, C, N) -> (B, C, T)`` through the CSR operator (kept out of ``torch.compile`` graphs)."""
+    if x.is_meta:  # a shape-only pass: sparse kernels have no meta implementation
+        return x.new_empty(*x.shape[:2], mat.shape[0])
     return _SparseLinear.apply(x.reshape(-1, x.shape[-1]), mat, mat_t).reshape(*x.shape[:2], -1)
 
 

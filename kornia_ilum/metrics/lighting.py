@@ -13,6 +13,7 @@ import torch
 from torch import nn
 
 from kornia_ilum.core.check import check_choice, check_positive_int, check_tensor, checks_active
+from kornia_ilum.core.dtypes import HALF, saturating_cast
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry.mirror_ball import (
     mirror_ball_solid_angles,
@@ -224,7 +225,9 @@ def multiscale_reconstruction_loss(
 def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) -> torch.Tensor:
     r"""Each channel's radiance summed over the sphere, weighted by each pixel's exact solid angle
     (:func:`~kornia_ilum.geometry.mirror_ball_solid_angles`, 0 outside the ball): ``(B, 3)``, computed in
-    ``dtype`` (default: the input's). A uniform lighting of radiance 1 gives :math:`4\pi`.
+    ``dtype`` (default: the input's; half precision is summed in float32 and saturates at the dtype's largest
+    finite value on the way back, :mod:`kornia_ilum.core.dtypes`). A uniform lighting of radiance 1 gives
+    :math:`4\pi`. Raises :class:`~kornia_ilum.core.errors.NonFiniteError` on NaN or Inf.
 
     Examples:
         >>> import math
@@ -232,6 +235,9 @@ def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) 
         >>> bool(torch.allclose(t, torch.full((1, 3), 4 * math.pi, dtype=torch.float64)))
         True
     """
+    check_tensor(mirror_ball, "mirror_ball", ["*", "C", "S", "S"])
+    if dtype is None and mirror_ball.dtype in HALF:  # summed in float32, saturating on the way back
+        return saturating_cast(total_radiance(mirror_ball, torch.float32), mirror_ball.dtype)
     work = mirror_ball.dtype if dtype is None else dtype
     omega = mirror_ball_solid_angles(mirror_ball.shape[-1], device=mirror_ball.device, dtype=work)
     return (mirror_ball.to(work) * omega).sum((-2, -1))
@@ -272,7 +278,7 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     check_tensor(target, "target", ["B", "3", "S", "S"], nonnegative=True)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
     total_gt, total_pred = total_radiance(target, work), total_radiance(pred, work)
-    if checks_active() and not torch.compiler.is_compiling() and bool((total_gt <= 0).any()):
+    if checks_active() and not torch.compiler.is_compiling() and not total_gt.is_meta and bool((total_gt <= 0).any()):
         raise ValueCheckError(
             "target must have a positive total radiance in every channel (it is the denominator)"
         )
