@@ -294,13 +294,17 @@ class _PlanBuffers(nn.Module):
         self.register_buffer("index", plan.index.clone(), persistent=False)
         self.register_buffer("order", None if plan.order is None else plan.order.clone(), persistent=False)
         self.counts = _counts(sizes)
+        self._plan_sizes = tuple(sizes)
 
     def _plan(self, dtype: torch.dtype) -> SpherePlan:
+        if dtype == torch.float64:  # the float64 field, not the float32 buffer rounded up (class docstrings)
+            return sphere_plan((self.brdf,), self._plan_sizes, self.lighting_size, self.field.device, dtype)
         return SpherePlan(self.field.to(dtype), self.index, self.order)
 
 
 class ReconstructionLoss(_PlanBuffers):
-    r"""Module twin of :func:`reconstruction_loss`; the sphere's field is a non-persistent buffer.
+    r"""Module twin of :func:`reconstruction_loss`; the sphere's field is a non-persistent float32 buffer (float64
+    inputs use the functional's float64 field instead, so they are not rounded through float32).
 
     Args:
         brdf: the sphere, ``"diffuse"``, ``"matte_silver"`` or ``"mirror"``.

@@ -720,7 +720,11 @@ def sphere_pyramid(
 
 
 class RenderSpheres(nn.Module):
-    r"""Module twin of :func:`render_spheres`; the fields are non-persistent buffers.
+    r"""Module twin of :func:`render_spheres`; the fields are non-persistent float32 buffers.
+
+    Float32 and half-precision lighting is rendered through the buffers (cast to the lighting's dtype);
+    float64 lighting through the float64 fields of :func:`render_spheres`, so that it is not rounded through
+    float32 (the two agree to float32 precision, about 1e-8 relative).
 
     Args:
         size: side of the sphere renders, one of :data:`SPHERE_SIZES`.
@@ -746,6 +750,8 @@ class RenderSpheres(nn.Module):
 
     def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:
         check_sphere_lighting(lighting, size=self.lighting_size)
+        if lighting.dtype == torch.float64:  # the float64 fields, not the float32 buffers
+            return render_spheres(lighting, self.size, self.brdfs)
         lights = mirror_ball_to_lights(lighting)
         return {
             b: relight(getattr(self, f"field_{b}").to(lighting.dtype), lights, self.size) for b in self.brdfs

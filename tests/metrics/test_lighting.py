@@ -33,6 +33,15 @@ def _l_rec_reference(pred, target, brdf, size):
     return (a - b).abs()[..., valid].mean((1, 2))
 
 
+def test_loss_modules_keep_float64_exact():
+    """float64 inputs are not rounded through the modules' float32 buffers (issue 24)."""
+    pred, target = hdr_lighting(2, seed=1, dtype=F64), hdr_lighting(2, seed=2, dtype=F64)
+    expected = reconstruction_loss(pred, target, "mirror", 16).item()
+    assert ReconstructionLoss("mirror", 16)(pred, target).item() == expected
+    assert (MultiscaleReconstructionLoss("diffuse")(pred, target).item()
+            == multiscale_reconstruction_loss(pred, target, "diffuse").item())
+
+
 class TestReconstructionLoss:
     def test_smoke(self, device, dtype):
         pred = hdr_lighting(seed=1, dtype=dtype).to(device)

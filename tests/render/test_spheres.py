@@ -216,6 +216,12 @@ class TestRenderSpheres:
             torch.testing.assert_close(render, expected[name])
         assert "field_diffuse" not in module.state_dict()  # non-persistent buffers
 
+    def test_module_keeps_float64_exact(self):
+        """float64 lighting is not rounded through the module's float32 buffers (issue 24)."""
+        lighting = torch.rand(2, 3, 32, 32, dtype=F64)
+        got, expected = RenderSpheres(16)(lighting), render_spheres(lighting, 16)
+        assert all(torch.equal(got[k], expected[k]) and got[k].dtype == F64 for k in expected)
+
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
         lighting = torch.rand(2, 3, 32, 32, dtype=F64)
