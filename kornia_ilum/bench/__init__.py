@@ -7,7 +7,8 @@ run on the machine at hand, beside that machine's measured limits.
   and one photo from file to ``.exr`` stage by stage;
 - :func:`run_bench` (:mod:`kornia_ilum.bench.run`): the whole run;
 - :func:`format_bench`, :func:`write_bench`, :data:`PAPER` (:mod:`kornia_ilum.bench.report`): Markdown, JSON and
-  the Pareto figure, with the paper's published numbers labelled as another dataset and device.
+  the Pareto figure, with the paper's published numbers labelled as another dataset and device;
+- :mod:`kornia_ilum.bench.stress`: the numerical stress table of the public ops (``benchmarks/bench_stress.py``).
 
 ``import kornia_ilum`` never imports this package (it loads the evaluation and the light stage's data code).
 """

@@ -308,3 +308,27 @@ class TestPromoteSpheres:
         chunked = promote_spheres(*images)
         assert whole.solved.tolist() == [True, True, True, False, True]
         torch.testing.assert_close(chunked.lighting, whole.lighting, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("case", ["every pixel clipped", "all dark", "one bright pixel"])
+@pytest.mark.parametrize("method", ["torch", "scipy", "auto"])
+def test_promotion_under_stress_converges_and_stays_non_negative(case, method):
+    """Issue 24: the three degenerate probes give finite, non-negative lighting with every solver."""
+    valid = mirror_ball_valid(32)
+
+    def ball(code: int) -> torch.Tensor:
+        return (torch.full((1, 3, 32, 32), code, dtype=torch.uint8) * valid).to(torch.uint8)
+
+    if case == "every pixel clipped":
+        spheres = (ball(255), ball(255), ball(255))
+    elif case == "all dark":
+        spheres = (ball(0), ball(0), ball(0))
+    else:
+        mirror = ball(10)
+        mirror[0, :, 12, 20] = 255
+        spheres = (mirror, ball(40), ball(40))
+    out = promote_spheres(*spheres, method=method)
+    assert torch.isfinite(out.lighting).all() and (out.lighting >= 0).all()
+    assert out.solved.tolist() == [case != "all dark"]  # nothing clipped: nothing to solve
+    assert int(out.clipped.sum()) == {"every pixel clipped": int(valid.sum()), "all dark": 0, "one bright pixel": 1}[case]
+

@@ -129,6 +129,30 @@ class _Penalised(Recipe):
         return {"bright": 0.25 * pred[32].mean()}
 
 
+@pytest.mark.parametrize("lighting", ["sun 1e5 over 1e-3", "all 1e-6", "all 1e4"])
+def test_ours_steps_stay_finite_on_extreme_lighting(lighting) -> None:
+    """A sun-dominated environment and exposure extremes: finite losses, gradients and weights (issue 24)."""
+    torch.manual_seed(0)
+    model, disc = OursRecipe().build()
+    valid = mirror_ball_valid(32)
+    target = {"sun 1e5 over 1e-3": torch.full((2, 3, 32, 32), 1e-3), "all 1e-6": torch.full((2, 3, 32, 32), 1e-6),
+              "all 1e4": torch.full((2, 3, 32, 32), 1e4)}[lighting]
+    if lighting.startswith("sun"):
+        target[:, :, 9, 20] = 1e5
+    target = target * valid
+    crops = torch.rand(2, 3, 256, 256)
+    opt_g = torch.optim.Adam(model.parameters(), lr=1.5e-4)
+    opt_d = torch.optim.Adam(disc.parameters(), lr=1.5e-6)
+    config = TrainConfig(out="-", cache=("-",), lambda_energy=0.5)
+    runtime = RuntimeSettings(bf16=False, channels_last=False, workers=0)
+    losses = train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
+                        config=config, runtime=runtime, recipe=OursRecipe())
+    assert all(torch.isfinite(v).all() for v in losses.values()), losses
+    for net in (model, disc):
+        assert all(p.grad is None or torch.isfinite(p.grad).all() for p in net.parameters())
+        assert all(torch.isfinite(p).all() for p in net.parameters())
+
+
 class TestTrainStep:
     def _run(self, recipe: Recipe | None, disc: nn.Module | None = None) -> tuple[dict, nn.Module]:
         torch.manual_seed(0)
