@@ -502,3 +502,23 @@ class TestTTA:
             estimate_lighting(astronaut, tta="4")
         with pytest.raises(TypeCheckError, match=r"tta must be an int, got bool"):
             estimate_lighting(astronaut, tta=True)
+
+
+@pytest.mark.parametrize("estimator", ["ours", "uniform"])
+def test_an_estimate_computes_no_sphere_render_and_no_sh(estimator, monkeypatch) -> None:
+    """Issue 24: inference runs no training-only branch, renders no sphere and projects no SH unless asked."""
+    import kornia_ilum.estimators.base as base  # the preview's and render_spheres' own reference
+    import kornia_ilum.render.spheres as spheres  # noqa: F401 - the module patched below
+    import kornia_ilum.sh.harmonics as harmonics  # noqa: F401 - the module patched below
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("computed without being asked for")
+
+    for module, name in ((base, "render_spheres"), (spheres, "render_spheres"), (spheres, "render_plan"),
+                         (harmonics, "sh_project"), (harmonics, "sh_reconstruct")):
+        monkeypatch.setattr(module, name, refuse)
+    est = estimate_lighting(skimage.data.astronaut(), estimator=estimator)
+    assert torch.isfinite(est.mirror_ball).all() and est.sh is None
+    if estimator == "ours":
+        names = create_estimator("ours").state_dict()
+        assert not any(k.startswith("sides") for k in names)  # MultiScaleOurs.sides, the training branches

@@ -56,8 +56,9 @@ def saturating_cast(x: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
     a float16 input computed in float32 never gets an infinite gradient.
 
     Examples:
-        >>> saturating_cast(torch.tensor([1e6, -1e6, 1.0]), torch.float16)
-        tensor([ 65504., -65504.,      1.], dtype=torch.float16)
+        >>> y = saturating_cast(torch.tensor([1e6, -1e6, 1.0]), torch.float16)
+        >>> y.dtype, y.tolist()
+        (torch.float16, [65504.0, -65504.0, 1.0])
     """
     if x.dtype == dtype:
         return x
