@@ -41,13 +41,14 @@ from kornia_ilum.estimators import (
     LightingEstimator,
     TestTimeAugmented,
     create_estimator,
+    fuse_faces,
     with_runtime,
 )
 from kornia_ilum.io import read_ldr
 
 __all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box"]
 
-_FACES = ("largest", "all")
+_FACES = ("largest", "all", "fused")
 _FALLBACKS = (None, "full_image")
 _ACCEPTED = (
     "a (3, H, W) or (B, 3, H, W) float torch.Tensor in [0, 1], a NumPy array (H, W), (H, W, 1), (H, W, 3) "
@@ -229,7 +230,7 @@ def estimate_lighting(
     image: torch.Tensor | np.ndarray | str | os.PathLike[str],
     estimator: str | LightingEstimator | None = None,
     detector: str | FaceDetector = DEFAULT_DETECTOR,
-    faces: Literal["largest", "all"] = "largest",
+    faces: Literal["largest", "all", "fused"] = "largest",
     fallback: Literal["full_image"] | None = None,
     bgr: bool = False,
     device: str | torch.device | None = None,
@@ -257,7 +258,9 @@ def estimate_lighting(
             :func:`kornia_ilum.detection.list_detectors`; created once per name) or a
             :class:`~kornia_ilum.detection.FaceDetector` instance.
         faces: ``"largest"`` keeps the largest face box of each image; ``"all"`` keeps every face, in
-            the detector's order (most confident first).
+            the detector's order (most confident first); ``"fused"`` estimates from every face and returns
+            one lighting per image, their weighted geometric mean (:func:`~kornia_ilum.estimators.fuse_faces`;
+            weights: the detector's score times the box's side), for photos whose light is distant.
         fallback: ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` when an image has no
             face; ``"full_image"`` uses the largest centred square of that image as the crop instead
             (the paper's no-face variant, see :func:`full_image_box`).
@@ -358,15 +361,17 @@ def estimate_lighting(
     size = est.info.input_size
     height, width = batch.shape[-2:]
 
-    crop_boxes, boxes, index = [], [], []
+    crop_boxes, boxes, index, scores = [], [], [], []
     detections = det.detect(batch, check_values=False)  # checked once, in _as_batch
     lap("detect")
     for i, found in enumerate(detections):
         if found.shape[0] > 0:
-            kept = _pick(found, faces).to(dev)
+            kept = _pick(found, "all" if faces == "fused" else faces).to(dev)
+            scores.append(found[:, 4].to(dev) if faces == "fused" else torch.ones(len(kept), device=dev))
             crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
         elif fallback == "full_image":
             kept = full_image_box(height, width).to(dev)
+            scores.append(torch.ones(1, device=dev))
             crop_boxes.append(kept)
         else:
             where = what if batch.shape[0] == 1 else f"{what} {i} of the batch of {batch.shape[0]}"
@@ -392,4 +397,9 @@ def estimate_lighting(
     finally:
         est.train(was_training)
     lap("estimate")
-    return dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)
+    result = dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)
+    if faces == "fused":
+        kept = result.boxes
+        side = ((kept[:, 2] - kept[:, 0]) * (kept[:, 3] - kept[:, 1])).clamp(min=0).sqrt()
+        result = fuse_faces(result, torch.cat(scores).float() * side, index_all)
+    return result

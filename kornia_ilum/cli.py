@@ -165,8 +165,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     est.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default; "
                      "see 'kornia-ilum list')")
     est.add_argument("--detector", metavar="NAME", default="opencv", help="face detector (default: opencv)")
-    est.add_argument("--faces", choices=("largest", "all"), default="largest",
-                     help="the largest face of each image, or all of them (default: largest)")
+    est.add_argument("--faces", choices=("largest", "all", "fused"), default="largest",
+                     help="the largest face of each image, all of them, or one lighting fused from all of them "
+                     "(a distant light shared by every face; default: largest)")
     est.add_argument("--fallback", choices=("full_image",), default=None,
                      help="when an image has no face, use its largest centred square instead of failing")
     est.add_argument("--preview", metavar="PNG",

@@ -17,6 +17,7 @@ from kornia_ilum.estimators.base import (
     check_crops,
     read_weights,
 )
+from kornia_ilum.estimators.fusion import fuse_faces
 from kornia_ilum.estimators.ours import OursEstimator
 from kornia_ilum.estimators.registry import (
     DEFAULT_ESTIMATOR,
@@ -60,6 +61,7 @@ __all__ = [
     "WeightFile",
     "check_crops",
     "read_weights",
+    "fuse_faces",
     "OursEstimator",
     "DEFAULT_ESTIMATOR",
     "ENTRY_POINT_GROUP",
