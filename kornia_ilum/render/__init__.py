@@ -1,4 +1,4 @@
-"""Image-based relighting (``I = R . L``), the three reference spheres and their pyramid.
+"""Image-based relighting (``I = R . L``, dense or sparse), the three reference spheres and their pyramid.
 
 The spheres and the pyramid are those of docs/conventions.rst ("Reference spheres", "Multi-scale").
 """
@@ -10,6 +10,7 @@ from kornia_ilum.render.pyramid import (
     mirror_ball_pyramid,
 )
 from kornia_ilum.render.relight import Relight, relight, relight_product
+from kornia_ilum.render.sparse import DENSE_FRACTION, SparseField, prepare_sparse, relight_sparse
 from kornia_ilum.render.spheres import (
     BRDFS,
     DIFFUSE_ALBEDO,
@@ -38,6 +39,7 @@ from kornia_ilum.render.spheres import (
 
 __all__ = [
     "BRDFS",
+    "DENSE_FRACTION",
     "DIFFUSE_ALBEDO",
     "GAMMA_MODES",
     "MIRROR_REFLECTIVITY",
@@ -51,6 +53,7 @@ __all__ = [
     "MirrorBallPyramid",
     "Relight",
     "RenderSpheres",
+    "SparseField",
     "SpherePlan",
     "check_brdf",
     "check_sphere_lighting",
@@ -59,8 +62,10 @@ __all__ = [
     "gamma_knee",
     "mirror_ball_downsample_matrix",
     "mirror_ball_pyramid",
+    "prepare_sparse",
     "relight",
     "relight_product",
+    "relight_sparse",
     "render_plan",
     "render_spheres",
     "shared_sphere_field",
