@@ -1,0 +1,248 @@
+r"""Lighting for video: one estimate per frame, with the work that a repeated frame does not need skipped.
+
+Most frames of a video repeat the last one, and a per-frame estimator then flickers: its estimates jump
+by more than the light does. :class:`LightingTracker` takes frames one at a time and:
+
+- **tracks the face box**: it detects the face every ``detect_every`` frames (and whenever it has no box, or
+  after a cut), and keeps the last box in between;
+- **skips the estimate when the crop barely changed**: the crop is compared with the last estimated one at
+  32 x 32 (mean absolute difference of the sRGB values); below ``reuse_below`` the last raw estimate is
+  reused;
+- **smooths in log space** with a time constant of ``time_constant`` frames: ``s_t = a s_{t-1} + (1 - a)
+  log L_t`` with ``a = exp(-1 / time_constant)`` (0: no smoothing), which treats a light twice too bright and
+  one twice too dark alike;
+- **resets at a cut**: where the crop changed by more than ``cut_above``, the smoothing restarts from the
+  new estimate (and the next frame is detected again), so a cut is followed at once.
+
+:func:`read_frames` reads a video file (OpenCV's ``VideoCapture``) or an image sequence (a folder or a glob,
+sorted by name); :func:`estimate_video` chains the two. ``kornia-ilum video IN -o OUT`` writes one ``.exr``
+per frame. ``benchmarks/bench_video.py`` measures the frame rate, the flicker against the truth's own change,
+and the lag after a cut on a light-stage clip.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from kornia_ilum.api import cached_detector, cached_estimator, full_image_box
+from kornia_ilum.core.check import check_positive_int
+from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
+
+__all__ = ["IMAGE_SUFFIXES", "LightingTracker", "VideoFrame", "estimate_video", "read_frames"]
+
+#: The image files of an image sequence.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
+    r"""The frames of a video file or an image sequence, as ``(H, W, 3)`` uint8 RGB arrays.
+
+    Args:
+        source: a video file (anything OpenCV's ``VideoCapture`` opens), a folder of images, or a glob
+            pattern of images (``frames/*.png``); images are read in name order.
+
+    Raises:
+        HDRIOError: nothing to read: the file does not open as a video, or the folder or pattern holds no
+            image.
+
+    Examples:
+        >>> import tempfile, cv2
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     for i in range(3):
+        ...         _ = cv2.imwrite(f"{tmp}/{i:03d}.png", np.full((8, 8, 3), 40 * i, np.uint8))
+        ...     [int(f[0, 0, 0]) for f in read_frames(tmp)]
+        [0, 40, 80]
+    """
+    import cv2  # noqa: PLC0415 - OpenCV only for reading video
+
+    text = os.fspath(source)
+    path = Path(text)
+    if path.is_dir() or any(c in text for c in "*?["):
+        files = sorted(p for p in (path.iterdir() if path.is_dir() else map(Path, glob.glob(text)))
+                       if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise HDRIOError(f"no image ({', '.join(IMAGE_SUFFIXES)}) in {text}")
+        for file in files:
+            frame = cv2.imread(str(file), cv2.IMREAD_COLOR)
+            if frame is None:
+                raise HDRIOError(f"cannot read the image {file}")
+            yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+        return
+    if not path.is_file():
+        raise HDRIOError(f"no such video file: {text}")
+    capture = cv2.VideoCapture(text)
+    try:
+        if not capture.isOpened():
+            raise HDRIOError(f"cannot open {text} as a video")
+        while True:
+            ok, frame = capture.read()
+            if not ok:
+                return
+            yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+    finally:
+        capture.release()
+
+
+@dataclass(frozen=True)
+class VideoFrame:
+    """One frame's result.
+
+    Attributes:
+        index: the frame's number, from 0.
+        lighting: the smoothed estimate (one lighting, with its ``boxes``).
+        detected: the face was detected on this frame (not carried over).
+        estimated: the estimator ran on this frame (not reused).
+        cut: the crop changed by more than ``cut_above``: the smoothing restarted here.
+    """
+
+    index: int
+    lighting: LightingEstimate
+    detected: bool
+    estimated: bool
+    cut: bool
+
+
+class LightingTracker:
+    r"""Per-frame lighting with temporal reuse (the module docstring says how).
+
+    Args:
+        estimator: a registered name (default :data:`~kornia_ilum.estimators.DEFAULT_ESTIMATOR`) or an
+            estimator instance.
+        detector: a registered detector name or a :class:`~kornia_ilum.detection.FaceDetector`.
+        detect_every: detect the face every this many frames (1: every frame).
+        reuse_below: reuse the last raw estimate while the crop differs from the last estimated one by less
+            than this (mean absolute sRGB difference at 32 x 32; 0: estimate every frame).
+        time_constant: the smoothing's time constant in frames (0: none).
+        cut_above: a crop difference above this is a cut: detect again and restart the smoothing.
+        fallback: ``"full_image"`` to estimate from the frame's centred square while no face is found;
+            ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` until a face was seen (after that,
+            a frame without a face keeps the last box).
+        runtime: the runtime of a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`).
+
+    Examples:
+        >>> import skimage.data
+        >>> tracker = LightingTracker(estimator="uniform", time_constant=2.0)
+        >>> frames = [tracker(skimage.data.astronaut()) for _ in range(3)]
+        >>> [(f.detected, f.estimated) for f in frames]  # detected once, estimated once, then reused
+        [(True, True), (False, False), (False, False)]
+    """
+
+    def __init__(self, estimator: str | LightingEstimator | None = None, detector: str | FaceDetector = "opencv",
+                 *, detect_every: int = 10, reuse_below: float = 0.004, time_constant: float = 2.0,
+                 cut_above: float = 0.08, fallback: str | None = None, runtime: str = "eager") -> None:
+        check_positive_int(detect_every, "detect_every")
+        for name, value in (("reuse_below", reuse_below), ("time_constant", time_constant),
+                            ("cut_above", cut_above)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueCheckError(f"{name} must be a finite number >= 0, got {value!r}")
+        if fallback not in (None, "full_image"):
+            raise ValueCheckError(f"fallback must be None or 'full_image', got {fallback!r}")
+        device = torch.device("cpu")
+        if isinstance(estimator, LightingEstimator):
+            self.estimator = estimator.eval()
+        else:
+            self.estimator = cached_estimator(estimator or DEFAULT_ESTIMATOR, device, runtime)
+        self.detector = cached_detector(detector, device) if isinstance(detector, str) else detector
+        self.detect_every, self.reuse_below, self.cut_above = detect_every, float(reuse_below), float(cut_above)
+        self.time_constant, self.fallback = float(time_constant), fallback
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the past: the next frame is detected and estimated afresh, and the smoothing restarts."""
+        self._frame, self._since = 0, 0
+        self._box = self._thumb = self._raw = self._valid = self._smooth = None
+
+    def _box_of(self, image: torch.Tensor) -> torch.Tensor | None:
+        found = self.detector.detect(image[None], check_values=False)[0]
+        if found.shape[0] > 0:
+            boxes = found[:, :4].float()
+            area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+            return square_crop_boxes(boxes[int(torch.argmax(area))][None], scale=self.detector.crop_scale)
+        if self.fallback == "full_image":
+            return full_image_box(*image.shape[-2:])
+        return self._box
+
+    def __call__(self, frame: np.ndarray | torch.Tensor) -> VideoFrame:
+        """The lighting of the next frame: ``(H, W, 3)`` uint8 RGB, or ``(3, H, W)`` sRGB float in ``[0, 1]``."""
+        image = _frame_tensor(frame)
+        index = self._frame
+        self._frame += 1
+        detect = self._box is None or self._since >= self.detect_every
+        if detect:
+            box = self._box_of(image)
+            if box is None:
+                raise NoFaceError(f"no face found in frame {index} by detector {self.detector.name!r}, and none "
+                                  "before it; try fallback='full_image'")
+            self._box, self._since = box, 0
+        self._since += 1
+        size = self.estimator.info.input_size
+        crop = crop_faces(image, self._box, size=size, check_values=False)
+        thumb = F.adaptive_avg_pool2d(crop, 32)
+        change = math.inf if self._thumb is None else float((thumb - self._thumb).abs().mean())
+        cut = self._thumb is not None and change > self.cut_above
+        if cut and not detect:  # the scene changed: find the face again, in this very frame
+            box = self._box_of(image)
+            if box is not None:
+                self._box = box
+                crop = crop_faces(image, box, size=size, check_values=False)
+                thumb = F.adaptive_avg_pool2d(crop, 32)
+            self._since, detect = 1, True
+        estimated = self._raw is None or change >= self.reuse_below
+        if estimated:
+            with torch.inference_mode():
+                out = self.estimator(crop, check_values=False)
+            self._raw, self._valid, self._thumb = out.mirror_ball, out.valid, thumb
+        light = self._raw.float()
+        mean = light.mean().clamp(min=1e-30)
+        log = torch.log(torch.maximum(light, 1e-6 * mean))
+        if self._smooth is None or cut or self.time_constant == 0:
+            self._smooth = log
+        else:
+            a = math.exp(-1.0 / self.time_constant)
+            self._smooth = a * self._smooth + (1.0 - a) * log
+        ball = torch.where(self._valid, torch.exp(self._smooth), 0.0)
+        lighting = LightingEstimate(mirror_ball=ball, valid=self._valid, log_mirror_ball=torch.log1p(ball),
+                                    boxes=self._box.clone(), image_index=torch.zeros(1, dtype=torch.int64))
+        return VideoFrame(index, lighting, detect, estimated, cut)
+
+
+def _frame_tensor(frame: np.ndarray | torch.Tensor) -> torch.Tensor:
+    if isinstance(frame, np.ndarray):
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[-1] != 3:
+            raise ShapeError(f"a frame array must be (H, W, 3) uint8 RGB, got {frame.shape} {frame.dtype}")
+        return torch.from_numpy(np.ascontiguousarray(frame)).permute(2, 0, 1).float().div_(255.0)
+    if isinstance(frame, torch.Tensor):
+        if frame.dim() != 3 or frame.shape[0] != 3 or not frame.is_floating_point():
+            raise ShapeError(f"a frame tensor must be (3, H, W) float, got {tuple(frame.shape)} {frame.dtype}")
+        lo, hi = float(frame.min()), float(frame.max())
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo and hi <= 1.0):
+            raise ValueCheckError(f"a frame tensor must be finite sRGB in [0, 1], got [{lo:g}, {hi:g}]")
+        return frame.float()
+    raise TypeCheckError(f"a frame must be a NumPy array or a torch.Tensor, got {type(frame).__name__}")
+
+
+def estimate_video(source: str | os.PathLike[str] | Iterable[np.ndarray], **settings) -> Iterator[VideoFrame]:
+    r"""The lighting of every frame of ``source`` (a path for :func:`read_frames`, or frames), through one
+    :class:`LightingTracker` made with ``settings``.
+
+    Examples:
+        >>> import skimage.data
+        >>> frames = [skimage.data.astronaut()] * 4
+        >>> [f.estimated for f in estimate_video(frames, estimator="uniform", reuse_below=0.0)]
+        [True, True, True, True]
+    """
+    tracker = LightingTracker(**settings)
+    frames = read_frames(source) if isinstance(source, (str, os.PathLike)) else source
+    for frame in frames:
+        yield tracker(frame)

@@ -1,0 +1,99 @@
+"""kornia_ilum.video: frames from files, the face detected every N frames, repeated crops reused, log-space
+smoothing with its time constant, a cut followed at once; and kornia-ilum video."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+import skimage.data
+import torch
+
+from kornia_ilum.core.errors import HDRIOError, NoFaceError, ValueCheckError
+from kornia_ilum.io import read_hdr
+from kornia_ilum.video import LightingTracker, estimate_video, read_frames
+
+FACE = skimage.data.astronaut()
+
+
+def _darker(k: float) -> np.ndarray:
+    return np.clip(np.round(FACE.astype(np.float64) * k), 0, 255).astype(np.uint8)
+
+
+def test_detects_every_n_frames_and_reuses_repeated_crops() -> None:
+    tracker = LightingTracker(estimator="uniform", detect_every=3)
+    frames = [tracker(FACE) for _ in range(7)]
+    assert [f.detected for f in frames] == [True, False, False, True, False, False, True]
+    assert [f.estimated for f in frames] == [True] + [False] * 6
+    assert [f.index for f in frames] == list(range(7))
+    first = frames[0].lighting.mirror_ball
+    assert all(torch.equal(f.lighting.mirror_ball, first) for f in frames)  # a still scene stays still
+
+
+def test_smoothing_in_log_space_with_its_time_constant() -> None:
+    tracker = LightingTracker(estimator="uniform", time_constant=2.0, reuse_below=0.0, cut_above=1.0)
+    bright = tracker(FACE).lighting.mirror_ball
+    plain = LightingTracker(estimator="uniform", time_constant=0.0, reuse_below=0.0, cut_above=1.0)
+    plain(FACE)
+    dark = plain(_darker(0.8)).lighting.mirror_ball  # the same box, no smoothing
+    step = tracker(_darker(0.8)).lighting.mirror_ball  # one frame after the change
+    a = math.exp(-1.0 / 2.0)
+    centre = (0, 0, 16, 16)
+    expected = math.exp(a * math.log(bright[centre]) + (1 - a) * math.log(dark[centre]))
+    assert step[centre].item() == pytest.approx(expected, rel=1e-5)
+
+
+def test_a_cut_restarts_the_smoothing_and_detects_again() -> None:
+    tracker = LightingTracker(estimator="uniform", time_constant=10.0, detect_every=100)
+    tracker(FACE)
+    cut = tracker(_darker(0.3))
+    alone = LightingTracker(estimator="uniform")(_darker(0.3))
+    assert cut.cut and cut.detected and cut.estimated
+    torch.testing.assert_close(cut.lighting.mirror_ball, alone.lighting.mirror_ball)
+
+
+def test_faceless_frames() -> None:
+    noise = np.random.default_rng(0).integers(0, 255, (120, 160, 3), dtype=np.uint8)
+    with pytest.raises(NoFaceError, match="frame 0"):
+        LightingTracker(estimator="uniform")(noise)
+    assert torch.isfinite(LightingTracker(estimator="uniform", fallback="full_image")(noise).lighting.mirror_ball).all()
+    with pytest.raises(ValueCheckError, match="time_constant"):
+        LightingTracker(estimator="uniform", time_constant=-1.0)
+
+
+def test_reads_videos_and_image_sequences(tmp_path) -> None:
+    small = cv2.resize(FACE, (128, 128))
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / f"{i:02d}.png"), cv2.cvtColor(small, cv2.COLOR_RGB2BGR))
+    assert len(list(read_frames(tmp_path))) == 3 and len(list(read_frames(str(tmp_path / "*.png")))) == 3
+    video = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (128, 128))
+    for _ in range(4):
+        writer.write(cv2.cvtColor(small, cv2.COLOR_RGB2BGR))
+    writer.release()
+    frames = list(read_frames(video))
+    assert len(frames) == 4 and frames[0].shape == (128, 128, 3) and frames[0].dtype == np.uint8
+    with pytest.raises(HDRIOError, match="no such video"):
+        list(read_frames(tmp_path / "missing.mp4"))
+    with pytest.raises(HDRIOError, match="no image"):
+        list(read_frames(tmp_path / "*.jpg"))
+    assert len(list(estimate_video(video, estimator="uniform", fallback="full_image"))) == 4
+
+
+def test_the_video_command_writes_one_exr_per_frame(tmp_path) -> None:
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), cv2.cvtColor(FACE, cv2.COLOR_RGB2BGR))
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "kornia_ilum", "video", str(tmp_path), "-o", str(out),
+                          "--estimator", "uniform"], capture_output=True, text=True, check=False)
+    assert run.returncode == 0, run.stderr
+    assert "3 frames" in run.stdout and "estimated on 1" in run.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["frame_00000.exr", "frame_00001.exr", "frame_00002.exr"]
+    assert read_hdr(out / "frame_00002.exr").shape[-1] == 32
+    bad = subprocess.run([sys.executable, "-m", "kornia_ilum", "video", str(tmp_path / "nope.mp4"), "-o",
+                          str(out)], capture_output=True, text=True, check=False)
+    assert bad.returncode == 1 and "no such video" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
