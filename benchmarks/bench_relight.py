@@ -32,7 +32,7 @@ from kornia_ilum.color import gamma_encode
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
-from kornia_ilum.render import prepare_sparse, relight_product, relight_sparse
+from kornia_ilum.render import kept_lights, prepare_sparse, relight_product, relight_sparse
 from kornia_ilum.sh import sh_light_basis
 from kornia_ilum.synth.lightstage.portraits import load_fields
 
@@ -99,9 +99,7 @@ def main(argv: list[str] | None = None) -> None:
             for name, prepared in (("fold SH", folded), ("drop", plain)):
                 out = relight_sparse(prepared, lights, eps)
                 ms = _median_ms(lambda p=prepared, e=eps: relight_sparse(p, lights, e), args.runs)
-                from kornia_ilum.render.relight import _kept_lights  # the count of kept lights, as the op drew it
-
-                kept = float(_kept_lights(lights, prepared.norms, eps).sum(1).float().mean())
+                kept = float(kept_lights(lights, prepared.norms, eps).sum(1).float().mean())
                 l1 = float((out - reference).abs().sum() / reference.abs().sum())
                 print(f"{'':28s} {'':7s} {f'eps {eps:g} {name}':18s} {ms:8.2f} {base / ms:8.2f} {kept:6.1f} "
                       f"{l1:8.4f} {_lrec_like(out, reference):10.4f}")

@@ -252,7 +252,8 @@ class TestEstimateLighting:
             estimate_lighting(nan)
         with pytest.raises(EmptyTensorError, match=r"image must not be empty"):
             estimate_lighting(np.zeros((0, 10, 3), np.uint8))
-        with pytest.raises(ValueCheckError, match=r"faces must be one of \('largest', 'all'\), got 'many'"):
+        with pytest.raises(ValueCheckError,
+                           match=r"faces must be one of \('largest', 'all', 'fused'\), got 'many'"):
             estimate_lighting(astronaut, faces="many")
         with pytest.raises(ValueCheckError, match=r"fallback must be None or 'full_image', got 'crop'"):
             estimate_lighting(astronaut, fallback="crop")

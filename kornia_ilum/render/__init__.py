@@ -9,7 +9,7 @@ from kornia_ilum.render.pyramid import (
     mirror_ball_downsample_matrix,
     mirror_ball_pyramid,
 )
-from kornia_ilum.render.relight import Relight, relight, relight_product
+from kornia_ilum.render.relight import Relight, kept_lights, light_norms, relight, relight_product
 from kornia_ilum.render.sparse import DENSE_FRACTION, SparseField, prepare_sparse, relight_sparse
 from kornia_ilum.render.spheres import (
     BRDFS,
@@ -60,6 +60,8 @@ __all__ = [
     "check_sphere_sizes",
     "encode_sphere",
     "gamma_knee",
+    "kept_lights",
+    "light_norms",
     "mirror_ball_downsample_matrix",
     "mirror_ball_pyramid",
     "prepare_sparse",

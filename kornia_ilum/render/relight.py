@@ -28,7 +28,7 @@ from torch import nn
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 
-__all__ = ["Relight", "relight", "relight_product"]
+__all__ = ["Relight", "kept_lights", "light_norms", "relight", "relight_product"]
 
 _HALF = (torch.float16, torch.bfloat16)
 
@@ -107,20 +107,29 @@ def relight_product(field: torch.Tensor, lights: torch.Tensor) -> torch.Tensor:
     return torch.bmm(field, lights.permute(2, 1, 0)).permute(2, 0, 1)  # (C, P, N) @ (C, N, B) -> (C, P, B)
 
 
-def _light_norms(field: torch.Tensor) -> torch.Tensor:
-    """Per-light L1 norms ``||R[c, :, n]||_1``, ``(C', N)`` in float64 (``C' = 1`` for a shared field)."""
+def light_norms(field: torch.Tensor) -> torch.Tensor:
+    """Per-light L1 norms ``||R[c, :, n]||_1``, ``(C', N)`` in float64 (``C' = 1`` for a shared field).
+
+    Examples:
+        >>> light_norms(torch.eye(3)).tolist()
+        [[1.0, 1.0, 1.0]]
+    """
     norms = field.detach().abs().sum(-2, dtype=torch.float64)
     return norms[None] if field.dim() == 2 else norms
 
 
-def _kept_lights(lighting: torch.Tensor, light_norms: torch.Tensor, eps: float) -> torch.Tensor:
+def kept_lights(lighting: torch.Tensor, norms: torch.Tensor, eps: float) -> torch.Tensor:
     """Boolean ``(B, N)``: the lights kept after dropping the weakest (at most ``eps`` of the energy).
 
-    The energy of light ``n`` in batch item ``b`` is ``E[b, n] = sum_c |L[b, n, c]| ||R[c, :, n]||_1``. The
-    lights are sorted by energy and the longest prefix of the weakest whose cumulative energy is
-    ``<= eps * sum_n E[b, n]`` is dropped. Computed in float64.
+    The energy of light ``n`` in batch item ``b`` is ``E[b, n] = sum_c |L[b, n, c]| ||R[c, :, n]||_1`` (``norms``
+    from :func:`light_norms`). The lights are sorted by energy and the longest prefix of the weakest whose
+    cumulative energy is ``<= eps * sum_n E[b, n]`` is dropped. Computed in float64.
+
+    Examples:
+        >>> kept_lights(torch.tensor([[[5.0], [0.01], [1.0]]]), torch.ones(1, 3), 0.01).tolist()
+        [[True, False, True]]
     """
-    energy = (lighting.detach().abs().to(torch.float64) * light_norms.to(torch.float64).T[None]).sum(-1)
+    energy = (lighting.detach().abs().to(torch.float64) * norms.to(torch.float64).T[None]).sum(-1)
     sorted_energy, order = energy.sort(dim=1)
     cumulative = sorted_energy.cumsum(dim=1)
     keep_sorted = cumulative > eps * cumulative[:, -1:]
@@ -238,7 +247,7 @@ def relight(
     compute, out_dtype = _dtypes(field, lighting)
     lights = lighting.to(compute)
     if eps > 0.0:
-        keep = _kept_lights(lighting, _light_norms(field), eps)
+        keep = kept_lights(lighting, light_norms(field), eps)
         lights = lights * keep[..., None].to(compute)
     out = relight_product(field.to(compute), lights)
     return out.reshape(out.shape[0], out.shape[1], h, w).to(out_dtype)
@@ -282,7 +291,7 @@ class Relight(nn.Module):
         else:
             field_t = field.transpose(-1, -2).contiguous()
             self.register_buffer("field_t", field_t[None] if self.shared else field_t, persistent=False)
-            self.register_buffer("light_norms", _light_norms(field), persistent=False)
+            self.register_buffer("light_norms", light_norms(field), persistent=False)
 
     def forward(self, lighting: torch.Tensor) -> torch.Tensor:
         if self.eps == 0.0:
@@ -292,7 +301,7 @@ class Relight(nn.Module):
         view = field_t[0].T if self.shared else field_t.transpose(-1, -2)
         _check_lighting(view, lighting)
         compute, out_dtype = _dtypes(field_t, lighting)
-        keep = _kept_lights(lighting, self.light_norms, self.eps)
+        keep = kept_lights(lighting, self.light_norms, self.eps)
         out = _relight_light_major(field_t.to(compute), lighting.to(compute), keep)
         return out.reshape(out.shape[0], out.shape[1], *self.size).to(out_dtype)
 

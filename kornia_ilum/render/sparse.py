@@ -28,7 +28,7 @@ import torch
 
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.render.relight import _kept_lights, _light_norms, relight_product
+from kornia_ilum.render.relight import kept_lights, light_norms, relight_product
 
 __all__ = ["DENSE_FRACTION", "SparseField", "prepare_sparse", "relight_sparse"]
 
@@ -79,7 +79,7 @@ def prepare_sparse(field: torch.Tensor, fold: tuple[torch.Tensor, torch.Tensor] 
     rows = field.transpose(-1, -2).contiguous()
     rows = rows[None] if field.dim() == 2 else rows
     if fold is None:
-        return SparseField(field, rows, _light_norms(field))
+        return SparseField(field, rows, light_norms(field))
     projection, values = fold
     for name, t in (("projection", projection), ("values", values)):
         check_tensor(t, f"fold {name}", [str(n), "K"])
@@ -89,7 +89,7 @@ def prepare_sparse(field: torch.Tensor, fold: tuple[torch.Tensor, torch.Tensor] 
     k = values.shape[1]
     basis = values.T[:, :, None].expand(k, n, field.shape[0] if field.dim() == 3 else 1)  # K "lightings"
     response = relight_product(field, basis.to(field.dtype)).float()  # (K, C', P)
-    return SparseField(field, rows, _light_norms(field), projection.float(),
+    return SparseField(field, rows, light_norms(field), projection.float(),
                        response.permute(1, 2, 0).contiguous())
 
 
@@ -124,7 +124,7 @@ def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) ->
     p = field.shape[-2]
     if eps == 0.0:
         return relight_product(field, lights.to(field.dtype)).float()
-    keep = _kept_lights(lights, prepared.norms, eps)
+    keep = kept_lights(lights, prepared.norms, eps)
     counts = keep.sum(1)
     out = torch.empty(b, c, p, dtype=torch.float32, device=field.device)
     dense = counts > DENSE_FRACTION * n

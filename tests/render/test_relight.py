@@ -15,7 +15,7 @@ from kornia_ilum.core.errors import (
     ValueCheckError,
 )
 from kornia_ilum.render import Relight, relight
-from kornia_ilum.render.relight import _kept_lights, _light_norms
+from kornia_ilum.render.relight import kept_lights, light_norms
 from tests.conftest import assert_close_dtype
 
 F64 = torch.float64
@@ -193,7 +193,7 @@ class TestRelight:
         total = dense.sum((1, 2, 3))
         assert (loss.sum((1, 2, 3)) <= eps * total + 1e-9 * total).all()
         # per pixel: |I - I_eps| <= sum over the dropped lights of |R| |L|
-        keep = _kept_lights(lighting, _light_norms(field), eps)
+        keep = kept_lights(lighting, light_norms(field), eps)
         dropped = lighting * (~keep)[..., None]
         assert (loss.abs() <= relight(field.abs(), dropped.abs()) + 1e-12).all()
         assert (keep.sum(1) >= 1).all()

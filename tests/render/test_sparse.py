@@ -8,7 +8,7 @@ import torch
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry import mirror_ball_to_lights, mirror_ball_valid
-from kornia_ilum.render import DENSE_FRACTION, prepare_sparse, relight, relight_product, relight_sparse
+from kornia_ilum.render import DENSE_FRACTION, kept_lights, prepare_sparse, relight, relight_product, relight_sparse
 from kornia_ilum.sh import sh_light_basis, sh_reconstruct
 
 S = 8
@@ -59,9 +59,7 @@ def test_a_lighting_that_keeps_many_lights_is_relit_densely() -> None:
     field = _field()
     flat = mirror_ball_to_lights(torch.ones(1, 3, S, S, dtype=torch.float64) * mirror_ball_valid(S))
     prepared = prepare_sparse(field, sh_light_basis(S))
-    from kornia_ilum.render.relight import _kept_lights  # what the op keeps: more than the dense fraction
-
-    assert int(_kept_lights(flat, prepared.norms, 0.01).sum()) > DENSE_FRACTION * S * S
+    assert int(kept_lights(flat, prepared.norms, 0.01).sum()) > DENSE_FRACTION * S * S
     torch.testing.assert_close(relight_sparse(prepared, flat, 0.01), relight_product(field, flat).float())
 
 

@@ -40,7 +40,7 @@ import math
 import torch
 from torch import Tensor, nn
 
-from kornia_ilum.core.check import check_positive_int
+from kornia_ilum.core.check import check_positive_int, trusted
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.estimators.ours import build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
@@ -133,7 +133,8 @@ class SHEstimator(LightingEstimator):
             the head (or of an enclosing autocast).
         """
         dtype = self.head.weight.dtype
-        latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
+        with trusted():  # the layers' own checks would scan every activation; the crops were checked
+            latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
         return self.head(latent).reshape(-1, NUM_COEFFICIENTS, 3)
 
     def predict(self, crops: Tensor) -> LightingEstimate:
