@@ -227,12 +227,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     vid.add_argument("--detector", default="opencv", metavar="NAME", help="face detector (default: opencv)")
     vid.add_argument("--detect-every", type=positive_int, default=10, metavar="N",
                      help="detect the face every N frames, and after a cut (default: 10)")
-    vid.add_argument("--reuse-below", type=float, default=0.004, metavar="X",
-                     help="reuse the last estimate while the crop changed by less than X (default: 0.004)")
+    vid.add_argument("--reuse-below", type=float, default=0.002, metavar="X",
+                     help="reuse the last estimate while the crop changed by less than X (default: 0.002)")
     vid.add_argument("--time-constant", type=float, default=2.0, metavar="T",
                      help="smoothing time constant in frames, 0 for none (default: 2)")
-    vid.add_argument("--cut-above", type=float, default=0.08, metavar="X",
-                     help="a crop change above X is a cut: the smoothing restarts (default: 0.08)")
+    vid.add_argument("--cut-above", type=float, default=0.03, metavar="X",
+                     help="a crop change above X is a cut: the smoothing restarts (default: 0.03)")
     vid.add_argument("--fallback", choices=("full_image",), default=None,
                      help="estimate from the centred square while no face was found")
     add_synth_environments_parser(sub)
