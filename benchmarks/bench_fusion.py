@@ -6,8 +6,8 @@ Run: ``python benchmarks/bench_fusion.py --cache CACHE [CACHE ...] --hdri DIR [D
 Light-stage portraits of the eval subjects (the caches' eval fields) under the eval environments, drawn by
 the training data's own :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset` with one environment
 per chunk (``env_pool = env_refresh = 1``): each chunk holds 8 subject views (drawn at random, so now and
-then one twice) under one environment, each turned about the vertical axis and auto-exposed on its own, as different faces of one photo
-would be placed and lit. Each portrait's estimate is scored by the log of its energy over the truth's,
+then one twice) under one environment, each turned about the vertical axis and auto-exposed on its own, as
+different faces of one photo would be placed and lit. Each portrait's estimate is scored by the log of its energy over the truth's,
 ``r = log(E_est / E_true)`` (:func:`~kornia_ilum.evaluation.checks.lighting_energy`), which the turn and the
 exposure leave alone.
 

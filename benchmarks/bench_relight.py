@@ -22,12 +22,11 @@ This is a benchmark, not a test.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 from pathlib import Path
 
 import torch
 
+from kornia_ilum.bench import median_seconds
 from kornia_ilum.color import gamma_encode
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
@@ -38,13 +37,7 @@ from kornia_ilum.synth.lightstage.portraits import load_fields
 
 
 def _median_ms(fn, runs: int) -> float:
-    fn()
-    times = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return 1e3 * statistics.median(times)
+    return 1e3 * median_seconds(fn, runs, warmup=1)
 
 
 def _lrec_like(image: torch.Tensor, reference: torch.Tensor) -> float:
