@@ -13,7 +13,9 @@ the field's precomputed response to it, ``K`` columns more:
     I \approx \sum_{n \in \text{kept}} R_{:, n} L_n + \sum_k F_{:, k} a_k,
     \qquad a_k = \sum_{n \in \text{dropped}} P_{n k} L_n, \qquad F_{:, k} = \sum_n R_{:, n} Y_{n k},
 
-with ``P`` the basis' projection (values times solid angles) and ``Y`` its values at the lights. The number
+with ``P`` the basis' projection (values times solid angles) and ``Y`` its values at the lights. The kept
+lights' rows of a light-major copy of the field are summed in one
+:func:`torch.nn.functional.embedding_bag` over the whole batch. The number
 of kept lights adapts to each lighting: an overcast sky keeps many. Where a lighting would keep more than
 :data:`DENSE_FRACTION` of the lights, it is relit densely, which is then the faster way.
 :func:`prepare_sparse` does the per-field work once (the lights' norms and the fold's response).
@@ -93,6 +95,22 @@ def prepare_sparse(field: torch.Tensor, fold: tuple[torch.Tensor, torch.Tensor] 
                        response.permute(1, 2, 0).contiguous())
 
 
+def _gather_rows(rows: torch.Tensor, lights: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
+    """``(B, C, P)``: for each item and channel, the weighted sum of its kept lights' rows of ``rows``
+    ``(C', N, P)``, in one :func:`torch.nn.functional.embedding_bag` (only those rows are read)."""
+    b, n, c = lights.shape
+    cf, _, p = rows.shape
+    counts = keep.sum(1)
+    item, light = keep.nonzero(as_tuple=True)  # item-major
+    chan = torch.arange(c, device=keep.device)
+    index = light[:, None] + (chan * n if cf > 1 else torch.zeros_like(chan))[None]  # (M, C) rows
+    order = (item[:, None] * c + chan[None]).flatten().argsort(stable=True)  # grouped by bag (item, channel)
+    sizes = counts.repeat_interleave(c)
+    out = torch.nn.functional.embedding_bag(index.flatten()[order], rows.reshape(cf * n, p), sizes.cumsum(0) - sizes,
+                                            mode="sum", per_sample_weights=lights[item, light].flatten()[order])
+    return out.reshape(b, c, p)
+
+
 def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.Tensor:
     r"""Relight ``prepared``'s field with each lighting's strongest lights, and fold the rest (module docstring).
 
@@ -131,22 +149,16 @@ def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) ->
     if bool(dense.any()):
         rows = dense.nonzero().flatten()
         out[rows] = relight_product(field, lights[rows].to(field.dtype)).float()
-    rows = prepared.rows  # (C', N, P)
-    for i in (~dense).nonzero().flatten().tolist():
-        idx = keep[i].nonzero().flatten()
-        kept = lights[i, idx].to(field.dtype)  # (K, C)
-        picked = rows.index_select(1, idx)  # (C', K, P): the kept lights' rows only, each contiguous
-        if rows.shape[0] == 1:
-            out[i] = (kept.T @ picked[0]).float()
-        else:
-            out[i] = torch.bmm(kept.T[:, None, :], picked)[:, 0].float()
+    sparse = (~dense).nonzero().flatten()
+    if len(sparse):
+        out[sparse] = _gather_rows(prepared.rows, lights[sparse].to(field.dtype), keep[sparse]).float()
     if prepared.response is not None:
-        dropped = lights * (~keep)[..., None]
-        dropped[dense] = 0.0  # relit densely: nothing was dropped
-        coefficients = torch.einsum("nk,bnc->bkc", prepared.projection, dropped)  # (B, K, C)
+        dropped = lights * (~keep & ~dense[:, None])[..., None]  # densely relit items dropped nothing
+        coefficients = prepared.projection.T @ dropped.permute(1, 0, 2).reshape(n, b * c)  # (K, B*C)
+        coefficients = coefficients.reshape(-1, b, c)
         response = prepared.response  # (C', P, K)
         if response.shape[0] == 1:
-            out += torch.einsum("pk,bkc->bcp", response[0], coefficients)
-        else:
-            out += torch.einsum("cpk,bkc->bcp", response, coefficients)
+            out += (response[0] @ coefficients.reshape(-1, b * c)).reshape(p, b, c).permute(1, 2, 0)
+        else:  # (C, P, K) @ (C, K, B) -> (C, P, B)
+            out += torch.bmm(response, coefficients.permute(2, 0, 1)).permute(2, 0, 1)
     return out
