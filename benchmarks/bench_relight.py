@@ -27,8 +27,7 @@ from pathlib import Path
 import torch
 
 from kornia_ilum.bench import median_seconds
-from kornia_ilum.color import gamma_encode
-from kornia_ilum.filters import soft_clip
+from kornia_ilum.bench.skips import lrec_like
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import kept_lights, prepare_sparse, relight_product, relight_sparse
@@ -38,16 +37,6 @@ from kornia_ilum.synth.lightstage.portraits import load_fields
 
 def _median_ms(fn, runs: int) -> float:
     return 1e3 * median_seconds(fn, runs, warmup=1)
-
-
-def _lrec_like(image: torch.Tensor, reference: torch.Tensor) -> float:
-    scale = torch.quantile(reference.flatten(1), 0.99, dim=1).clamp(min=1e-12)[:, None, None]
-
-    def encode(x: torch.Tensor) -> torch.Tensor:
-        return gamma_encode(soft_clip((x / scale).clamp(min=0)))
-
-    ref = encode(reference)
-    return float((encode(image) - ref).abs().mean() / ref.mean())
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -95,7 +84,7 @@ def main(argv: list[str] | None = None) -> None:
                 kept = float(kept_lights(lights, prepared.norms, eps).sum(1).float().mean())
                 l1 = float((out - reference).abs().sum() / reference.abs().sum())
                 print(f"{'':28s} {'':7s} {f'eps {eps:g} {name}':18s} {ms:8.2f} {base / ms:8.2f} {kept:6.1f} "
-                      f"{l1:8.4f} {_lrec_like(out, reference):10.4f}")
+                      f"{l1:8.4f} {lrec_like(out, reference):10.4f}")
 
 
 if __name__ == "__main__":

@@ -3,12 +3,10 @@ lag after a cut, per-frame estimation against :class:`kornia_ilum.video.Lighting
 
 Run: ``python benchmarks/bench_video.py --cache CACHE [--hdri DIR] [--frames 60 30] [--threads 2]``
 
-The clip: one eval subject-view of ``CACHE`` (the first eval field), relit
-(:func:`~kornia_ilum.synth.lightstage.portraits.relight_portraits`) under a real map of ``--hdri`` that turns by
-one lat-long column (2.8 degrees) per frame for ``--frames[0]`` frames, then a cut to another map for
-``--frames[1]`` frames; the face (192 px) over a grey backdrop in the middle of a 640 x 480 frame, exposed once
-per shot so that the face's mean is 0.18, 8-bit sRGB. The truth of each frame is its map's mirror ball times
-that exposure.
+The clip (:func:`kornia_ilum.bench.skips.video_clip`): the first eval subject-view of ``CACHE`` under the first
+held-out map of ``--hdri`` turning by 2.8 degrees per frame for ``--frames[0]`` frames, then a cut to the second
+held-out map for ``--frames[1]`` frames, 640 x 480. The truth of each frame is its map's mirror ball times the
+shot's exposure. ``kornia-ilum bench --cache ...`` measures the same in its ``skips`` section.
 
 Columns, per setting:
 
@@ -27,56 +25,15 @@ This is a benchmark, not a test.
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
-from kornia_ilum.color import linear_to_srgb
+from kornia_ilum.bench.skips import flicker, held_out_maps, lag, video_clip
 from kornia_ilum.evaluation.checks import lighting_energy
 from kornia_ilum.evaluation.split import eval_fields
-from kornia_ilum.geometry import latlong_to_mirror_ball
-from kornia_ilum.io import read_hdr
-from kornia_ilum.synth.lightstage.portraits import relight_portraits
 from kornia_ilum.video import LightingTracker
-
-
-def make_clip(cache: str, hdri: str, frames: tuple[int, int]) -> tuple[list[np.ndarray], torch.Tensor, int]:
-    """The clip's frames, their true mirror balls ``(T, 3, 32, 32)`` and the index of the cut."""
-    field = eval_fields([cache])[0]
-    maps = sorted(p for p in Path(hdri).glob("*") if p.suffix in (".exr", ".hdr"))
-    shots, truths = [], []
-    for path, count in zip((maps[0], maps[len(maps) // 2]), frames, strict=True):
-        latlong = torch.nn.functional.interpolate(read_hdr(path).float()[None], size=(64, 128), mode="area")
-        balls = latlong_to_mirror_ball(torch.cat([latlong.roll(t, dims=-1) for t in range(count)]), 32)
-        image, alpha = relight_portraits(field, balls)
-        backdrop = 0.3 * float(balls.mean())
-        linear = image + (1 - alpha) * backdrop
-        gain = 0.18 / float(image[0].sum() / (3 * alpha.sum()).clamp(min=1))
-        canvas = torch.full((count, 3, 480, 640), backdrop * gain)
-        top, left = (480 - field.size) // 2, (640 - field.size) // 2
-        canvas[:, :, top : top + field.size, left : left + field.size] = linear * gain
-        srgb = linear_to_srgb(canvas.clamp(0, 1))
-        shots += [(f.permute(1, 2, 0).numpy() * 255).round().astype(np.uint8) for f in srgb]
-        truths.append(balls * gain)
-    return shots, torch.cat(truths), frames[0]
-
-
-def _flicker(balls: torch.Tensor, cut: int) -> float:
-    logs = torch.log1p(balls.double())
-    steps = (logs[1:] - logs[:-1]).abs().mean((1, 2, 3))
-    steps = torch.cat([steps[: cut - 1], steps[cut:]])  # not across the cut
-    return float(steps.mean())
-
-
-def _lag(energy: torch.Tensor, reference: torch.Tensor, cut: int) -> int:
-    close = (torch.log(energy[cut:] / reference[cut:])).abs() <= math.log(1.1)
-    for k in range(len(close)):
-        if bool(close[k:].all()):
-            return k
-    return len(close)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -88,15 +45,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
-    frames, truth, cut = make_clip(args.cache, args.hdri, tuple(args.frames))
-    print(f"clip: {len(frames)} frames of 640 x 480, cut at frame {cut}; truth flicker {_flicker(truth, cut):.4f}")
+    maps = held_out_maps([args.hdri])
+    frames, truth, cut = video_clip(eval_fields([args.cache])[0], maps, tuple(args.frames))
+    print(f"clip: {len(frames)} frames of 640 x 480, cut at frame {cut}; truth flicker {flicker(truth, cut):.4f}")
     settings = {
         "per frame (detect, estimate, no smoothing)": {"detect_every": 1, "reuse_below": 0.0, "time_constant": 0.0},
         "tracker defaults": {},
         "tracker, time constant 4": {"time_constant": 4.0},
         "tracker defaults, runtime auto": {"runtime": "auto"},
     }
-    truth_flicker = _flicker(truth, cut)
+    truth_flicker = flicker(truth, cut)
     print(f"{'setting':44s} {'fps':>7s} {'flicker':>8s} {'x truth':>8s} {'lag':>4s} {'cuts':>5s} {'detected':>9s} "
           f"{'estimated':>9s}")
     reference = None
@@ -108,11 +66,11 @@ def main(argv: list[str] | None = None) -> None:
         results = [tracker(f) for f in frames]
         seconds = time.perf_counter() - t0
         balls = torch.cat([r.lighting.mirror_ball for r in results])
-        flicker = _flicker(balls, cut)
+        change = flicker(balls, cut)
         energy = lighting_energy(balls.double())
         reference = energy if reference is None else reference  # the per-frame setting comes first
-        lag = _lag(energy, reference, cut)
-        print(f"{name:44s} {len(frames) / seconds:7.1f} {flicker:8.4f} {flicker / truth_flicker:8.2f} {lag:4d} "
+        frames_late = lag(energy, reference, cut)
+        print(f"{name:44s} {len(frames) / seconds:7.1f} {change:8.4f} {change / truth_flicker:8.2f} {frames_late:4d} "
               f"{sum(r.cut for r in results):5d} {sum(r.detected for r in results):9d} "
               f"{sum(r.estimated for r in results):9d}")
 

@@ -8,7 +8,9 @@ run on the machine at hand, beside that machine's measured limits.
 - :func:`run_bench` (:mod:`kornia_ilum.bench.run`): the whole run;
 - :func:`format_bench`, :func:`write_bench`, :data:`PAPER` (:mod:`kornia_ilum.bench.report`): Markdown, JSON and
   the Pareto figure, with the paper's published numbers labelled as another dataset and device;
-- :mod:`kornia_ilum.bench.stress`: the numerical stress table of the public ops (``benchmarks/bench_stress.py``).
+- :mod:`kornia_ilum.bench.stress`: the numerical stress table of the public ops (``benchmarks/bench_stress.py``);
+- :func:`skip_rows` (:mod:`kornia_ilum.bench.skips`): what each skip (video reuse, sparse relighting) saves
+  against what it costs, on the held-out split (the bench's ``skips`` section, with ``--cache``).
 
 ``import kornia_ilum`` never imports this package (it loads the evaluation and the light stage's data code).
 """
@@ -16,6 +18,7 @@ run on the machine at hand, beside that machine's measured limits.
 from kornia_ilum.bench.machine import cpu_model, machine_limits, median_seconds
 from kornia_ilum.bench.report import PAPER, format_bench, pareto_front, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, PEAK_OF, run_bench
+from kornia_ilum.bench.skips import skip_rows
 from kornia_ilum.bench.speed import E2E_SIZES, end_to_end, estimator_flops, estimator_speed, portrait_photo
 
 __all__ = [
@@ -33,5 +36,6 @@ __all__ = [
     "pareto_front",
     "portrait_photo",
     "run_bench",
+    "skip_rows",
     "write_bench",
 ]

@@ -14,6 +14,7 @@ import torch
 
 from kornia_ilum.bench.report import format_bench, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
+from kornia_ilum.bench.skips import skip_rows
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import MissingWeightsError
 from kornia_ilum.detection import DEFAULT_DETECTOR, create_detector, list_detectors
@@ -98,6 +99,8 @@ def run_bench_command(args: argparse.Namespace) -> int:
                 "split, no evidence of accuracy; pass --cache for that)")
     result = run_bench(eval_set, what, args.estimator, args.runtime or BENCH_RUNTIMES, quick=args.quick,
                        e2e_detectors=_detectors(args.detector), detect_side=args.detect_side, compile=args.compile)
+    if args.cache:
+        result["skips"], result["skips_what"] = skip_rows(args.cache, args.hdri, quick=args.quick)
     print(format_bench(result))
     for path in write_bench(result, args.out):
         print(f"wrote {path}")

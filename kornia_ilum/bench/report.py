@@ -14,7 +14,7 @@ from typing import Any
 
 from kornia_ilum.core.files import atomic_write
 
-__all__ = ["PAPER", "format_bench", "pareto_front", "write_bench"]
+__all__ = ["PAPER", "format_bench", "format_skips", "pareto_front", "write_bench"]
 
 #: The paper's published numbers as this project cites them (issues 21 and 23): its diffuse ``L_rec`` and its
 #: real-time rate. Not comparable to ours: another dataset and another device.
@@ -47,6 +47,23 @@ def pareto_front(rows: list[dict[str, Any]]) -> list[str]:
              if r.get("b1_ms_per_crop") is not None and r.get("l_rec")]  # errors equal to 4 decimals tie
     return [label for label, t, e in timed
             if not any(ot <= t and oe <= e and (ot < t or oe < e) for _, ot, oe in timed)]
+
+
+def format_skips(rows: list[dict[str, Any]], what: str) -> str:
+    """The ``skips`` section (:func:`~kornia_ilum.bench.skips.skip_rows`) as Markdown, or ``what`` alone when
+    nothing was measured."""
+    if not rows:
+        return f"{what}."
+    lines = ["## Skips: time saved against error added", "", f"On {what}. `x baseline` is the speed-up over the "
+             "first row of the same skip, measured in the same process.", "",
+             "| skip | setting | ms | x baseline | error |", "|---|---|---:|---:|---|"]
+    for r in rows:
+        e = r["error"]
+        error = (f"median abs log(E / E_true) {e['energy']:.3f}; flicker {e['flicker_x_truth']:.2f}x the truth's; "
+                 f"lag {e['lag']} frames" if r["skip"] == "video" else
+                 f"L_rec-like {100 * e['l_rec_like']:.2f} %; {e['lights_kept']:.0f} lights kept")
+        lines.append(f"| {r['skip']} | {r['setting']} | {r['ms']:.2f} | {r['speedup']:.2f} | {error} |")
+    return "\n".join(lines)
 
 
 def format_bench(result: dict[str, Any]) -> str:
@@ -105,6 +122,8 @@ def format_bench(result: dict[str, Any]) -> str:
                                                             "total"))
             lines.append(f"| {e['photo']} | {e['detector']} | {e['max_side'] or 'full'} | {e['runtime']} | "
                          f"{stages} | {e['speedup']:.2f} |")
+    if result.get("skips_what"):
+        lines += ["", format_skips(result.get("skips") or [], result["skips_what"])]
     p = PAPER
     lines += ["", "## The paper's published numbers (another dataset, another device)", "",
               f"{p['source']}: diffuse L_rec {p['diffuse_l_rec']} on {p['dataset']}; {p['fps']} fps "

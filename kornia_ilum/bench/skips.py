@@ -1,0 +1,183 @@
+r"""What each skip saves against what it costs, on the held-out split: the ``skips`` section of ``kornia-ilum bench``.
+
+With ``--cache``, ``kornia-ilum bench`` takes the first eval subject-view of the caches and the held-out real maps
+(``hdri_split`` "eval") of ``--hdri``, and measures, each against its own baseline in the same process:
+
+- **video** (:class:`~kornia_ilum.video.LightingTracker`): a clip of the subject under a held-out map turning by
+  2.8 degrees a frame, then a cut to another held-out map (:func:`video_clip`); per-frame estimation against
+  the tracker's defaults (and the ``auto`` runtime): ms per frame, and as error the median
+  ``|log(E_est / E_true)|``, the flicker over the truth's own (:func:`flicker`) and the lag after the cut
+  (:func:`lag`);
+- **sparse relighting** (:func:`~kornia_ilum.render.relight_sparse`): the subject relit by each held-out map
+  at 16 yaws, dense against sparse with the SH fold at ``eps`` 0.05 and 0.5 and without it at 0.5: ms per
+  batch, and as error the paper's ``L_rec`` applied to the portrait (:func:`lrec_like`).
+
+Detection at a reduced side, the other skip of the estimate, is the end-to-end section of the bench.
+``benchmarks/bench_video.py`` and ``benchmarks/bench_relight.py`` print the same measurements per map and
+setting.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from kornia_ilum.bench.machine import median_seconds
+from kornia_ilum.color import gamma_encode, linear_to_srgb
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.evaluation.checks import lighting_energy
+from kornia_ilum.evaluation.split import eval_fields
+from kornia_ilum.filters import soft_clip
+from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
+from kornia_ilum.io import read_hdr
+from kornia_ilum.render import kept_lights, prepare_sparse, relight_product, relight_sparse
+from kornia_ilum.sh import sh_light_basis
+from kornia_ilum.synth.environments.real import hdri_split
+from kornia_ilum.synth.lightstage.portraits import relight_portraits
+from kornia_ilum.video import LightingTracker
+
+__all__ = ["flicker", "held_out_maps", "lag", "lrec_like", "relight_skips", "skip_rows", "video_clip",
+           "video_skips"]
+
+
+def held_out_maps(folders: Sequence[str | os.PathLike[str]]) -> list[Path]:
+    """The real maps of ``folders`` whose split is ``"eval"`` (:func:`~kornia_ilum.synth.environments.hdri_split`),
+    sorted by name."""
+    maps = [p for f in folders for p in Path(f).iterdir() if p.suffix.lower() in (".exr", ".hdr")]
+    return sorted((p for p in maps if hdri_split(p.name) == "eval"), key=lambda p: p.name)
+
+
+def _latlong(path: Path, height: int = 64) -> torch.Tensor:
+    x = read_hdr(path).float()[None]
+    return torch.nn.functional.interpolate(x, size=(height, 2 * height), mode="area")
+
+
+def video_clip(field: Any, maps: Sequence[Path], frames: tuple[int, int] = (60, 30)
+               ) -> tuple[list[np.ndarray], torch.Tensor, int]:
+    """A 640 x 480 clip of ``field`` (a :class:`~kornia_ilum.synth.lightstage.ReflectanceField`) under ``maps[0]``
+    turning by one column of a 64 x 128 lat-long (2.8 degrees) a frame for ``frames[0]`` frames, then a cut to
+    ``maps[1]`` for ``frames[1]``: the face over a grey backdrop in the frame's middle, exposed once per shot so
+    that the face's mean is 0.18, 8-bit sRGB. Returns the frames, their true mirror balls and the cut's index."""
+    shots, truths = [], []
+    for path, count in zip(maps[:2], frames, strict=True):
+        latlong = _latlong(path)
+        balls = latlong_to_mirror_ball(torch.cat([latlong.roll(t, dims=-1) for t in range(count)]), 32)
+        image, alpha = relight_portraits(field, balls)
+        backdrop = 0.3 * float(balls.mean())
+        gain = 0.18 / float(image[0].sum() / (3 * alpha.sum()).clamp(min=1))
+        canvas = torch.full((count, 3, 480, 640), backdrop * gain)
+        top, left = (480 - field.size) // 2, (640 - field.size) // 2
+        canvas[:, :, top : top + field.size, left : left + field.size] = (image + (1 - alpha) * backdrop) * gain
+        srgb = linear_to_srgb(canvas.clamp(0, 1))
+        shots += [(f.permute(1, 2, 0).numpy() * 255).round().astype(np.uint8) for f in srgb]
+        truths.append(balls * gain)
+    return shots, torch.cat(truths), frames[0]
+
+
+def flicker(balls: torch.Tensor, cut: int) -> float:
+    """The mean over consecutive frames (not across the cut) of the mean absolute change of ``log(1 + L)``."""
+    logs = torch.log1p(balls.double())
+    steps = (logs[1:] - logs[:-1]).abs().mean((1, 2, 3))
+    return float(torch.cat([steps[: cut - 1], steps[cut:]]).mean())
+
+
+def lag(energy: torch.Tensor, reference: torch.Tensor, cut: int) -> int:
+    """Frames after the cut until ``energy`` stays within 10 % of ``reference`` (the per-frame estimate's)."""
+    close = torch.log(energy[cut:] / reference[cut:]).abs() <= math.log(1.1)
+    return next((k for k in range(len(close)) if bool(close[k:].all())), len(close))
+
+
+def lrec_like(image: torch.Tensor, reference: torch.Tensor) -> float:
+    """The paper's ``L_rec`` applied to relit portraits ``(B, C, P)``: the mean absolute difference of the
+    gamma-encoded images, each exposed so that the reference's 99th percentile is 1 and soft-clipped, over the
+    mean of the encoded reference."""
+    scale = torch.quantile(reference.flatten(1).float(), 0.99, dim=1).clamp(min=1e-12)[:, None, None]
+
+    def encode(x: torch.Tensor) -> torch.Tensor:
+        return gamma_encode(soft_clip((x / scale).clamp(min=0)))
+
+    ref = encode(reference)
+    return float((encode(image) - ref).abs().mean() / ref.mean())
+
+
+def video_skips(field: Any, maps: Sequence[Path], estimator: str = "ours", quick: bool = False
+                ) -> list[dict[str, Any]]:
+    """The video rows (module docstring)."""
+    frames, truth, cut = video_clip(field, maps, (12, 6) if quick else (60, 30))
+    true_energy = lighting_energy(truth.double())
+    settings = [("per frame", {"detect_every": 1, "reuse_below": 0.0, "time_constant": 0.0}),
+                ("tracker defaults", {})] + ([] if quick else [("tracker defaults, runtime auto", {"runtime": "auto"})])
+    rows, reference, base = [], None, None
+    for name, options in settings:
+        tracker = LightingTracker(estimator=estimator, fallback="full_image", **options)
+        tracker(frames[0])  # built and warm: not part of the time
+        tracker.reset()
+        t0 = time.perf_counter()
+        results = [tracker(f) for f in frames]
+        ms = 1e3 * (time.perf_counter() - t0) / len(frames)
+        balls = torch.cat([r.lighting.mirror_ball for r in results])
+        energy = lighting_energy(balls.double())
+        reference = energy if reference is None else reference
+        base = base or ms
+        rows.append({"skip": "video", "setting": name, "ms": ms, "speedup": base / ms, "error": {
+            "energy": float(torch.log(energy / true_energy).abs().median()),
+            "flicker_x_truth": flicker(balls, cut) / flicker(truth, cut), "lag": lag(energy, reference, cut)}})
+    return rows
+
+
+def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: int = 16) -> list[dict[str, Any]]:
+    """The sparse-relighting rows (module docstring), times and errors summed and averaged over ``maps``."""
+    index = field.light_index
+    projection, values = sh_light_basis(field.lighting_size)
+    if index is not None:
+        projection, values = projection[index], values[index]
+    folded, plain = prepare_sparse(field.field, (projection, values)), prepare_sparse(field.field)
+    settings = [("dense", None, 0.0), ("eps 0.05, SH fold", folded, 0.05), ("eps 0.5, SH fold", folded, 0.5),
+                ("eps 0.5, no fold", plain, 0.5)]
+    totals = {name: {"ms": 0.0, "err": [], "kept": []} for name, _, _ in settings}
+    repeats = 2 if quick else 7
+    for path in maps[:2] if quick else maps:
+        latlong = _latlong(path)
+        turns = [latlong.roll(int(k * latlong.shape[-1] / batch), dims=-1) for k in range(batch)]
+        lights = mirror_ball_to_lights(latlong_to_mirror_ball(torch.cat(turns), field.lighting_size))
+        lights = lights[:, index] if index is not None else lights
+        dense_lights = lights.to(field.field.dtype)
+        reference = relight_product(field.field, dense_lights).float()
+        for name, prepared, eps in settings:
+            if prepared is None:
+                ms = 1e3 * median_seconds(lambda: relight_product(field.field, dense_lights), repeats, warmup=1)
+                out, kept = reference, float(lights.shape[1])
+            else:
+                ms = 1e3 * median_seconds(lambda p=prepared, e=eps: relight_sparse(p, lights, e), repeats, warmup=1)
+                out = relight_sparse(prepared, lights, eps)
+                kept = float(kept_lights(lights, prepared.norms, eps).sum(1).float().mean())
+            totals[name]["ms"] += ms
+            totals[name]["err"].append(lrec_like(out, reference))
+            totals[name]["kept"].append(kept)
+    base = totals["dense"]["ms"]
+    return [{"skip": "sparse relighting", "setting": name, "ms": t["ms"], "speedup": base / t["ms"],
+             "error": {"l_rec_like": float(np.mean(t["err"])), "lights_kept": float(np.mean(t["kept"]))}}
+            for name, t in totals.items()]
+
+
+def skip_rows(caches: Sequence[str | os.PathLike[str]], hdri: Sequence[str | os.PathLike[str]],
+              quick: bool = False) -> tuple[list[dict[str, Any]], str]:
+    """Every skip's rows, and one line saying what they were measured on (or why nothing was)."""
+    try:
+        fields = eval_fields(caches)
+    except ValueCheckError:
+        fields = []
+    maps = held_out_maps(hdri)
+    if not fields or len(maps) < 2:
+        return [], "skips: not measured (needs an eval subject in --cache and two held-out maps in --hdri)"
+    field = fields[0]
+    what = (f"eval subject {field.subject_seed} (view {field.meta.get('view_index', 0)}) under the held-out maps "
+            f"{', '.join(p.name for p in maps)}")
+    return video_skips(field, maps, quick=quick) + relight_skips(field, maps, quick=quick), what
