@@ -218,12 +218,13 @@ def _resolve_detector(detector: str | FaceDetector, device: torch.device) -> Fac
 
 
 def _pick(detections: torch.Tensor, faces: str) -> torch.Tensor:
-    """``(N, 5)`` detections sorted by score -> the ``(K, 4)`` boxes kept (largest area, or all)."""
-    boxes = detections[:, :4].to(torch.float32)
-    if faces == "all" or boxes.shape[0] <= 1:
-        return boxes
+    """``(N, 5)`` detections -> the ``(K, 5)`` kept: the largest, or all of them largest first (so that face 0 is
+    the same face either way)."""
+    found = detections.to(torch.float32)
+    boxes = found[:, :4]
     area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-    return boxes[int(torch.argmax(area))][None]
+    order = torch.argsort(area, descending=True, stable=True)
+    return found[order[:1]] if faces == "largest" else found[order]
 
 
 def estimate_lighting(
@@ -257,8 +258,8 @@ def estimate_lighting(
         detector: a registered detector name (``"opencv"``, ``"yunet"``, ``"none"``, see
             :func:`kornia_ilum.detection.list_detectors`; created once per name) or a
             :class:`~kornia_ilum.detection.FaceDetector` instance.
-        faces: ``"largest"`` keeps the largest face box of each image; ``"all"`` keeps every face, in
-            the detector's order (most confident first); ``"fused"`` estimates from every face and returns
+        faces: ``"largest"`` keeps the largest face box of each image; ``"all"`` keeps every face, largest
+            first (so face 0 is the face that ``"largest"`` keeps); ``"fused"`` estimates from every face and returns
             one lighting per image, their weighted geometric mean (:func:`~kornia_ilum.estimators.fuse_faces`;
             weights: the detector's score times the box's side), for photos whose light is distant.
         fallback: ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` when an image has no
@@ -366,8 +367,9 @@ def estimate_lighting(
     lap("detect")
     for i, found in enumerate(detections):
         if found.shape[0] > 0:
-            kept = _pick(found, "all" if faces == "fused" else faces).to(dev)
-            scores.append(found[:, 4].to(dev) if faces == "fused" else torch.ones(len(kept), device=dev))
+            picked = _pick(found, "all" if faces == "fused" else faces).to(dev)
+            kept = picked[:, :4]
+            scores.append(picked[:, 4])
             crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
         elif fallback == "full_image":
             kept = full_image_box(height, width).to(dev)

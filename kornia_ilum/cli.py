@@ -36,7 +36,7 @@ import torch
 from kornia_ilum import __version__
 from kornia_ilum.api import cached_detector, cached_estimator, estimate_lighting
 from kornia_ilum.core.cli import positive_int
-from kornia_ilum.core.errors import BaseError, HDRIOError
+from kornia_ilum.core.errors import BaseError, HDRIOError, NoFaceError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
 from kornia_ilum.estimators import (
@@ -390,6 +390,18 @@ def _cmd_export_probe(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The API's hints (Python arguments) and the command line's options that say the same.
+_OPTION_HINTS = (("detector='yunet'", "--detector yunet"), ("detector='none'", "--detector none"),
+                 ("fallback='full_image'", "--fallback full_image"))
+
+
+def _as_options(message: str) -> str:
+    """An API error message with its Python-argument hints written as command-line options."""
+    for python, option in _OPTION_HINTS:
+        message = message.replace(python, option)
+    return message
+
+
 def _cmd_estimate(args: argparse.Namespace) -> int:
     several = len(args.images) > 1
     faces_all = args.faces == "all"
@@ -433,10 +445,13 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         image = skimage.data.astronaut() if path is None else read_ldr(path)
         stages = {"read": 1e3 * (time.perf_counter() - t0)}
-        light = estimate_lighting(
-            image, estimator=estimator, detector=detector, faces=args.faces, fallback=args.fallback,
-            device=device, tta=args.tta, runtime=args.runtime, timings=stages,
-        )
+        try:
+            light = estimate_lighting(
+                image, estimator=estimator, detector=detector, faces=args.faces, fallback=args.fallback,
+                device=device, tta=args.tta, runtime=args.runtime, timings=stages,
+            )
+        except NoFaceError as e:  # the API's hints name Python arguments; here they are options
+            raise NoFaceError(_as_options(str(e))) from None
         for key in ("write", "preview"):
             stages[key] = 0.0
         for face in range(len(light)):

@@ -524,3 +524,19 @@ def test_an_estimate_computes_no_sphere_render_and_no_sh(estimator, monkeypatch)
         assert est.sh is None
         names = create_estimator("ours").state_dict()
         assert not any(k.startswith("sides") for k in names)  # MultiScaleOurs.sides, the training branches
+
+
+def test_all_faces_come_largest_first_so_face_0_is_the_largest() -> None:
+    """Issue 25: face 0 of faces='all' is the face of the default faces='largest'."""
+    face = skimage.data.astronaut()
+    small = face[::2, ::2]
+    photo = np.zeros((512, 768, 3), np.uint8)
+    photo[:256, :256] = small  # the small face first, where a detector scanning rows meets it first
+    photo[:, 256:] = face
+    every = estimate_lighting(photo, faces="all")
+    largest = estimate_lighting(photo)
+    sides = (every.boxes[:, 2] - every.boxes[:, 0]).tolist()
+    assert len(every) >= 2 and sides == sorted(sides, reverse=True)
+    torch.testing.assert_close(every.boxes[0], largest.boxes[0])
+    torch.testing.assert_close(every.mirror_ball[0], largest.mirror_ball[0])
+

@@ -90,7 +90,8 @@ class TestEstimate:
         flat = _png(tmp_path / "flat.png", np.full((64, 96, 3), 100, np.uint8))
         assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr")]) == 1
         line = _error_line(capsys)
-        assert "no face found in image" in line and "fallback='full_image'" in line
+        assert "no face found in image" in line and "--fallback full_image" in line and "--detector yunet" in line
+        assert "fallback='full_image'" not in line  # options, not the API's Python arguments
         assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr"), "--fallback", "full_image"]) == 0
         assert "box [16, 0, 80, 64]" in capsys.readouterr().out
 

@@ -14,6 +14,9 @@ T = TypeVar("T")
 class ProgressBar:
     """A progress bar on stderr: tqdm when installed, else a ``desc: i/total`` counter (every 1 %).
 
+    When stderr is not a terminal (a log file, a pipe, CI), neither: a plain line ``desc: i/total`` every 10 %,
+    so that a log holds a few readable lines instead of hundreds of carriage-return updates run together.
+
     Examples:
         >>> bar = ProgressBar(2, "renders", "light")
         >>> bar.update(2)
@@ -22,17 +25,25 @@ class ProgressBar:
 
     def __init__(self, total: int, desc: str, unit: str) -> None:
         self.total, self.desc, self.done, self.shown = total, desc, 0, -1
-        try:
-            from tqdm import tqdm  # optional dependency: a plain counter without it
-        except ImportError:
-            self.tqdm = None
-        else:
-            self.tqdm = tqdm(total=total, desc=desc, file=sys.stderr, unit=unit)
+        self.lines = not _is_terminal(sys.stderr)  # a log: plain lines, not carriage returns
+        self.tqdm = None
+        if not self.lines:
+            try:
+                from tqdm import tqdm  # optional dependency: a plain counter without it
+            except ImportError:
+                pass
+            else:
+                self.tqdm = tqdm(total=total, desc=desc, file=sys.stderr, unit=unit)
 
     def update(self, n: int = 1) -> None:
         self.done += n
         if self.tqdm is not None:
             self.tqdm.update(n)
+        elif self.lines:
+            step = 10 * self.done // max(self.total, 1)
+            if self.done == self.total or step > self.shown:
+                self.shown = step
+                print(f"{self.desc}: {self.done}/{self.total}", file=sys.stderr, flush=True)
         elif self.done == self.total or 100 * self.done // max(self.total, 1) > self.shown:
             self.shown = 100 * self.done // max(self.total, 1)
             end = "\n" if self.done == self.total else ""
@@ -41,6 +52,13 @@ class ProgressBar:
     def close(self) -> None:
         if self.tqdm is not None:
             self.tqdm.close()
+
+
+def _is_terminal(stream: object) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False
 
 
 def progress(items: Iterable[T], total: int, desc: str, unit: str = "item") -> Iterator[T]:

@@ -39,3 +39,21 @@ def test_progress_closes_when_the_loop_stops_early(no_tqdm, monkeypatch):
             break
     items.close()
     assert closed == [2]  # closed once, after the two items that finished
+
+
+def test_a_log_gets_a_few_plain_lines(capsys):
+    """Issue 25: piped into a file, 104 updates make at most 11 lines and no carriage return."""
+    bar = ProgressBar(104, "OLAT renders", "light")  # capsys' stderr is no terminal
+    for _ in range(104):
+        bar.update()
+    bar.close()
+    err = capsys.readouterr().err
+    assert "\r" not in err and err.endswith("OLAT renders: 104/104\n")
+    assert 2 <= len(err.splitlines()) <= 11
+
+
+def test_a_terminal_gets_the_counter(no_tqdm, capsys, monkeypatch):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    bar = ProgressBar(3, "renders", "light")
+    bar.update(3)
+    assert "\r" in capsys.readouterr().err
