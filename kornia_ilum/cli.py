@@ -333,13 +333,16 @@ def _cmd_video(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     frames = detected = estimated = cuts = 0
-    for frame in estimate_video(args.source, estimator=args.estimator, detector=args.detector,
-                                detect_every=args.detect_every, reuse_below=args.reuse_below,
-                                time_constant=args.time_constant, cut_above=args.cut_above,
-                                fallback=args.fallback):
-        frame.lighting.save(out / f"frame_{frame.index:05d}.exr")
-        frames, detected, estimated = frames + 1, detected + frame.detected, estimated + frame.estimated
-        cuts += frame.cut
+    stream = estimate_video(args.source, estimator=args.estimator, detector=args.detector,
+                            detect_every=args.detect_every, reuse_below=args.reuse_below,
+                            time_constant=args.time_constant, cut_above=args.cut_above, fallback=args.fallback)
+    try:
+        for frame in stream:
+            frame.lighting.save(out / f"frame_{frame.index:05d}.exr")
+            frames, detected, estimated = frames + 1, detected + frame.detected, estimated + frame.estimated
+            cuts += frame.cut
+    except NoFaceError as e:  # the hint names the option, not the Python argument
+        raise NoFaceError(_as_options(str(e))) from None
     seconds = time.perf_counter() - t0
     print(f"{frames} frames in {seconds:.2f} s ({frames / max(seconds, 1e-9):.1f} fps, .exr writes included): "
           f"detected on {detected}, estimated on {estimated}, {cuts} cut(s); wrote {out}/frame_*.exr")

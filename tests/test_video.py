@@ -97,3 +97,9 @@ def test_the_video_command_writes_one_exr_per_frame(tmp_path) -> None:
     bad = subprocess.run([sys.executable, "-m", "kornia_ilum", "video", str(tmp_path / "nope.mp4"), "-o",
                           str(out)], capture_output=True, text=True, check=False)
     assert bad.returncode == 1 and "no such video" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    faceless = tmp_path / "faceless"
+    faceless.mkdir()
+    cv2.imwrite(str(faceless / "f0.png"), np.full((64, 96, 3), 90, np.uint8))
+    none = subprocess.run([sys.executable, "-m", "kornia_ilum", "video", str(faceless), "-o", str(out),
+                           "--estimator", "uniform"], capture_output=True, text=True, check=False)
+    assert none.returncode == 1 and "--fallback full_image" in none.stderr
