@@ -51,7 +51,7 @@ from kornia_ilum.estimators import (
     onnx_model,
     runtime_parity,
 )
-from kornia_ilum.io import read_ldr
+from kornia_ilum.io import check_ldr, read_ldr
 from kornia_ilum.synth.cli import (
     add_synth_check_skin_parser,
     add_synth_environments_parser,
@@ -433,10 +433,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         raise _UsageError(
             f"several images are named {dup!r} (their outputs would collide); run them separately"
         )
-    for p in args.images:  # fail before any work when a path is wrong
-        if not Path(p).is_file():
-            why = "it is a directory" if Path(p).is_dir() else "no such file"
-            raise HDRIOError(f"cannot read {p}: {why}")
+    for p in args.images:  # fail before any work (the models load next) when a file is no readable image
+        check_ldr(p)
 
     t0 = time.perf_counter()
     chosen = cached_estimator(estimator, device, args.runtime).runtime  # built once (missing weights fail here)

@@ -46,7 +46,7 @@ from kornia_ilum.core.files import atomic_write
 if TYPE_CHECKING:
     import OpenImageIO as oiio
 
-__all__ = ["HALF_MAX", "read_hdr", "read_ldr", "write_hdr", "write_ldr"]
+__all__ = ["HALF_MAX", "check_ldr", "read_hdr", "read_ldr", "write_hdr", "write_ldr"]
 
 #: Largest finite half-float value; larger values become ``inf`` in a half EXR.
 HALF_MAX = 65504.0
@@ -97,10 +97,11 @@ def _png_truncation(path: Path) -> str | None:
             f.seek(pos)
 
 
-def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
+def _read(path: Path, *, hdr: bool, header_only: bool = False) -> tuple[np.ndarray | None, oiio.ImageSpec]:
     """Read subimage 0 of ``path`` as float ``(H, W, C)``, upright, and its spec; file errors -> HDRIOError.
 
     ``hdr`` selects the pixel types accepted: floating point (HDR) or 8/16-bit integers (LDR).
+    ``header_only``: check the file and return ``(None, spec)`` without decoding the pixels.
     """
     import OpenImageIO as oiio  # lazy: keeps import kornia_ilum cheap
 
@@ -139,6 +140,8 @@ def _read(path: Path, *, hdr: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
                     f"cannot read {path} as LDR: it holds {spec.format} pixels, not 8-bit or 16-bit "
                     "integers; use read_hdr for floating-point (HDR) files"
                 )
+            if header_only:
+                return None, spec
             # LDR: native integer codes, divided below (exactly code / 255 or code / 65535)
             pixels = inp.read_image(0, 0, 0, spec.nchannels, "float" if hdr else spec.format)
             err = inp.geterror()
@@ -223,6 +226,37 @@ def read_hdr(path: str | os.PathLike[str], *, clamp_negative: bool = True) -> to
         raise HDRIOError(f"cannot read {path}: it holds {int((~finite).sum())} NaN or Inf values")
     image = _to_rgb(pixels, spec, path)
     return image.clamp_(min=0.0) if clamp_negative else image
+
+
+def check_ldr(path: str | os.PathLike[str]) -> tuple[int, int]:
+    r"""Check that :func:`read_ldr` can read ``path``, from the file's header (the pixels are not decoded).
+
+    For a command that should refuse a bad input before it loads its models. A file whose data end after a
+    valid header is found only by reading it (:class:`~kornia_ilum.core.errors.TruncatedImageError` from
+    :func:`read_ldr`), except a PNG's, whose chunks are checked here too.
+
+    Returns:
+        ``(height, width)`` as stored (before the EXIF orientation).
+
+    Raises:
+        HDRIOError: as :func:`read_ldr`: missing, a directory, empty, not an image, a truncated PNG, or HDR
+            pixels.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     write_ldr(Path(tmp) / "face.png", torch.full((3, 2, 5), 0.5))
+        ...     _ = (Path(tmp) / "notes.png").write_text("not an image")
+        ...     size = check_ldr(Path(tmp) / "face.png")
+        ...     try:
+        ...         check_ldr(Path(tmp) / "notes.png")
+        ...     except HDRIOError:
+        ...         refused = True
+        >>> size, refused
+        ((2, 5), True)
+    """
+    _, spec = _read(_as_path(path), hdr=False, header_only=True)
+    return spec.height, spec.width
 
 
 def read_ldr(path: str | os.PathLike[str]) -> torch.Tensor:

@@ -23,7 +23,7 @@ from kornia_ilum.core.errors import (
     TypeCheckError,
     ValueCheckError,
 )
-from kornia_ilum.io import HALF_MAX, read_hdr, read_ldr, write_hdr, write_ldr
+from kornia_ilum.io import HALF_MAX, check_ldr, read_hdr, read_ldr, write_hdr, write_ldr
 from kornia_ilum.io import image as image_module
 
 #: Radiance RGBE: 8-bit mantissas with a shared exponent, truncated by OpenImageIO. Every channel comes
@@ -547,3 +547,18 @@ class TestSharedMaps:
         stat = os.stat(path)
         read_hdr(path)
         assert os.stat(path).st_mtime_ns == stat.st_mtime_ns
+
+
+class TestCheckLdr:
+    """check_ldr: the header only; the same refusals as read_ldr for files that cannot be read."""
+
+    def test_size_and_refusals(self, tmp_path):
+        write_ldr(tmp_path / "a.png", torch.full((3, 4, 6), 0.5))
+        assert check_ldr(tmp_path / "a.png") == (4, 6)
+        (tmp_path / "text.png").write_text("not an image")
+        (tmp_path / "empty.jpg").write_bytes(b"")
+        write_hdr(tmp_path / "light.exr", torch.ones(3, 2, 2))
+        for name, match in (("text.png", "cannot read"), ("empty.jpg", "empty"), ("missing.png", "no such file"),
+                            ("light.exr", "HDR|LDR")):
+            with pytest.raises(HDRIOError, match=match):
+                check_ldr(tmp_path / name)
