@@ -25,15 +25,12 @@ This is a benchmark, not a test.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import torch
 
-from kornia_ilum.bench.skips import flicker, held_out_maps, lag, video_clip
-from kornia_ilum.evaluation.checks import lighting_energy
+from kornia_ilum.bench.skips import VIDEO_SETTINGS, flicker, held_out_maps, video_clip, video_rows
 from kornia_ilum.evaluation.split import eval_fields
-from kornia_ilum.video import LightingTracker
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -48,32 +45,15 @@ def main(argv: list[str] | None = None) -> None:
     maps = held_out_maps([args.hdri])
     frames, truth, cut = video_clip(eval_fields([args.cache])[0], maps, tuple(args.frames))
     print(f"clip: {len(frames)} frames of 640 x 480, cut at frame {cut}; truth flicker {flicker(truth, cut):.4f}")
-    settings = {
-        "per frame (detect, estimate, no smoothing)": {"detect_every": 1, "reuse_below": 0.0, "time_constant": 0.0},
-        "tracker defaults": {},
-        "tracker, time constant 4": {"time_constant": 4.0},
-        "tracker defaults, runtime auto": {"runtime": "auto"},
-    }
-    truth_flicker = flicker(truth, cut)
+    settings = {"per frame (detect, estimate, no smoothing)": VIDEO_SETTINGS["per frame"],
+                "tracker defaults": {}, "tracker, time constant 4": {"time_constant": 4.0},
+                "tracker defaults, runtime auto": {"runtime": "auto"}}
     print(f"{'setting':44s} {'fps':>7s} {'flicker':>8s} {'x truth':>8s} {'lag':>4s} {'cuts':>5s} {'detected':>9s} "
           f"{'estimated':>9s}")
-    reference = None
-    for name, options in settings.items():
-        tracker = LightingTracker(estimator=args.estimator, fallback="full_image", **options)
-        tracker(frames[0])  # the models are built and warm: not part of the rate
-        tracker.reset()
-        t0 = time.perf_counter()
-        results = [tracker(f) for f in frames]
-        seconds = time.perf_counter() - t0
-        balls = torch.cat([r.lighting.mirror_ball for r in results])
-        change = flicker(balls, cut)
-        energy = lighting_energy(balls.double())
-        reference = energy if reference is None else reference  # the per-frame setting comes first
-        frames_late = lag(energy, reference, cut)
-        print(f"{name:44s} {len(frames) / seconds:7.1f} {change:8.4f} {change / truth_flicker:8.2f} {frames_late:4d} "
-              f"{sum(r.cut for r in results):5d} {sum(r.detected for r in results):9d} "
-              f"{sum(r.estimated for r in results):9d}")
-
+    for row in video_rows(frames, truth, cut, settings, args.estimator):
+        e = row["error"]
+        print(f"{row['setting']:44s} {1e3 / row['ms']:7.1f} {e['flicker_x_truth'] * flicker(truth, cut):8.4f} "
+              f"{e['flicker_x_truth']:8.2f} {e['lag']:4d} {e['cuts']:5d} {e['detected']:9d} {e['estimated']:9d}")
 
 if __name__ == "__main__":
     main()

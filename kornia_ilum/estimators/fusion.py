@@ -25,6 +25,7 @@ import torch
 from torch import Tensor
 
 from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.dtypes import work_dtype
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.estimators.base import LightingEstimate
 
@@ -70,7 +71,7 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
     count = int(groups.max()) + 1 if n else 0
     if n == 0 or int(groups.min()) < 0 or torch.unique(groups).numel() != count:
         raise ValueCheckError(f"groups must use every index of 0 .. G - 1, got {groups.tolist()}")
-    work = light.float() if light.dtype in (torch.float16, torch.bfloat16) else light
+    work = light.to(work_dtype(light.dtype))
     valid = estimate.valid.to(light.device)
     mean = (work * valid).sum((1, 2, 3)) / (3 * valid.sum()).clamp(min=1)
     floor = (FLOOR * mean).clamp(min=torch.finfo(work.dtype).tiny)[:, None, None, None]

@@ -127,8 +127,9 @@ class Recipe:
         return collate([next(samples) for _ in range(PROBE_SIZE)])
 
     def scale_output(self, estimator: nn.Module, gain: torch.Tensor) -> None:
-        """Multiply the lighting that ``estimator`` outputs by ``gain`` (``(3,)``, R, G, B), in place: the
-        energy calibration of :func:`~kornia_ilum.train.calibration.calibrate_energy`.
+        """Multiply the lighting that ``estimator`` outputs by ``gain`` (``(3,)``, R, G, B), in place and exactly
+        (the calibration reports its effect without measuring it again): the energy calibration of
+        :func:`~kornia_ilum.train.calibration.calibrate_energy`.
 
         Raises:
             ValueCheckError: the recipe cannot scale its estimator's output (the default).
