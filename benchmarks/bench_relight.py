@@ -1,17 +1,19 @@
 """Sparse relighting against dense, on real maps: time saved against error added, per map.
 
-Run: ``python benchmarks/bench_relight.py --cache CACHE [--hdri DIR] [--eps 0.01 0.02 0.05] [--batch 16]
-[--threads 2]``
+Run: ``python benchmarks/bench_relight.py --cache CACHE [--hdri DIR] [--eps 0.005 0.01 0.02] [--batch 16]
+[--blocks 4 6] [--threads 2]``
 
 One light-stage subject-view of ``CACHE`` (the first field, compact bfloat16 layout, as the training data
 relights it) is relit by every map of ``--hdri`` (default ``../shared/data/hdri``), resampled to a 32 x 32
 mirror ball and turned to ``--batch`` yaws, once densely (:func:`kornia_ilum.render.relight_product`, the
-light stage's path) and once by :func:`kornia_ilum.render.relight_sparse` at each ``eps``, with the dropped
-lights folded into order-2 SH (:func:`kornia_ilum.sh.sh_light_basis`) and without.
+light stage's path) and once by :func:`kornia_ilum.render.relight_sparse` at each ``eps``, the lights not kept
+relit through clusters of ``B x B`` pixels of the ball for each ``--blocks B``
+(:func:`kornia_ilum.render.light_clusters`). The ``skips`` section of ``kornia-ilum bench`` sums the same over
+the held-out maps (:func:`kornia_ilum.bench.skips.relight_skips`).
 
 Per map and setting: the median time of ``--runs`` calls and its ratio to dense in the same process; the
 lights kept per lighting (mean); the share of the map's energy in its brightest 1 % of directions (how
-sun-dominated it is); and two errors of the relit image against dense: ``L1`` (relative, linear) and
+sun-dominated it is, :func:`kornia_ilum.bench.skips.top_share`); and two errors of the relit image against dense: ``L1`` (relative, linear) and
 ``L_rec-like`` (the paper's sphere loss applied to the portrait: mean absolute difference of the
 gamma-encoded images, each exposed so that its 99th percentile is 1 and soft-clipped, over the mean of the
 dense one). The target of issue 24: at least 5x faster on sun-dominated maps at 1 % of ``L_rec``.
@@ -27,11 +29,10 @@ from pathlib import Path
 import torch
 
 from kornia_ilum.bench import median_seconds
-from kornia_ilum.bench.skips import lrec_like
+from kornia_ilum.bench.skips import lrec_like, top_share
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
-from kornia_ilum.render import kept_lights, prepare_sparse, relight_product, relight_sparse
-from kornia_ilum.sh import sh_light_basis
+from kornia_ilum.render import light_clusters, prepare_sparse, relight_product, relight_sparse, sparse_kept
 from kornia_ilum.synth.lightstage.portraits import load_fields
 
 
@@ -43,7 +44,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cache", required=True)
     parser.add_argument("--hdri", default=str(Path(__file__).resolve().parents[1].parent / "shared/data/hdri"))
-    parser.add_argument("--eps", type=float, nargs="+", default=[0.01, 0.02, 0.05])
+    parser.add_argument("--eps", type=float, nargs="+", default=[0.005, 0.01, 0.02])
+    parser.add_argument("--blocks", type=int, nargs="+", default=[4, 6])
     parser.add_argument("--batch", type=int, default=16)
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--threads", type=int, default=2)
@@ -52,10 +54,8 @@ def main(argv: list[str] | None = None) -> None:
 
     field = load_fields(args.cache)[0]
     index = field.light_index
-    projection, values = sh_light_basis(field.lighting_size)
-    if index is not None:
-        projection, values = projection[index], values[index]
-    folded, plain = prepare_sparse(field.field, (projection, values)), prepare_sparse(field.field)
+    settings = [(f"blocks {b}", prepare_sparse(field.field, light_clusters(field.lighting_size, b, index)))
+                for b in args.blocks]
     print(f"field: seed {field.subject_seed}, {tuple(field.field.shape)} {field.field.dtype}; batch {args.batch}, "
           f"{args.threads} threads")
     print(f"{'map':28s} {'top 1%':>7s} {'setting':18s} {'ms':>8s} {'x dense':>8s} {'kept':>6s} "
@@ -70,18 +70,17 @@ def main(argv: list[str] | None = None) -> None:
         lights = mirror_ball_to_lights(ball)
         if index is not None:
             lights = lights[:, index]
-        energy = lights.mean(-1)[0].sort(descending=True).values
-        top = float(energy[: max(1, len(energy) // 100)].sum() / energy.sum())
+        top = top_share(lights)
         dense_lights = lights.to(field.field.dtype)
         reference = relight_product(field.field, dense_lights).float()
         base = _median_ms(lambda: relight_product(field.field, dense_lights), args.runs)
         print(f"{path.name:28s} {top:7.2f} {'dense':18s} {base:8.2f} {1.0:8.2f} {lights.shape[1]:6d} {0.0:8.4f} "
               f"{0.0:10.4f}")
         for eps in args.eps:
-            for name, prepared in (("fold SH", folded), ("drop", plain)):
+            for name, prepared in settings:
                 out = relight_sparse(prepared, lights, eps)
                 ms = _median_ms(lambda p=prepared, e=eps: relight_sparse(p, lights, e), args.runs)
-                kept = float(kept_lights(lights, prepared.norms, eps).sum(1).float().mean())
+                kept = float(sparse_kept(prepared, lights, eps).float().mean())
                 l1 = float((out - reference).abs().sum() / reference.abs().sum())
                 print(f"{'':28s} {'':7s} {f'eps {eps:g} {name}':18s} {ms:8.2f} {base / ms:8.2f} {kept:6.1f} "
                       f"{l1:8.4f} {lrec_like(out, reference):10.4f}")

@@ -235,6 +235,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="a crop change above X is a cut: the smoothing restarts (default: 0.03)")
     vid.add_argument("--fallback", choices=("full_image",), default=None,
                      help="estimate from the centred square while no face was found")
+    vid.add_argument("--runtime", choices=RUNTIMES, default="auto",
+                     help="what computes the estimates (default: auto, the fastest that runs here and passes its "
+                     "parity check, exported once per machine into the cache: video is where speed counts; "
+                     "eager for PyTorch float32; docs/skipping.rst gives the frame rates)")
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)
     add_synth_check_skin_parser(sub)
@@ -335,7 +339,8 @@ def _cmd_video(args: argparse.Namespace) -> int:
     frames = detected = estimated = cuts = 0
     stream = estimate_video(args.source, estimator=args.estimator, detector=args.detector,
                             detect_every=args.detect_every, reuse_below=args.reuse_below,
-                            time_constant=args.time_constant, cut_above=args.cut_above, fallback=args.fallback)
+                            time_constant=args.time_constant, cut_above=args.cut_above, fallback=args.fallback,
+                            runtime=args.runtime)
     try:
         for frame in stream:
             frame.lighting.save(out / f"frame_{frame.index:05d}.exr")

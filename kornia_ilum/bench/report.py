@@ -60,8 +60,9 @@ def format_skips(rows: list[dict[str, Any]], what: str) -> str:
     for r in rows:
         e = r["error"]
         error = (f"median abs log(E / E_true) {e['energy']:.3f}; flicker {e['flicker_x_truth']:.2f}x the truth's; "
-                 f"lag {e['lag']} frames" if r["skip"] == "video" else
-                 f"L_rec-like {100 * e['l_rec_like']:.2f} %; {e['lights_kept']:.0f} lights kept")
+                 f"lag {e['lag']} frames ({e['lag_own_crops']} behind its own crops)" if r["skip"] == "video" else
+                 f"L_rec-like {100 * e['l_rec_like']:.2f} % (worst map {100 * e['l_rec_like_max']:.2f} %); "
+                 f"{e['lights_kept']:.1f} lights kept; {e['maps']} maps")
         lines.append(f"| {r['skip']} | {r['setting']} | {r['ms']:.2f} | {r['speedup']:.2f} | {error} |")
     return "\n".join(lines)
 

@@ -10,7 +10,14 @@ from kornia_ilum.render.pyramid import (
     mirror_ball_pyramid,
 )
 from kornia_ilum.render.relight import Relight, kept_lights, light_norms, relight, relight_product
-from kornia_ilum.render.sparse import DENSE_FRACTION, SparseField, prepare_sparse, relight_sparse
+from kornia_ilum.render.sparse import (
+    KEPT_FRACTION,
+    SparseField,
+    light_clusters,
+    prepare_sparse,
+    relight_sparse,
+    sparse_kept,
+)
 from kornia_ilum.render.spheres import (
     BRDFS,
     DIFFUSE_ALBEDO,
@@ -39,7 +46,7 @@ from kornia_ilum.render.spheres import (
 
 __all__ = [
     "BRDFS",
-    "DENSE_FRACTION",
+    "KEPT_FRACTION",
     "DIFFUSE_ALBEDO",
     "GAMMA_MODES",
     "MIRROR_REFLECTIVITY",
@@ -61,6 +68,7 @@ __all__ = [
     "encode_sphere",
     "gamma_knee",
     "kept_lights",
+    "light_clusters",
     "light_norms",
     "mirror_ball_downsample_matrix",
     "mirror_ball_pyramid",
@@ -68,6 +76,7 @@ __all__ = [
     "relight",
     "relight_product",
     "relight_sparse",
+    "sparse_kept",
     "render_plan",
     "render_spheres",
     "shared_sphere_field",

@@ -1,41 +1,75 @@
-r"""Sparse relighting, adaptive per lighting: the lights that carry the energy exactly, the rest folded into a
-low-order term.
+r"""Sparse relighting, adaptive per lighting: each lighting's brightest lights exactly, the rest through a
+coarse field of light clusters.
 
-A sunny sky puts most of its energy into a few directions. :func:`relight_sparse` relights each lighting of
-a batch from its own strongest lights only, those that carry all but a fraction ``eps`` of the image's
-energy (the rule of :func:`~kornia_ilum.render.relight`'s ``eps``), so a sun and its neighbours cost a few
-columns of the field instead of all ``N``. The dropped lights are not lost: with a ``fold`` basis (for
-example order-2 spherical harmonics, ``K = 9``) their lighting is projected onto the basis and relit through
-the field's precomputed response to it, ``K`` columns more:
+A sunny sky puts most of its energy into a few directions and is smooth elsewhere. :func:`relight_sparse`
+splits each lighting ``L`` of a batch in two:
+
+- **kept lights**: those that alone carry more than ``eps`` of the image's energy (a sun, its brightest
+  neighbours, a lamp), the brightest :data:`KEPT_FRACTION` of the lights at most. The energy of light ``n`` is
+  ``sum_c L[n, c] ||R[c, :, n]||_1``, the rule of :func:`~kornia_ilum.render.kept_lights`. An overcast sky
+  keeps none.
+- **the rest**: every light ``n`` belongs to one cluster ``g(n)`` of neighbouring lights
+  (:func:`light_clusters`: square blocks of the mirror ball). Within each cluster, the lighting left is
+  replaced by its mean ``m_g``, weighted by each light's reach (the norm of its column of ``R``), and that
+  piecewise constant lighting is relit through the field's clusters, ``R_g = sum_{n in g} R_{:, n}``: one
+  small product of ``G`` columns instead of ``N``.
 
 .. math::
 
-    I \approx \sum_{n \in \text{kept}} R_{:, n} L_n + \sum_k F_{:, k} a_k,
-    \qquad a_k = \sum_{n \in \text{dropped}} P_{n k} L_n, \qquad F_{:, k} = \sum_n R_{:, n} Y_{n k},
+    I \approx \sum_g R_g m_g + \sum_{n \in \text{kept}} R_{:, n} \left(L_n - m_{g(n)}\right),
+    \qquad m_g = \frac{\sum_{n \in g \setminus \text{kept}} \|R_{:, n}\|_1 L_n}
+                      {\sum_{n \in g \setminus \text{kept}} \|R_{:, n}\|_1}.
 
-with ``P`` the basis' projection (values times solid angles) and ``Y`` its values at the lights. The kept
-lights' rows of a light-major copy of the field are summed in one
-:func:`torch.nn.functional.embedding_bag` over the whole batch. The number
-of kept lights adapts to each lighting: an overcast sky keeps many. Where a lighting would keep more than
-:data:`DENSE_FRACTION` of the lights, it is relit densely, which is then the faster way.
-:func:`prepare_sparse` does the per-field work once (the lights' norms and the fold's response).
-``benchmarks/bench_relight.py`` measures the speed against the error on real maps.
+The kept lights are exact, and the image's energy is exact (the means are reach-weighted). What is left is
+the error of a piecewise constant lighting, ``sum_{n not kept} (R_n - ||R_n||_1 R_g / ||R_g||_1) (L_n - m_g)``:
+small where the lighting is smooth within a cluster, or where a cluster's lights light the subject alike.
+The cap on the kept lights bounds the time: each kept light costs a row of the field per lighting, while the
+dense product reads the field once for the whole batch, so past the cap sparse would be the slower way.
+
+:func:`prepare_sparse` does the per-field work once (the light-major rows, the lights' norms and the coarse
+field). ``benchmarks/bench_relight.py`` measures the speed against the error on real maps
+(docs/skipping.rst). To drop the weak lights instead, use :func:`~kornia_ilum.render.relight`'s ``eps``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
 
-from kornia_ilum.core.check import check_tensor
-from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.render.relight import kept_lights, light_norms, relight_product
+from kornia_ilum.core.check import check_positive_int, check_tensor
+from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.render.relight import light_norms, relight_product
 
-__all__ = ["DENSE_FRACTION", "SparseField", "prepare_sparse", "relight_sparse"]
+__all__ = ["KEPT_FRACTION", "SparseField", "light_clusters", "prepare_sparse", "relight_sparse", "sparse_kept"]
 
-#: A lighting that keeps more than this fraction of the lights is relit densely.
-DENSE_FRACTION = 0.125
+#: The most lights a lighting keeps exactly, as a fraction of the field's lights (the rest go to the means).
+KEPT_FRACTION = 1 / 32
+
+
+def light_clusters(size: int, block: int, light_index: torch.Tensor | None = None) -> torch.Tensor:
+    r"""``(N,)`` long: the cluster of each light of a ``size x size`` mirror ball, square blocks of ``block``
+    pixels, numbered ``0 .. G - 1`` in row-major order of the blocks.
+
+    Args:
+        size: the mirror ball's side ``S``.
+        block: the blocks' side in pixels (``S`` or more: one cluster).
+        light_index: ``(N,)`` the field's lights as row-major pixel indices (a compact field's
+            ``light_index``); ``None``: all ``S * S`` pixels.
+
+    Examples:
+        >>> light_clusters(4, 2).reshape(4, 4).tolist()
+        [[0, 0, 1, 1], [0, 0, 1, 1], [2, 2, 3, 3], [2, 2, 3, 3]]
+        >>> light_clusters(4, 2, torch.tensor([1, 2, 13])).tolist()  # only the blocks in use are numbered
+        [0, 1, 2]
+    """
+    check_positive_int(size, "size")
+    check_positive_int(block, "block")
+    pixels = torch.arange(size * size) if light_index is None else light_index.long()
+    row, col = pixels // size, pixels % size
+    per_row = -(-size // block)
+    return torch.unique(row // block * per_row + col // block, return_inverse=True)[1]
 
 
 @dataclass(frozen=True)
@@ -44,80 +78,97 @@ class SparseField:
 
     Attributes:
         field: ``(C, P, N)`` channel-major or ``(P, N)`` shared, as given.
-        rows: the same field light-major, ``(C', N, P)``, so that a light's column is one contiguous row.
-        norms: ``(C', N)`` float64, each light's ``||R[c, :, n]||_1``.
-        projection: ``(N, K)`` the fold basis' projection, or ``None`` (no fold).
-        response: ``(C', P, K)`` float32, the field's response to the basis, or ``None``.
+        rows: the field light-major, ``(C' * N + 1, P)``, so that a light's column is one contiguous row; the
+            last row is zero (where the bags of :func:`torch.nn.functional.embedding_bag` are padded).
+        norms: ``(C', N)`` float32, each light's ``||R[c, :, n]||_1``.
+        clusters: ``(N,)`` long, each light's cluster.
+        members: ``(N, G)`` float32, one-hot of ``clusters`` (the cluster means as one product).
+        coarse: ``(C', P, G)`` the field summed over each cluster's lights, in the field's dtype.
     """
 
     field: torch.Tensor
     rows: torch.Tensor
     norms: torch.Tensor
-    projection: torch.Tensor | None = None
-    response: torch.Tensor | None = None
+    clusters: torch.Tensor
+    members: torch.Tensor
+    coarse: torch.Tensor
 
 
-def prepare_sparse(field: torch.Tensor, fold: tuple[torch.Tensor, torch.Tensor] | None = None) -> SparseField:
-    r"""The per-field work of :func:`relight_sparse`, done once: the lights' norms and the fold's response.
+def prepare_sparse(field: torch.Tensor, clusters: torch.Tensor) -> SparseField:
+    r"""The per-field work of :func:`relight_sparse`, done once: the light-major rows, the lights' norms and
+    the coarse field of the clusters.
 
     Args:
         field: ``(C, P, N)`` or ``(P, N)``, any floating dtype (the light stage's fields are bfloat16).
-        fold: ``(projection, values)``, both ``(N, K)``: the projection of a light list onto the basis (values
-            times each light's solid angle) and the basis' values at the lights; ``None``: the dropped lights
-            are dropped.
+        clusters: ``(N,)`` each light's cluster, ``0 .. G - 1`` (:func:`light_clusters`).
 
     Raises:
-        ShapeError: the fold's shapes do not match the field's ``N``.
+        ShapeError: ``clusters`` does not have the field's ``N`` entries.
+        TypeCheckError: ``clusters`` is not an integer tensor.
+        ValueCheckError: a negative cluster.
 
     Examples:
-        >>> prepared = prepare_sparse(torch.eye(4))
-        >>> prepared.norms.tolist()
-        [[1.0, 1.0, 1.0, 1.0]]
+        >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))
+        >>> prepared.norms.tolist(), prepared.coarse.shape
+        ([[1.0, 1.0, 1.0, 1.0]], torch.Size([1, 4, 2]))
     """
     check_tensor(field, "field", None)
     if field.dim() not in (2, 3):
         raise ShapeError(f"field must be (C, P, N) or (P, N), got {tuple(field.shape)}")
-    n = field.shape[-1]
-    rows = field.transpose(-1, -2).contiguous()
-    rows = rows[None] if field.dim() == 2 else rows
-    if fold is None:
-        return SparseField(field, rows, light_norms(field))
-    projection, values = fold
-    for name, t in (("projection", projection), ("values", values)):
-        check_tensor(t, f"fold {name}", [str(n), "K"])
-    if projection.shape != values.shape:
-        raise ShapeError(f"the fold's projection and values must have one shape, got {tuple(projection.shape)} "
-                         f"and {tuple(values.shape)}")
-    k = values.shape[1]
-    basis = values.T[:, :, None].expand(k, n, field.shape[0] if field.dim() == 3 else 1)  # K "lightings"
-    response = relight_product(field, basis.to(field.dtype)).float()  # (K, C', P)
-    return SparseField(field, rows, light_norms(field), projection.float(),
-                       response.permute(1, 2, 0).contiguous())
+    n, p = field.shape[-1], field.shape[-2]
+    check_tensor(clusters, "clusters", [str(n)], floating=False)
+    if clusters.is_floating_point() or clusters.is_complex() or clusters.dtype == torch.bool:
+        raise TypeCheckError(f"clusters must be an integer tensor, got dtype {clusters.dtype}")
+    if bool((clusters < 0).any()):
+        raise ValueCheckError(f"clusters must be non-negative, got a minimum of {int(clusters.min())}")
+    grouped = field if field.dim() == 3 else field[None]
+    rows = torch.cat([grouped.transpose(-1, -2).reshape(-1, p), grouped.new_zeros(1, p)])
+    clusters = clusters.long().to(field.device)
+    members = torch.nn.functional.one_hot(clusters).float()  # (N, G)
+    coarse = torch.bmm(grouped.float(), members.expand(grouped.shape[0], n, -1)).to(field.dtype)
+    return SparseField(field, rows, light_norms(field).float(), clusters, members, coarse)
 
 
-def _gather_rows(rows: torch.Tensor, lights: torch.Tensor, keep: torch.Tensor) -> torch.Tensor:
-    """``(B, C, P)``: for each item and channel, the weighted sum of its kept lights' rows of ``rows``
-    ``(C', N, P)``, in one :func:`torch.nn.functional.embedding_bag` (only those rows are read)."""
-    b, n, c = lights.shape
-    cf, _, p = rows.shape
-    counts = keep.sum(1)
-    item, light = keep.nonzero(as_tuple=True)  # item-major
-    chan = torch.arange(c, device=keep.device)
-    index = light[:, None] + (chan * n if cf > 1 else torch.zeros_like(chan))[None]  # (M, C) rows
-    order = (item[:, None] * c + chan[None]).flatten().argsort(stable=True)  # grouped by bag (item, channel)
-    sizes = counts.repeat_interleave(c)
-    out = torch.nn.functional.embedding_bag(index.flatten()[order], rows.reshape(cf * n, p), sizes.cumsum(0) - sizes,
-                                            mode="sum", per_sample_weights=lights[item, light].flatten()[order])
-    return out.reshape(b, c, p)
+def _check(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.Tensor:
+    field = prepared.field
+    channels = field.shape[0] if field.dim() == 3 else None
+    check_tensor(lighting, "lighting", ["B", str(field.shape[-1]), str(channels) if channels else "C"],
+                 nonnegative=True)
+    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0.0 <= eps < 1.0:
+        raise ValueCheckError(f"eps must be a number in [0, 1), got {eps!r}")
+    return lighting.float()
+
+
+def _select(prepared: SparseField, lights: torch.Tensor, eps: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(order, counts)``: each lighting's brightest lights, :data:`KEPT_FRACTION` of them, and how many of
+    them carry more than ``eps`` of its energy each."""
+    energy = (lights * prepared.norms.T).sum(-1)  # (B, N)
+    most = min(energy.shape[1], math.ceil(KEPT_FRACTION * energy.shape[1]))  # no full sort needed
+    top, order = energy.topk(most, dim=1)
+    counts = (top > eps * energy.sum(1, keepdim=True)).sum(1)
+    return order, counts
+
+
+def sparse_kept(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.Tensor:
+    """``(B,)`` long: how many lights :func:`relight_sparse` keeps exactly for each lighting.
+
+    Examples:
+        >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))
+        >>> sparse_kept(prepared, torch.tensor([[[5.0], [0.0], [1.0], [1.0]]]), eps=0.2).tolist()
+        [1]
+    """
+    return _select(prepared, _check(prepared, lighting, eps), eps)[1]
 
 
 def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.Tensor:
-    r"""Relight ``prepared``'s field with each lighting's strongest lights, and fold the rest (module docstring).
+    r"""Relight ``prepared``'s field: each lighting's brightest lights exactly, the rest through its cluster
+    means (module docstring).
 
     Args:
         prepared: from :func:`prepare_sparse`.
         lighting: ``(B, N, C)`` light lists in radiance, non-negative.
-        eps: the fraction of each image's energy whose lights may be dropped (or folded), in ``[0, 1)``.
+        eps: a light that alone carries more than this fraction of the image's energy is kept exactly (the
+            brightest :data:`KEPT_FRACTION` of the lights at most), in ``[0, 1)``; ``0``: dense.
 
     Returns:
         ``(B, C, P)`` float32 relit pixels; with ``eps = 0`` the dense product.
@@ -127,38 +178,46 @@ def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) ->
         ShapeError: ``lighting`` does not match the field.
 
     Examples:
-        >>> prepared = prepare_sparse(torch.eye(4))
-        >>> relight_sparse(prepared, torch.tensor([[[5.0], [0.01], [0.0], [0.0]]]), eps=0.01).flatten().tolist()
-        [5.0, 0.0, 0.0, 0.0]
+        >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))
+        >>> lighting = torch.tensor([[[5.0], [0.0], [1.0], [1.0]]])  # a sun beside a dark light; a flat pair
+        >>> relight_sparse(prepared, lighting, eps=0.2).flatten().tolist()
+        [5.0, 0.0, 1.0, 1.0]
     """
-    field = prepared.field
-    n = field.shape[-1]
-    channels = field.shape[0] if field.dim() == 3 else None
-    check_tensor(lighting, "lighting", ["B", str(n), str(channels) if channels else "C"], nonnegative=True)
-    if not 0.0 <= eps < 1.0:
-        raise ValueCheckError(f"eps must be in [0, 1), got {eps!r}")
-    lights = lighting.float()
-    b, _, c = lights.shape
-    p = field.shape[-2]
+    lights = _check(prepared, lighting, eps)
     if eps == 0.0:
-        return relight_product(field, lights.to(field.dtype)).float()
-    keep = kept_lights(lights, prepared.norms, eps)
-    counts = keep.sum(1)
-    out = torch.empty(b, c, p, dtype=torch.float32, device=field.device)
-    dense = counts > DENSE_FRACTION * n
-    if bool(dense.any()):
-        rows = dense.nonzero().flatten()
-        out[rows] = relight_product(field, lights[rows].to(field.dtype)).float()
-    sparse = (~dense).nonzero().flatten()
-    if len(sparse):
-        out[sparse] = _gather_rows(prepared.rows, lights[sparse].to(field.dtype), keep[sparse]).float()
-    if prepared.response is not None:
-        dropped = lights * (~keep & ~dense[:, None])[..., None]  # densely relit items dropped nothing
-        coefficients = prepared.projection.T @ dropped.permute(1, 0, 2).reshape(n, b * c)  # (K, B*C)
-        coefficients = coefficients.reshape(-1, b, c)
-        response = prepared.response  # (C', P, K)
-        if response.shape[0] == 1:
-            out += (response[0] @ coefficients.reshape(-1, b * c)).reshape(p, b, c).permute(1, 2, 0)
-        else:  # (C, P, K) @ (C, K, B) -> (C, P, B)
-            out += torch.bmm(response, coefficients.permute(2, 0, 1)).permute(2, 0, 1)
-    return out
+        return relight_product(prepared.field, lights.to(prepared.field.dtype)).float()
+    return _relight_kept(prepared, lights, *_select(prepared, lights, eps))
+
+
+def _relight_kept(prepared: SparseField, lights: torch.Tensor, order: torch.Tensor, counts: torch.Tensor
+                  ) -> torch.Tensor:
+    """``(B, C, P)``: the coarse product of the cluster means plus each item's kept lights' corrections, the
+    latter as one :func:`torch.nn.functional.embedding_bag` of ``k`` rows per (item, channel)."""
+    b, n, c = lights.shape
+    cf = prepared.norms.shape[0]
+    p = prepared.rows.shape[1]
+    k = int(counts.max())
+    top = order[:, :k]  # (B, k)
+    used = torch.arange(k, device=lights.device)[None] < counts[:, None]  # (B, k): past each count, padding
+    reach = (torch.ones(b, n, device=lights.device).scatter_(1, top, (~used).float())[..., None]
+             * prepared.norms.T)  # (B, N, C): the lights left to the means, by reach
+    both = torch.cat([lights * reach, reach.expand(b, n, c)], dim=2)  # (B, N, 2C)
+    sums = (both.permute(0, 2, 1).reshape(b * 2 * c, n) @ prepared.members).view(b, 2, c, -1)
+    means = sums[:, 0] / sums[:, 1].clamp_min(torch.finfo(torch.float32).tiny)  # (B, C, G)
+    coarse = prepared.coarse
+    if cf == 1:  # shared: (P, G) @ (G, B * C)
+        out = (coarse[0] @ means.permute(2, 0, 1).reshape(-1, b * c).to(coarse.dtype)).view(p, b, c).permute(1, 2, 0)
+    else:  # (C, P, G) @ (C, G, B)
+        out = torch.bmm(coarse, means.permute(1, 2, 0).to(coarse.dtype)).permute(2, 0, 1)
+    out = out.float()
+    if k == 0:
+        return out
+    weights = lights.gather(1, top[..., None].expand(b, k, c))  # (B, k, C)
+    weights = (weights - means.gather(2, prepared.clusters[top][:, None].expand(b, c, k)).transpose(1, 2))
+    chan = torch.arange(c, device=lights.device) * (n if cf > 1 else 0)
+    # padding points at the zero row, with weight 0 (embedding_bag's padding_idx is several times slower)
+    index = torch.where(used[:, None], top[:, None] + chan[None, :, None], cf * n)  # (B, C, k)
+    return out.add_(torch.nn.functional.embedding_bag(
+        index.reshape(b * c, k), prepared.rows, mode="sum",
+        per_sample_weights=(weights * used[..., None]).transpose(1, 2).reshape(b * c, k).to(prepared.rows.dtype),
+    ).view(b, c, p))

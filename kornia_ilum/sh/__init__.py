@@ -11,7 +11,6 @@ from kornia_ilum.sh.harmonics import (
     sh_basis,
     sh_irradiance,
     sh_irradiance_at,
-    sh_light_basis,
     sh_project,
     sh_reconstruct,
 )
@@ -39,7 +38,6 @@ __all__ = [
     "SHProject",
     "SHReconstruct",
     "sh_basis",
-    "sh_light_basis",
     "sh_irradiance",
     "sh_irradiance_at",
     "sh_project",

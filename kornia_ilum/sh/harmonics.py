@@ -82,7 +82,6 @@ __all__ = [
     "sh_reconstruct",
     "sh_irradiance",
     "sh_irradiance_at",
-    "sh_light_basis",
     "SHProject",
     "SHReconstruct",
     "SHIrradiance",
@@ -200,31 +199,6 @@ def _projection_f64(layout: str, size: int) -> torch.Tensor:
             f"(Gram matrix condition number {cond:.3g}); use a larger grid"
         )
     return torch.linalg.solve(gram, weighted)
-
-
-def sh_light_basis(size: int, layout: str = "mirror_ball") -> tuple[torch.Tensor, torch.Tensor]:
-    r"""Order-2 SH as a basis of light lists: ``(projection, values)``, both ``(N, 9)`` float64.
-
-    ``N`` is the grid's pixel count (row-major, the order of
-    :func:`~kornia_ilum.geometry.mirror_ball_to_lights`). ``projection`` maps a light list ``L`` ``(N, C)`` to
-    its SH coefficients, ``projection.T @ L`` (the least-squares fit of :func:`sh_project`), and ``values``
-    gives each light's value of the 9 basis functions, so ``values @ coefficients`` is the fitted light list
-    (:func:`sh_reconstruct` at the pixel centres, 0 off the ball). The fold basis of
-    :func:`~kornia_ilum.render.relight_sparse`.
-
-    Examples:
-        >>> projection, values = sh_light_basis(8)
-        >>> projection.shape, values.shape
-        (torch.Size([64, 9]), torch.Size([64, 9]))
-        >>> from kornia_ilum.geometry import mirror_ball_valid
-        >>> ones = mirror_ball_valid(8).double().reshape(64, 1)
-        >>> torch.allclose(values @ (projection.T @ ones), ones)  # a constant is order 0: kept exactly
-        True
-    """
-    check_positive_int(size, "size")
-    _check_layout(layout)
-    basis, _ = _grid_f64(layout, size)
-    return _projection_f64(layout, size).T.clone(), basis.clone()
 
 
 def _lighting_size(lighting: torch.Tensor, layout: str) -> int:

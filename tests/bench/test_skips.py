@@ -7,6 +7,8 @@ import torch
 
 from kornia_ilum.bench.report import format_skips
 from kornia_ilum.bench.skips import (
+    RELIGHT_SETTINGS,
+    SUNNY,
     flicker,
     held_out_maps,
     lag,
@@ -54,8 +56,12 @@ def test_rows_on_a_tiny_subject(tiny_cache, tmp_path) -> None:
     video = video_skips(field, maps, estimator="uniform", quick=True)
     assert [r["setting"] for r in video] == ["per frame", "tracker defaults"] and video[0]["speedup"] == 1.0
     relit = relight_skips(field, maps, quick=True)
-    assert [r["setting"] for r in relit][0] == "dense" and relit[0]["error"]["l_rec_like"] == 0.0
-    assert all(r["ms"] > 0 and 0.0 <= r["error"]["l_rec_like"] for r in relit)
+    assert [r["setting"] for r in relit][:len(RELIGHT_SETTINGS)] == [name for name, _, _ in RELIGHT_SETTINGS]
+    assert relit[0]["setting"] == "dense" and relit[0]["error"]["l_rec_like"] == 0.0
+    assert all(r["ms"] > 0 and 0.0 <= r["error"]["l_rec_like"] <= r["error"]["l_rec_like_max"] for r in relit)
+    assert {r["skip"] for r in relit} <= {"sparse relighting, all held-out maps",
+                                          f"sparse relighting, sun-dominated maps (top 1 % >= {SUNNY:g})",
+                                          "sparse relighting, sun-dominated outdoor maps"}
     text = format_skips(video + relit, "a tiny subject")
     assert "## Skips: time saved against error added" in text and "sparse relighting" in text
     assert format_skips([], "skips: not measured") == "skips: not measured."
