@@ -21,6 +21,7 @@ runtime errors (missing or unreadable image, no face, missing weights).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import string
 import sys
@@ -28,7 +29,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import skimage.data
 import torch
@@ -65,7 +66,10 @@ _ESTIMATE_HELP = """\
 Estimate HDR lighting from portrait photographs: detect the faces, crop them as the paper does, run the
 estimator, and write the lighting as an .exr or .hdr file (a 32x32 equal-area mirror ball, linear, in the
 units of the photograph; or a lat-long map with --latlong), plus an optional preview PNG of the diffuse,
-matte silver and mirror reference spheres. Prints one line per written file, and the timing.
+matte silver and mirror reference spheres. Beside each lighting file, a .json of the same name gives
+the main light (direction, solid angle, colour, intensity) and the order-2 SH of the rest, the shape of
+ARCore's Environmental HDR (LightingEstimate.dominant_light). Prints one line per written file, and the
+timing.
 
 output names (-o OUT and --preview PNG):
   OUT is a file name, a directory, or a pattern with the placeholders
@@ -329,6 +333,15 @@ def _cmd_list() -> int:
     return 0
 
 
+def _write_main_light(path: Path, light: Any, face: int, stem: str, estimator: str) -> Path:
+    """Write face ``face``'s main light and ambient (:meth:`LightingEstimate.dominant_light`) as JSON, atomically,
+    with the image, the face box and the estimator it came from."""
+    record = {"image": stem, "face": face, "box": light.boxes[face].tolist(), "estimator": estimator,
+              **light.dominant_light().to_dict(face)}
+    atomic_write(path, lambda tmp: tmp.write_text(json.dumps(record, indent=1) + "\n"))
+    return path
+
+
 def _cmd_video(args: argparse.Namespace) -> int:
     """``kornia-ilum video``: one ``.exr`` per frame, and a summary line."""
     from kornia_ilum.video import estimate_video  # lazy: OpenCV's video reading is needed here only
@@ -463,21 +476,23 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         for face in range(len(light)):
             files = [(out(stem, face), "lighting")] + ([(preview(stem, face), "preview")] if preview else [])
             for target, kind in files:
-                if target in written:
+                if target in written or (kind == "lighting" and target.with_suffix(".json") in written):
                     raise RuntimeError(
                         f"{target} would be written twice in this run; add {{stem}} or {{face}} to the name"
                     )
-                written.add(target)
+                written.update([target] + ([target.with_suffix(".json")] if kind == "lighting" else []))
                 target.parent.mkdir(parents=True, exist_ok=True)
                 box = ", ".join(f"{v:.0f}" for v in light.boxes[face].tolist())
                 t1 = time.perf_counter()
                 if kind == "lighting":
                     light.save(target, index=face, latlong_height=args.latlong, half=args.half)
+                    main_light = _write_main_light(target.with_suffix(".json"), light, face, stem, estimator)
                     what = (
                         f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
                     )
                     stages["write"] += 1e3 * (time.perf_counter() - t1)
-                    print(f"wrote {target} ({what}, face {face} of {stem}, box [{box}])")
+                    print(f"wrote {target} ({what}, face {face} of {stem}, box [{box}]) and {main_light.name} "
+                          "(main light and ambient SH)")
                 else:
                     light.preview(target, index=face, size=args.preview_size)
                     stages["preview"] += 1e3 * (time.perf_counter() - t1)

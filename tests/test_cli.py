@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -56,8 +57,16 @@ class TestEstimate:
         assert f"wrote {exr} (mirror ball 32x32, face 0 of astronaut" in out
         assert f"wrote {png} (preview 96x32" in out
         assert "astronaut: 1 face (detector opencv, " in out and " ms" in out
-        torch.testing.assert_close(read_hdr(exr), estimate_lighting(astronaut).mirror_ball[0])
+        light = estimate_lighting(astronaut)
+        torch.testing.assert_close(read_hdr(exr), light.mirror_ball[0])
         assert read_ldr(png).shape == (3, 32, 96)
+        assert f"and {exr.stem}.json (main light and ambient SH)" in out
+        record = json.loads(exr.with_suffix(".json").read_text())  # the main light beside the .exr
+        assert record["image"] == "astronaut" and record["face"] == 0 and len(record["box"]) == 4
+        expected = light.dominant_light().to_dict(0)
+        assert record.keys() == {"image", "face", "box", "estimator"} | expected.keys()
+        for key in ("direction", "irradiance_rgb", "ambient_sh_arcore"):
+            np.testing.assert_allclose(record[key], expected[key], rtol=1e-5, atol=1e-7)
 
     def test_default_output(self, tmp_path, monkeypatch, capsys):
         monkeypatch.chdir(tmp_path)
@@ -78,11 +87,13 @@ class TestEstimate:
         out = tmp_path / "out"
         assert main(["estimate", single, group, "-o", f"{out}/", "--faces", "all"]) == 0
         names = sorted(p.name for p in out.iterdir())
-        assert names == ["astro_face0.exr", "group_face0.exr", "group_face1.exr", "group_face2.exr"]
+        stems = ["astro_face0", "group_face0", "group_face1", "group_face2"]
+        assert names == sorted([f"{s}.exr" for s in stems] + [f"{s}.json" for s in stems])
         assert "group: 3 faces" in capsys.readouterr().out
         pattern = str(tmp_path / "p" / "{stem}-{face}.exr")  # missing folders are created
         assert main(["estimate", group, "-o", pattern, "--faces", "all"]) == 0
-        assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["group-0.exr", "group-1.exr", "group-2.exr"]
+        written = sorted(p.name for p in (tmp_path / "p").iterdir() if p.suffix == ".exr")
+        assert written == ["group-0.exr", "group-1.exr", "group-2.exr"]
         assert main(["estimate", single, group, "-o", str(tmp_path / "{stem}.exr")]) == 0  # largest face each
         assert (tmp_path / "astro.exr").is_file() and (tmp_path / "group.exr").is_file()
 

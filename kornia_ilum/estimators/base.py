@@ -51,6 +51,7 @@ from kornia_ilum.estimators.pretrained import pretrained_names
 from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
 from kornia_ilum.io import write_hdr, write_ldr
 from kornia_ilum.render import PREVIEW_SUPERSAMPLES, SPHERE_SIZES, render_spheres
+from kornia_ilum.sh import DOMINANT_MAX_ANGLE, DOMINANT_THRESHOLD, DominantLight, dominant_light
 
 __all__ = [
     "LightingEstimate",
@@ -191,6 +192,29 @@ class LightingEstimate:
             linear lat-long maps :math:`(B, 3, H, 2H)`, dtype and device of ``mirror_ball``.
         """
         return mirror_ball_to_latlong(self.mirror_ball, height)
+
+    def dominant_light(self, *, threshold: float = DOMINANT_THRESHOLD,
+                       max_angle: float = DOMINANT_MAX_ANGLE) -> DominantLight:
+        r"""The main light (direction, solid angle, colour, intensity) and the order-2 SH of the rest, the
+        shape of ARCore's Environmental HDR (:func:`~kornia_ilum.sh.dominant_light`).
+
+        Args:
+            threshold: the light's pixels reach at least this fraction of its brightest pixel's luminance.
+            max_angle: the light's largest angular radius in degrees.
+
+        Returns:
+            a :class:`~kornia_ilum.sh.DominantLight` per lighting, in the units of the photograph;
+            ``.to_dict(i)`` gives lighting ``i`` as plain numbers (``kornia-ilum estimate`` writes it as JSON
+            beside the ``.exr``).
+
+        Examples:
+            >>> ball = torch.zeros(1, 3, 32, 32)
+            >>> ball[0, :, 8, 16] = 1000.0
+            >>> estimate = LightingEstimate(mirror_ball=ball, valid=mirror_ball_valid(32))
+            >>> bool(estimate.dominant_light().direction[0, 1] > 0.8)  # from above
+            True
+        """
+        return dominant_light(self.mirror_ball, threshold=threshold, max_angle=max_angle)
 
     def render_spheres(self, size: int = 32) -> dict[str, Tensor]:
         r"""The three reference spheres lit by the estimate (:func:`~kornia_ilum.render.render_spheres`).

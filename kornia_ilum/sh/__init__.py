@@ -1,5 +1,7 @@
-"""Spherical harmonics (order 2) of lighting; converters to the SH of DPR, SfSNet, DECA, ARCore, WebXR."""
+"""Spherical harmonics (order 2) of lighting; converters to the SH of DPR, SfSNet, DECA, ARCore, WebXR; the main
+light and the SH of the rest (:func:`dominant_light`)."""
 
+from kornia_ilum.sh.dominant import DOMINANT_MAX_ANGLE, DOMINANT_THRESHOLD, DominantLight, dominant_light
 from kornia_ilum.sh.harmonics import (
     LAYOUTS,
     SH_CONSTANTS,
@@ -29,7 +31,10 @@ from kornia_ilum.sh.layouts import (
 )
 
 __all__ = [
+    "DOMINANT_MAX_ANGLE",
+    "DOMINANT_THRESHOLD",
     "DPR_CHANNELS",
+    "DominantLight",
     "LAYOUTS",
     "SH_CONSTANTS",
     "SH_IRRADIANCE_FACTORS",
@@ -37,6 +42,7 @@ __all__ = [
     "SHIrradianceAt",
     "SHProject",
     "SHReconstruct",
+    "dominant_light",
     "sh_basis",
     "sh_irradiance",
     "sh_irradiance_at",
