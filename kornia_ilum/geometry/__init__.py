@@ -1,4 +1,5 @@
-"""Sphere geometry: mirror-ball and lat-long grids, solid angles, resampling and rotation.
+"""Sphere geometry: mirror-ball and lat-long grids, solid angles, resampling and rotation; lat-long maps in the
+conventions of Mitsuba, Blender, three.js and Unity (:func:`latlong_for_tool`).
 
 The frame and the grids are those of docs/conventions.rst ("Frames", "Mirror ball", "Lat-long").
 """
@@ -37,6 +38,7 @@ from kornia_ilum.geometry.resample import (
     resample_bilinear,
     resize_mirror_ball,
 )
+from kornia_ilum.geometry.tools import TOOLS, latlong_for_tool
 from kornia_ilum.geometry.transform import (
     FlipLightingHorizontal,
     RotateLighting,
@@ -45,7 +47,9 @@ from kornia_ilum.geometry.transform import (
 )
 
 __all__ = [
+    "TOOLS",
     "angles_to_latlong_pixel",
+    "latlong_for_tool",
     "direction_to_latlong",
     "direction_to_mirror_ball",
     "latlong_angles",

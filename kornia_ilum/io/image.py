@@ -65,6 +65,12 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _JPEG_EOF_MESSAGE = "Premature end of JPEG file"
 
 
+def _one_line(message: str) -> str:
+    """OpenImageIO's message on one line (it joins libpng's and libjpeg's with newlines): the CLI prints one
+    readable line per error."""
+    return "; ".join(line.strip() for line in message.splitlines() if line.strip())
+
+
 def _png_truncation(path: Path) -> str | None:
     """Why the PNG ``path`` is truncated (its chunks stop before ``IEND``), or ``None``.
 
@@ -114,7 +120,7 @@ def _read(path: Path, *, hdr: bool, header_only: bool = False) -> tuple[np.ndarr
     try:
         cut = _png_truncation(path)
     except OSError as e:
-        raise HDRIOError(f"cannot read {path}: {e}") from e
+        raise HDRIOError(f"cannot read {path}: {_one_line(str(e))}") from e
     if cut is not None:
         raise TruncatedImageError(f"cannot read {path}: the file is truncated ({cut})")
     config = oiio.ImageSpec()
@@ -125,9 +131,9 @@ def _read(path: Path, *, hdr: bool, header_only: bool = False) -> tuple[np.ndarr
             err = oiio.geterror()
             if _JPEG_EOF_MESSAGE in err:
                 raise TruncatedImageError(
-                    f"cannot read {path}: the file is truncated (OpenImageIO: {' '.join(err.split())})"
+                    f"cannot read {path}: the file is truncated (OpenImageIO: {_one_line(err)})"
                 )
-            raise HDRIOError(f"cannot read {path}: {err or 'unknown or unsupported format'}")
+            raise HDRIOError(f"cannot read {path}: {_one_line(err) or 'unknown or unsupported format'}")
         try:
             spec = inp.spec()
             if hdr and spec.format.basetype not in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE):
@@ -150,14 +156,14 @@ def _read(path: Path, *, hdr: bool, header_only: bool = False) -> tuple[np.ndarr
     except HDRIOError:
         raise
     except (OSError, RuntimeError, ValueError, TypeError) as e:  # the file system's or OpenImageIO's errors
-        raise HDRIOError(f"cannot read {path}: {e}") from e
+        raise HDRIOError(f"cannot read {path}: {_one_line(str(e))}") from e
     if _JPEG_EOF_MESSAGE in err:  # pixels came back, partly made up: refuse them
         raise TruncatedImageError(
             f"cannot read {path}: the file is truncated, its JPEG data end before the image does "
-            f"(OpenImageIO: {' '.join(err.split())})"
+            f"(OpenImageIO: {_one_line(err)})"
         )
     if pixels is None:
-        raise HDRIOError(f"cannot read {path}: the file is corrupt or truncated ({err or 'no pixels'})")
+        raise HDRIOError(f"cannot read {path}: the file is corrupt or truncated ({_one_line(err) or 'no pixels'})")
     pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
     if not hdr:
         pixels = pixels.astype(np.float32) / np.float32(np.iinfo(pixels.dtype).max)
@@ -331,7 +337,7 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
     def write(tmp: Path) -> None:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None:
-            raise HDRIOError(f"cannot write {path}: {oiio.geterror()}")
+            raise HDRIOError(f"cannot write {path}: {_one_line(oiio.geterror())}")
         height, width, channels = pixels.shape
         spec = oiio.ImageSpec(width, height, channels, pixel_type)
         for key, value in attributes.items():
@@ -343,14 +349,14 @@ def _atomic_write(path: Path, pixels: np.ndarray, pixel_type: str, attributes: d
             ok = bool(out.close()) and ok
             err = out.geterror()
         if not ok:
-            raise HDRIOError(f"cannot write {path}: {err or 'OpenImageIO reported a failure'}")
+            raise HDRIOError(f"cannot write {path}: {_one_line(err) or 'OpenImageIO reported a failure'}")
 
     try:
         atomic_write(path, write)
     except HDRIOError:
         raise
     except (OSError, RuntimeError, ValueError, TypeError) as e:  # the file system's or OpenImageIO's errors
-        raise HDRIOError(f"cannot write {path}: {e}") from e
+        raise HDRIOError(f"cannot write {path}: {_one_line(str(e))}") from e
 
 
 def write_hdr(

@@ -10,7 +10,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 import torch
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
@@ -389,6 +389,16 @@ class TestReadLdr:
         assert y.shape == (3, 3, 2)
         assert y[:, 0, 1].tolist() == [1.0, 1.0, 1.0] and y.sum().item() == 3.0
 
+    def test_cmyk_jpeg(self, tmp_path):
+        """A print shop's CMYK JPEG comes back as RGB (libjpeg's inverted Adobe CMYK, as PIL reads it)."""
+        colours = [(0, 255, 255, 0), (255, 0, 255, 0), (0, 0, 0, 128)]  # red, green, 50 % grey
+        for i, cmyk in enumerate(colours):
+            Image.new("CMYK", (8, 6), cmyk).save(tmp_path / f"c{i}.jpg", quality=95)
+            rgb = read_ldr(tmp_path / f"c{i}.jpg")
+            expected = np.asarray(Image.open(tmp_path / f"c{i}.jpg").convert("RGB"), np.float32) / 255
+            assert rgb.shape == (3, 6, 8)
+            np.testing.assert_allclose(rgb.permute(1, 2, 0).numpy(), expected, atol=2 / 255)
+
     @pytest.mark.parametrize("kind", BAD_FILE_KINDS)
     def test_exception(self, tmp_path, kind):
         path, message = bad_files(tmp_path)[kind]
@@ -562,3 +572,65 @@ class TestCheckLdr:
                             ("light.exr", "HDR|LDR")):
             with pytest.raises(HDRIOError, match=match):
                 check_ldr(tmp_path / name)
+
+
+def _fuzz_seeds() -> dict[str, bytes]:
+    """Small valid files of every format the readers meet, as bytes: the seeds of the fuzzing."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        image = random_hdr((3, 12, 16), seed=3)
+        write_hdr(folder / "a.exr", image)
+        write_hdr(folder / "a.hdr", image)
+        write_ldr(folder / "a.png", image.clamp(max=1.0))
+        write_ldr(folder / "a.jpg", image.clamp(max=1.0))
+        oiio_write(folder / "a.tif", (np.arange(12 * 16 * 3) % 65535).astype(np.uint16).reshape(12, 16, 3), "uint16")
+        return {p.suffix: p.read_bytes() for p in folder.iterdir()}
+
+
+FUZZ_SEEDS = _fuzz_seeds()
+
+
+def _check_outcome(read, path: Path) -> None:
+    """A reader either returns a well-formed image or raises HDRIOError: nothing else, never a crash."""
+    try:
+        out = read(path)
+    except HDRIOError as e:
+        assert str(path) in str(e) and "\n" not in str(e)
+        return
+    if read is check_ldr:
+        assert len(out) == 2 and all(isinstance(v, int) and v > 0 for v in out)
+        return
+    assert out.dtype == torch.float32 and out.dim() == 3 and out.shape[0] == 3 and out.numel() > 0
+    assert bool(torch.isfinite(out).all()) and bool((out >= 0).all())
+    if read is read_ldr:
+        assert float(out.max()) <= 1.0
+
+
+class TestFuzz:
+    """The loaders on mutated files, for a bounded number of examples (hypothesis, about 5 s here): every
+    outcome is a well-formed image or an :class:`HDRIOError` naming the path, never another exception."""
+
+    @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(data=st.data())
+    def test_mutated_files(self, tmp_path, data):
+        suffix = data.draw(st.sampled_from(sorted(FUZZ_SEEDS)), label="format")
+        blob = bytearray(FUZZ_SEEDS[suffix])
+        how = data.draw(st.sampled_from(["truncate", "flip", "overwrite", "insert", "random"]), label="how")
+        if how == "truncate":
+            blob = blob[: data.draw(st.integers(0, len(blob) - 1))]
+        elif how == "flip":
+            for at in data.draw(st.lists(st.integers(0, len(blob) - 1), min_size=1, max_size=8)):
+                blob[at] ^= 1 << data.draw(st.integers(0, 7))
+        elif how == "overwrite":
+            at = data.draw(st.integers(0, len(blob) - 1))
+            chunk = data.draw(st.binary(min_size=1, max_size=64))
+            blob[at : at + len(chunk)] = chunk
+        elif how == "insert":
+            at = data.draw(st.integers(0, len(blob)))
+            blob[at:at] = data.draw(st.binary(min_size=1, max_size=64))
+        else:  # the format's first bytes (its magic number), then noise
+            blob = blob[:8] + bytearray(data.draw(st.binary(max_size=512)))
+        path = tmp_path / f"fuzz{suffix}"
+        path.write_bytes(bytes(blob))
+        for read in (check_ldr, read_ldr, read_hdr):
+            _check_outcome(read, path)
