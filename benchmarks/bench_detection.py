@@ -156,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hdri", nargs="*", default=None, help="folders of real maps (default: shared hdri, hdri_more)")
     p.add_argument("--detectors", nargs="+", default=["yunet", "opencv"], choices=("yunet", "opencv"))
     p.add_argument("--yunet-weights", default=None, help="YuNet weights (default: $KORNIA_ILUM_YUNET_WEIGHTS, else the shared data's)")
+    p.add_argument("--yunet-thresholds", type=float, nargs="*", default=[], metavar="T",
+                   help="also YuNet with these confidence thresholds, and their false faces on face-free photos")
     p.add_argument("--max-side", type=int, nargs="*", default=[], metavar="N",
                    help="also run each detector on a copy of each frame at most N px on its longer side (the "
                    "fast path's downscaled detection; columns NAME@N), on the same renders")
@@ -191,6 +193,8 @@ def main(argv: list[str] | None = None) -> int:
         kw = {"weights_path": weights} if name == "yunet" and weights else {}
         for side in [None, *args.max_side]:  # the same detector on downscaled copies: speed against faces
             detectors[name if side is None else f"{name}@{side}"] = create_detector(name, max_side=side, **kw)
+        for threshold in args.yunet_thresholds if name == "yunet" else []:
+            detectors[f"yunet>={threshold:g}"] = create_detector(name, confidence_threshold=threshold, **kw)
 
     rows, t0, fields = [], time.perf_counter(), {}
     seconds = {n: 0.0 for n in detectors}
@@ -229,7 +233,39 @@ def main(argv: list[str] | None = None) -> int:
     missed = [f"s{r['seed']}v{r['view']} yaw {r['yaw']:+.0f}" for r in rows if not all(r[n] for n in detectors)]
     if missed:
         print(f"missed by some detector ({len(missed)}): {', '.join(missed[:12])}{' ...' if len(missed) > 12 else ''}")
+    if args.yunet_thresholds:
+        print(false_faces({n: d for n, d in detectors.items() if n.startswith("yunet") and "@" not in n}))
     return 0
+
+
+#: scikit-image's photographs without a human face (animals, objects, textures, scans), as the false faces'
+#: test set: a cat, a horse's silhouette, a motorcycle's headlights, coffee, a rocket, coins, a clock, ...
+FACE_FREE = ("chelsea", "horse", "stereo_motorcycle", "coffee", "rocket", "coins", "clock", "brick", "grass",
+             "gravel", "moon", "page", "text", "logo", "retina", "colorwheel", "cell", "hubble_deep_field",
+             "immunohistochemistry")
+
+
+def false_faces(detectors: dict) -> str:
+    """For each detector, the face-free photographs of :data:`FACE_FREE` on which it finds a face, with the
+    highest score of each."""
+    import skimage.data  # lazy: only the false-face section reads scikit-image's photographs
+
+    lines = ["false faces on scikit-image's face-free photographs (highest score):"]
+    photos = {}
+    for name in FACE_FREE:
+        try:
+            pixels = getattr(skimage.data, name)()
+        except Exception:  # a photograph this scikit-image cannot give offline
+            continue
+        pixels = pixels[0] if isinstance(pixels, tuple) else pixels
+        image = torch.from_numpy(pixels).float() / (1.0 if pixels.dtype == bool else 255.0)  # the horse: 0 / 1
+        image = image[..., None].expand(-1, -1, 3) if image.dim() == 2 else image[..., :3]
+        photos[name] = image.permute(2, 0, 1)[None]
+    for name, det in detectors.items():
+        found = {p: float(det.detect(x)[0][:, 4].max()) for p, x in photos.items() if len(det.detect(x)[0])}
+        listed = ", ".join(f"{p} {v:.2f}" for p, v in sorted(found.items(), key=lambda kv: -kv[1]))
+        lines.append(f"  {name}: {len(found)} of {len(photos)}{': ' + listed if listed else ''}")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -72,6 +72,15 @@ class Ablation:
         background: the eval set's background (:func:`~kornia_ilum.evaluation.build_eval_set`).
         portraits: the eval set's other portrait settings (``portraits`` of
             :func:`~kornia_ilum.evaluation.build_eval_set`).
+
+    Examples:
+        >>> row = ABLATIONS["no-face-detector"]
+        >>> row.paper, row.background
+        ('no face detector (random crops)', 'environment')
+        >>> row.eval_key  # rows with this key share one eval set
+        ('environment', (('crop_extent', 0.7), ('crop_position', 0.5)))
+        >>> Ablation("mine", "my change", {"lambda_adv": 0.0}).eval_key == ABLATIONS["baseline"].eval_key
+        True
     """
 
     name: str
@@ -106,6 +115,15 @@ ABLATIONS: dict[str, Ablation] = {a.name: a for a in (
 def ablation_config(name: str, out: str | os.PathLike[str], **settings: Any) -> TrainConfig:
     r"""The training run of row ``name``: :data:`BASELINE`, then ``settings`` (the caches, steps, seed, ...),
     then the row's own changes, in ``out``.
+
+    Args:
+        name: the row (:data:`ABLATIONS`).
+        out: the run's folder (:attr:`~kornia_ilum.train.TrainConfig.out`).
+        settings: other :class:`~kornia_ilum.train.TrainConfig` settings (``cache`` at least); their ``data``
+            is merged with the row's, the row's settings winning.
+
+    Returns:
+        the row's :class:`~kornia_ilum.train.TrainConfig`.
 
     Raises:
         ValueCheckError: no row ``name``.
@@ -147,6 +165,30 @@ def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: S
         batch_size: crops per forward pass in the scoring.
         settings: other :class:`~kornia_ilum.train.TrainConfig` settings of every row (``seed``, ``threads``,
             ``log_every``, ...).
+
+    Returns:
+        the content of ``ablations.json``: ``steps``, ``batch``, ``samples``, ``baseline`` (:data:`BASELINE`),
+        ``cache``, ``eval_cache``, ``hdri``, and ``rows``: per row, ``paper``, ``weights``, ``sha256``,
+        ``wall_time_s``, ``background``, ``portraits``, ``l_rec`` and ``baseline_l_rec`` per sphere, and
+        ``paired_vs_baseline`` (:func:`~kornia_ilum.evaluation.report.paired_differences`).
+
+    Raises:
+        ValueCheckError: a name of ``names`` is no row (checked before any training).
+
+    Examples:
+        The rows are checked before anything is trained:
+
+        >>> run_ablations(["no-such-row"], "runs/ablations", cache=[], eval_cache=[])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: no ablation ['no-such-row']; the rows are: baseline, ...
+
+        A real run trains one model per row (light-stage caches with train and eval subjects):
+
+        >>> result = run_ablations(["log-l2"], "runs/ablations", cache=["lightstage/"],
+        ...                        eval_cache=["lightstage/"])  # doctest: +SKIP
+        >>> list(result["rows"])  # doctest: +SKIP
+        ['baseline', 'log-l2']
     """
     unknown = [n for n in names if n not in ABLATIONS]
     if unknown:
@@ -196,8 +238,22 @@ def format_ablations(result: dict[str, Any], fmt: str = "markdown") -> str:
         fmt: ``"markdown"`` (``ablations.md``) or ``"rst"`` (``ablations.rst``: the list-table of
             docs/training.rst, pasted as it is).
 
+    Returns:
+        the table, ending with a newline.
+
     Raises:
         ValueCheckError: another ``fmt``.
+
+    Examples:
+        >>> same = {"mean": 0.0, "low": -0.001, "high": 0.001}
+        >>> row = {"paper": "the full method", "background": "environment", "portraits": {},
+        ...        "l_rec": {b: 0.1 for b in BRDF_NAMES}, "baseline_l_rec": {b: 0.1 for b in BRDF_NAMES},
+        ...        "paired_vs_baseline": {b: same for b in BRDF_NAMES}}
+        >>> result = {"steps": 900, "batch": 32, "samples": 512, "rows": {"baseline": row}}
+        >>> print(format_ablations(result).splitlines()[-1])
+        | baseline | the full method | environment | 0.1000 / 0.1000 / 0.1000 | 0.1000 / 0.1000 / 0.1000 | (itself) |
+        >>> format_ablations(result, "rst").splitlines()[0]
+        '.. list-table::'
     """
     head = ("row", "takes away", "eval input", "L_rec", "baseline on that input", "row - baseline [95 %]")
     rows = []
@@ -239,7 +295,22 @@ examples:
 
 
 def add_ablate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add ``ablate`` to the ``kornia-ilum`` subcommands."""
+    """Add ``ablate`` to the ``kornia-ilum`` subcommands.
+
+    Args:
+        subparsers: the subparsers of ``kornia-ilum``'s parser (:meth:`argparse.ArgumentParser.add_subparsers`).
+
+    Returns:
+        the ``ablate`` parser; its ``func`` default is :func:`run_ablate`.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser()
+        >>> _ = add_ablate_parser(parser.add_subparsers())
+        >>> args = parser.parse_args(["ablate", "--cache", "c/", "--eval-cache", "e/", "--out", "runs/a",
+        ...                           "--only", "log-l2"])
+        >>> args.only, args.steps == ABLATION_STEPS, args.func is run_ablate
+        (['log-l2'], True, True)
+    """
     cmd = subparsers.add_parser("ablate", help="the paper's ablations: one training run per row, and the table",
                                 description=_HELP.format(rows=", ".join(ABLATIONS)),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -262,7 +333,14 @@ def add_ablate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
 
 
 def run_ablate(args: argparse.Namespace) -> int:
-    """Run ``kornia-ilum ablate``; prints the table."""
+    """Run ``kornia-ilum ablate``; prints the table.
+
+    Args:
+        args: the options of :func:`add_ablate_parser`'s parser.
+
+    Returns:
+        the exit status, 0 (a failure raises).
+    """
     result = run_ablations(args.only or list(ABLATIONS), args.out, cache=args.cache, eval_cache=args.eval_cache,
                            hdri=args.hdri, steps=args.steps, samples=args.samples, seed=args.seed,
                            threads=args.threads, log_every=args.log_every, checkpoint_every=args.checkpoint_every)

@@ -62,10 +62,24 @@ def cached_estimator(name: str, device: torch.device, runtime: str = "eager") ->
     once per ``(name, device, runtime)`` in this process (the 8 most recent are kept), in eval mode, computed by
     ``runtime`` (:func:`~kornia_ilum.estimators.with_runtime`).
 
+    Args:
+        name: a registered estimator name (:func:`~kornia_ilum.estimators.list_estimators`).
+        device: where the estimator runs; a :class:`torch.device` (part of the cache key, so ``"cpu"`` and
+            ``torch.device("cpu")`` are cached apart).
+        runtime: one of :data:`~kornia_ilum.estimators.RUNTIMES`.
+
+    Returns:
+        the shared estimator: the same object for the same arguments while it is cached, so do not modify it.
+
     Raises:
         ValueError: ``name`` is not registered.
         ValueCheckError: an unknown runtime, or one that cannot run on ``device``.
         MissingWeightsError: the estimator ships no trained weights yet.
+
+    Examples:
+        >>> net = cached_estimator("uniform", torch.device("cpu"))
+        >>> net.info.name, net is cached_estimator("uniform", torch.device("cpu")), net.training
+        ('uniform', True, False)
     """
     return with_runtime(create_estimator(name, pretrained=True).to(device).eval(), runtime)
 
@@ -76,8 +90,21 @@ def cached_detector(name: str, device: torch.device, max_side: int | None = None
     ``(name, device, max_side)`` in this process (the 8 most recent are kept), in eval mode; ``max_side``
     detects on a downscaled copy (:class:`~kornia_ilum.detection.FaceDetector`).
 
+    Args:
+        name: a registered detector name (:func:`~kornia_ilum.detection.list_detectors`).
+        device: where the detector runs (part of the cache key).
+        max_side: the longest side, in pixels, of the copy it detects on; ``None`` detects at full size.
+
+    Returns:
+        the shared detector: the same object for the same arguments while it is cached, so do not modify it.
+
     Raises:
         ValueError: ``name`` is not registered.
+
+    Examples:
+        >>> detector = cached_detector("none", torch.device("cpu"))
+        >>> detector, detector is cached_detector("none", torch.device("cpu"))
+        (NoFaceDetector(), True)
     """
     return create_detector(name, max_side=max_side).to(device).eval()
 
@@ -112,8 +139,8 @@ def _as_batch(image: Any, bgr: bool) -> tuple[torch.Tensor, str]:
     """Any accepted input -> ``(B, 3, H, W)`` float tensor in [0, 1], and a name for messages.
 
     This is the one scan of the image's values in :func:`estimate_lighting` (NaN/Inf and the ``[0, 1]``
-    range, one :func:`~kornia_ilum.core.check.value_range`); the detector, the crop and the estimator are then called with
-    ``check_values=False``, as their input is made from this checked image.
+    range, one :func:`~kornia_ilum.core.check.value_range`); the detector, the crop and the estimator are then
+    called with ``check_values=False``, as their input is made from this checked image.
     """
     values = None
     if isinstance(image, (str, os.PathLike)):
@@ -157,6 +184,13 @@ def full_image_box(height: int, width: int) -> torch.Tensor:
     Returns:
         ``(1, 4)`` float32 box ``(x0, y0, x1, y1)`` in pixels (pixel edges: the full image is
         ``(0, 0, W, H)``), of side ``min(H, W)``, centred.
+
+    Shape:
+        - Output: :math:`(1, 4)`
+
+    Convention:
+        Continuous pixel coordinates of the image (``(0, 0)`` its top-left corner), as the boxes of
+        :mod:`kornia_ilum.detection` and of :func:`~kornia_ilum.detection.crop_faces`.
 
     Examples:
         >>> full_image_box(480, 640)

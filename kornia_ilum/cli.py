@@ -145,6 +145,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     Args:
         command: the sub-command that the command line names (``""``: none): of :data:`LAZY_COMMANDS`, only
             its parser is built for real. ``None`` builds every parser (the docs).
+
+    Returns:
+        the parser; a usage error raises instead of exiting (:func:`main` prints it in one line).
+
+    Examples:
+        >>> args = build_parser("estimate").parse_args(["estimate", "photo.jpg", "--faces", "all"])
+        >>> args.command, args.images, args.faces, args.runtime
+        ('estimate', ['photo.jpg'], 'all', 'eager')
     """
     parser = _Parser(
         prog=PROG,
@@ -524,6 +532,13 @@ def _warn(message, category, filename, lineno, file=None, line=None) -> None:  #
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``kornia-ilum`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
+
+    Args:
+        argv: the command line's arguments, without the program's name.
+
+    Returns:
+        the exit status: 0, 1 for a runtime error, 2 for a usage error, 130 when interrupted (an error is one
+        line on stderr; ``KORNIA_ILUM_DEBUG=1`` raises runtime errors instead).
 
     Examples:
         >>> main(["estimate", "--faces", "many"])

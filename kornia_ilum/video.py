@@ -52,9 +52,20 @@ def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
         source: a video file (anything OpenCV's ``VideoCapture`` opens), a folder of images, or a glob
             pattern of images (``frames/*.png``); images are read in name order.
 
+    Returns:
+        an iterator over the frames, read lazily one at a time (a video file stays open until it is exhausted
+        or closed).
+
     Raises:
         HDRIOError: nothing to read: the file does not open as a video, or the folder or pattern holds no
-            image.
+            image (raised on the first ``next``, as the frames are read lazily).
+
+    Shape:
+        - Output: each frame :math:`(H, W, 3)` uint8, channels last, as NumPy images are
+
+    Convention:
+        sRGB-encoded RGB (docs/conventions.rst, "Images"), in ``0 .. 255``; :class:`LightingTracker` turns each
+        into a ``(3, H, W)`` float in ``[0, 1]``.
 
     Examples:
         >>> import tempfile, cv2
@@ -104,6 +115,18 @@ class VideoFrame:
         detected: the face was detected on this frame (not carried over).
         estimated: the estimator ran on this frame (not reused).
         cut: the crop changed by more than ``cut_above``: the smoothing restarted here.
+
+    Convention:
+        ``lighting`` is a mirror ball in the units of the frame (docs/conventions.rst, "Mirror ball" and
+        "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> valid = mirror_ball_valid(32)
+        >>> lighting = LightingEstimate(mirror_ball=torch.ones(1, 3, 32, 32) * valid, valid=valid)
+        >>> frame = VideoFrame(0, lighting, detected=True, estimated=True, cut=False)
+        >>> frame.index, len(frame.lighting), frame.cut
+        (0, 1, False)
     """
 
     index: int
@@ -131,6 +154,13 @@ class LightingTracker:
             ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` until a face was seen (after that,
             a frame without a face keeps the last box).
         runtime: the runtime of a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`).
+
+    Raises:
+        ValueCheckError: a setting out of range, or an unknown ``fallback``.
+
+    Convention:
+        Frames are sRGB (docs/conventions.rst, "Images"); each frame's lighting is a mirror ball in the units of
+        the frame (docs/conventions.rst, "Mirror ball" and "Units of lighting"), smoothed over time in log space.
 
     Examples:
         >>> import skimage.data
@@ -176,7 +206,18 @@ class LightingTracker:
         return self._box
 
     def __call__(self, frame: np.ndarray | torch.Tensor) -> VideoFrame:
-        """The lighting of the next frame: ``(H, W, 3)`` uint8 RGB, or ``(3, H, W)`` sRGB float in ``[0, 1]``."""
+        """The lighting of the next frame: ``(H, W, 3)`` uint8 RGB, or ``(3, H, W)`` sRGB float in ``[0, 1]``.
+
+        Args:
+            frame: the next frame of the video.
+
+        Returns:
+            the frame's :class:`VideoFrame`; its ``lighting`` holds one lighting and the crop box it came from.
+
+        Raises:
+            ShapeError, TypeCheckError, ValueCheckError: the frame is not one of the two forms above.
+            NoFaceError: no face found yet and ``fallback`` is ``None``.
+        """
         image = _frame_tensor(frame)
         index = self._frame
         self._frame += 1
@@ -237,6 +278,22 @@ def _frame_tensor(frame: np.ndarray | torch.Tensor) -> torch.Tensor:
 def estimate_video(source: str | os.PathLike[str] | Iterable[np.ndarray], **settings) -> Iterator[VideoFrame]:
     r"""The lighting of every frame of ``source`` (a path for :func:`read_frames`, or frames), through one
     :class:`LightingTracker` made with ``settings``.
+
+    Args:
+        source: a video file, a folder or glob of images (:func:`read_frames`), or an iterable of frames in a
+            form :class:`LightingTracker` takes (``(H, W, 3)`` uint8 RGB arrays or ``(3, H, W)`` float tensors).
+        settings: keyword arguments of :class:`LightingTracker`.
+
+    Returns:
+        an iterator of one :class:`VideoFrame` per frame, in order, computed lazily as it is consumed.
+
+    Raises:
+        HDRIOError: ``source`` is a path with nothing to read (raised on the first ``next``).
+        NoFaceError: as :class:`LightingTracker`.
+
+    Convention:
+        As :class:`LightingTracker`: sRGB frames in, mirror balls in the units of the frames out
+        (docs/conventions.rst, "Images", "Mirror ball" and "Units of lighting").
 
     Examples:
         >>> import skimage.data

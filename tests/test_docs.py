@@ -5,6 +5,7 @@ in the index's table of contents."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -48,7 +49,9 @@ def browser(tmp_path_factory):
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1280,1600",
                  f"--user-data-dir={profile}", f"--crash-dumps-dir={profile}", "--disable-dev-shm-usage"):
         options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    home = {"HOME": str(profile), "XDG_CONFIG_HOME": str(profile), "XDG_CACHE_HOME": str(profile)}
+    service = Service(str(CHROMEDRIVER), env={**os.environ, **home})  # nothing written into the user's home
+    driver = webdriver.Chrome(service=service, options=options)
     yield driver
     driver.quit()
 

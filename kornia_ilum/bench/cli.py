@@ -41,7 +41,21 @@ examples:
 
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add ``bench`` to the subparsers of ``kornia-ilum``."""
+    """Add ``bench`` to the subparsers of ``kornia-ilum``.
+
+    Args:
+        subparsers: the subparsers of ``kornia-ilum``'s parser (:meth:`argparse.ArgumentParser.add_subparsers`).
+
+    Returns:
+        the ``bench`` parser; its ``func`` default is :func:`run_bench_command`.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser()
+        >>> _ = add_bench_parser(parser.add_subparsers())
+        >>> args = parser.parse_args(["bench", "--quick", "--estimator", "ours", "--out", "bench/"])
+        >>> args.quick, args.estimator, args.samples, args.func is run_bench_command
+        (True, ['ours'], 1024, True)
+    """
     cmd = subparsers.add_parser("bench", help="run time against error: every estimator and runtime, this machine",
                                 description=_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     cmd.add_argument("--out", default="bench", metavar="DIR", help="where the reports go (default: bench/)")
@@ -83,7 +97,28 @@ def _detectors(asked: list[str] | None) -> list[str]:
 
 
 def run_bench_command(args: argparse.Namespace) -> int:
-    """Run ``kornia-ilum bench`` with parsed ``args``; returns the exit status."""
+    """Run ``kornia-ilum bench`` with parsed ``args``; returns the exit status.
+
+    Scores on the eval split of ``args.cache`` (and measures the skips there), else on the shipped probe's
+    check part; prints the report and writes ``bench.md``, ``bench.json`` and ``bench.png`` into ``args.out``.
+
+    Args:
+        args: the options of :func:`add_bench_parser`'s parser.
+
+    Returns:
+        the exit status, 0 (a failure raises).
+
+    Raises:
+        ValueError: a ``--detector`` that is not registered.
+
+    Examples:
+        A bench run times every estimator and runtime, so it is not run here:
+
+        >>> parser = argparse.ArgumentParser()
+        >>> _ = add_bench_parser(parser.add_subparsers())
+        >>> run_bench_command(parser.parse_args(["bench", "--quick", "--out", "bench/"]))  # doctest: +SKIP
+        0
+    """
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)

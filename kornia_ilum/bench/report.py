@@ -36,6 +36,15 @@ def _f(x: float | None, digits: int = 4) -> str:
 def pareto_front(rows: list[dict[str, Any]]) -> list[str]:
     """The labels of the rows that no other row beats on both batch-1 time and diffuse ``L_rec``.
 
+    Errors equal to 4 decimals tie, so a row only faster than another on the same error is on the front alone.
+
+    Args:
+        rows: bench rows (:func:`~kornia_ilum.bench.run_bench`'s ``rows``) with ``label``, ``b1_ms_per_crop``
+            and ``l_rec`` (``{"diffuse": ...}``); a row without a time or an error is left out.
+
+    Returns:
+        the labels of the front, in the order of ``rows``.
+
     Examples:
         >>> rows = [{"label": "a", "b1_ms_per_crop": 1.0, "l_rec": {"diffuse": 0.2}},
         ...         {"label": "b", "b1_ms_per_crop": 2.0, "l_rec": {"diffuse": 0.1}},
@@ -51,7 +60,23 @@ def pareto_front(rows: list[dict[str, Any]]) -> list[str]:
 
 def format_skips(rows: list[dict[str, Any]], what: str) -> str:
     """The ``skips`` section (:func:`~kornia_ilum.bench.skips.skip_rows`) as Markdown, or ``what`` alone when
-    nothing was measured."""
+    nothing was measured.
+
+    Args:
+        rows: the rows of :func:`~kornia_ilum.bench.skips.skip_rows`.
+        what: its line saying what they were measured on (or why nothing was).
+
+    Returns:
+        the section: a title, ``what`` and one table row per row; ``what`` and a full stop without rows.
+
+    Examples:
+        >>> format_skips([], "skips: not measured")
+        'skips: not measured.'
+        >>> row = {"skip": "sparse relighting", "setting": "dense", "ms": 4.0, "speedup": 1.0,
+        ...        "error": {"l_rec_like": 0.0, "l_rec_like_max": 0.0, "lights_kept": 64.0, "maps": 2}}
+        >>> print(format_skips([row], "eval subject 3").splitlines()[-1])
+        | sparse relighting | dense | 4.00 | 1.00 | L_rec-like 0.00 % (worst map 0.00 %); 64.0 lights kept; 2 maps |
+    """
     if not rows:
         return f"{what}."
     lines = ["## Skips: time saved against error added", "", f"On {what}. `x baseline` is the speed-up over the "
@@ -68,7 +93,26 @@ def format_skips(rows: list[dict[str, Any]], what: str) -> str:
 
 
 def format_bench(result: dict[str, Any]) -> str:
-    """The Markdown report of a bench result (:func:`kornia_ilum.bench.run_bench`'s)."""
+    """The Markdown report of a bench result (:func:`kornia_ilum.bench.run_bench`'s).
+
+    Args:
+        result: what :func:`~kornia_ilum.bench.run_bench` returns (or ``bench.json``): ``machine``,
+            ``software``, ``error``, ``rows`` and ``auto`` are read; ``pareto``, ``per_tone``, ``e2e``,
+            ``skips_what`` (with ``skips``) and ``notes`` add their sections where present.
+
+    Returns:
+        the report, ending with a newline: the machine's limits, the table of run time against error, the
+        optional sections, and :data:`PAPER`'s numbers labelled as another dataset and device.
+
+    Examples:
+        >>> machine = {"cpu": "a CPU", "flags": [], "threads": 2, "fp32_gflops": 100.0, "bf16_gflops": None,
+        ...            "int8_gops": 200.0, "copy_gbps": 10.0, "fresh_copy_gbps": 5.0}
+        >>> result = {"machine": machine, "software": {"torch": "2.4"}, "rows": [], "auto": {},
+        ...           "error": {"what": "a test", "short": "test"}}
+        >>> text = format_bench(result)
+        >>> text.splitlines()[0], "| bf16 matmul | not native |" in text
+        ('# kornia-ilum bench', True)
+    """
     m = result["machine"]
     lines = ["# kornia-ilum bench", ""]
     lines += [f"Machine: **{m['cpu']}** ({', '.join(m['flags']) or 'no SIMD flags read'}), {m['threads']} threads; "
@@ -182,7 +226,27 @@ def _figure(result: dict[str, Any], path: Path) -> bool:
 
 def write_bench(result: dict[str, Any], out: str | os.PathLike[str]) -> list[Path]:
     """Write ``bench.md``, ``bench.json`` and ``bench.png`` (where matplotlib is installed) into ``out``
-    (created), each atomically; returns the paths written."""
+    (created), each atomically; returns the paths written.
+
+    Args:
+        result: a bench result, as for :func:`format_bench` (``bench.json`` is it as JSON).
+        out: the folder of the three files.
+
+    Returns:
+        the paths of the files written, ``bench.png`` last (left out without matplotlib).
+
+    Examples:
+        Not run here: the figure imports matplotlib, which is slow (``tests/bench/test_report.py`` runs it).
+
+        >>> import tempfile
+        >>> machine = {"cpu": "a CPU", "flags": [], "threads": 2, "fp32_gflops": 100.0, "bf16_gflops": None,
+        ...            "int8_gops": 200.0, "copy_gbps": 10.0, "fresh_copy_gbps": 5.0}
+        >>> result = {"machine": machine, "software": {"torch": "2.4"}, "rows": [], "auto": {},
+        ...           "error": {"what": "a test", "short": "test"}}
+        >>> with tempfile.TemporaryDirectory() as tmp:  # doctest: +SKIP
+        ...     [p.name for p in write_bench(result, tmp)][:2]
+        ['bench.md', 'bench.json']
+    """
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / "bench.md", folder / "bench.json"]

@@ -86,6 +86,16 @@ def run_bench(
     Returns:
         the JSON-ready result: ``machine``, ``software``, ``rows`` (estimator x runtime, then the oracles),
         ``pareto``, ``auto``, ``per_tone``, ``e2e``, ``error``, ``paper``, ``notes``.
+
+    Examples:
+        A run times every estimator and runtime (the eager row of each first), so it is not run here:
+
+        >>> "eager" in BENCH_RUNTIMES and "auto" not in BENCH_RUNTIMES
+        True
+        >>> from kornia_ilum.evaluation import probe_eval_set
+        >>> result = run_bench(probe_eval_set(), "the probe", ["uniform"], quick=True)  # doctest: +SKIP
+        >>> result["rows"][0]["label"], result["rows"][0]["runtime"]  # doctest: +SKIP
+        ('uniform', 'eager')
     """
     say = print if progress else (lambda *a, **k: None)
     batches = (1, 4) if quick else (1, 32)

@@ -50,7 +50,22 @@ __all__ = ["RELIGHT_SETTINGS", "SUNNY", "VIDEO_SETTINGS", "flicker", "held_out_m
 
 def held_out_maps(folders: Sequence[str | os.PathLike[str]]) -> list[Path]:
     """The real maps of ``folders`` whose split is ``"eval"`` (:func:`~kornia_ilum.synth.environments.hdri_split`),
-    sorted by name."""
+    sorted by name.
+
+    Args:
+        folders: folders of real lat-long maps (``.exr`` and ``.hdr`` files; other files are skipped).
+
+    Returns:
+        the paths of the held-out maps, sorted by file name.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     for name in ("studio.exr", "interior.exr", "notes.txt"):
+        ...         (Path(tmp) / name).touch()
+        ...     [p.name for p in held_out_maps([tmp])]
+        ['studio.exr']
+    """
     maps = [p for f in folders for p in Path(f).iterdir() if p.suffix.lower() in (".exr", ".hdr")]
     return sorted((p for p in maps if hdri_split(p.name) == "eval"), key=lambda p: p.name)
 
@@ -65,7 +80,30 @@ def video_clip(field: Any, maps: Sequence[Path], frames: tuple[int, int] = (60, 
     """A 640 x 480 clip of ``field`` (a :class:`~kornia_ilum.synth.lightstage.ReflectanceField`) under ``maps[0]``
     turning by one column of a 64 x 128 lat-long (2.8 degrees) a frame for ``frames[0]`` frames, then a cut to
     ``maps[1]`` for ``frames[1]``: the face over a grey backdrop in the frame's middle, exposed once per shot so
-    that the face's mean is 0.18, 8-bit sRGB. Returns the frames, their true mirror balls and the cut's index."""
+    that the face's mean is 0.18, 8-bit sRGB. Returns the frames, their true mirror balls and the cut's index.
+
+    Args:
+        field: the subject-view to relight.
+        maps: at least two real lat-long maps (the first two are used).
+        frames: the frames of the first shot and of the second.
+
+    Returns:
+        ``(frames, truth, cut)``: the frames as ``(480, 640, 3)`` uint8 arrays, their true mirror balls
+        ``(T, 3, 32, 32)`` (exposed as the frames are) and the index of the cut's first frame, ``frames[0]``.
+
+    Convention:
+        The frames are sRGB codes and the truth is linear lighting in their units (docs/conventions.rst,
+        "Images", "Mirror ball" and "Units of lighting").
+
+    Examples:
+        It needs a light-stage cache with an eval subject and two held-out maps:
+
+        >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
+        >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
+        >>> clip, truth, cut = video_clip(field, maps, (12, 6))  # doctest: +SKIP
+        >>> len(clip), clip[0].shape, tuple(truth.shape), cut  # doctest: +SKIP
+        (18, (480, 640, 3), (18, 3, 32, 32), 12)
+    """
     shots, truths = [], []
     for path, count in zip(maps[:2], frames, strict=True):
         latlong = _latlong(path)
@@ -83,7 +121,25 @@ def video_clip(field: Any, maps: Sequence[Path], frames: tuple[int, int] = (60, 
 
 
 def flicker(balls: torch.Tensor, cut: int) -> float:
-    """The mean over consecutive frames (not across the cut) of the mean absolute change of ``log(1 + L)``."""
+    """The mean over consecutive frames (not across the cut) of the mean absolute change of ``log(1 + L)``.
+
+    Args:
+        balls: the lighting of consecutive frames.
+        cut: the index of the first frame after the cut (the change from frame ``cut - 1`` to it is left out).
+
+    Returns:
+        the flicker, in ``log(1 + L)`` per frame.
+
+    Shape:
+        - balls: :math:`(T, C, H, W)`, mirror balls :math:`(T, 3, 32, 32)` in the bench
+
+    Examples:
+        >>> flicker(torch.ones(4, 3, 8, 8), cut=2)
+        0.0
+        >>> balls = (torch.arange(4, dtype=torch.float64).exp() - 1).view(4, 1, 1, 1).expand(4, 3, 8, 8)
+        >>> round(flicker(balls, cut=2), 4)  # log(1 + L) steps by 1 a frame
+        1.0
+    """
     logs = torch.log1p(balls.double())
     steps = (logs[1:] - logs[:-1]).abs().mean((1, 2, 3))
     return float(torch.cat([steps[: cut - 1], steps[cut:]]).mean())
@@ -91,7 +147,24 @@ def flicker(balls: torch.Tensor, cut: int) -> float:
 
 def lag(energy: torch.Tensor, reference: torch.Tensor, cut: int) -> int:
     """Frames after the cut until ``energy`` stays within 10 % of ``reference`` (the per-frame estimate's, or
-    that of the same crops estimated on every frame: :func:`video_rows`)."""
+    that of the same crops estimated on every frame: :func:`video_rows`).
+
+    Args:
+        energy: the energy of each frame's estimate.
+        reference: the energy it is compared with, frame by frame.
+        cut: the index of the first frame after the cut.
+
+    Returns:
+        the number of frames from the cut on before ``energy`` stays within 10 % of ``reference`` to the end;
+        all the frames after the cut when it never does.
+
+    Shape:
+        - energy, reference: :math:`(T,)` (:func:`~kornia_ilum.evaluation.checks.lighting_energy`)
+
+    Examples:
+        >>> lag(torch.tensor([1.0, 1.0, 2.0, 1.5, 1.05, 1.0]), torch.ones(6), cut=2)
+        2
+    """
     close = torch.log(energy[cut:] / reference[cut:]).abs() <= math.log(1.1)
     return next((k for k in range(len(close)) if bool(close[k:].all())), len(close))
 
@@ -99,7 +172,26 @@ def lag(energy: torch.Tensor, reference: torch.Tensor, cut: int) -> int:
 def lrec_like(image: torch.Tensor, reference: torch.Tensor) -> float:
     """The paper's ``L_rec`` applied to relit portraits ``(B, C, P)``: the mean absolute difference of the
     gamma-encoded images, each exposed so that the reference's 99th percentile is 1 and soft-clipped, over the
-    mean of the encoded reference."""
+    mean of the encoded reference.
+
+    Args:
+        image: the portraits to score (sparse relighting's).
+        reference: the same portraits relit densely.
+
+    Returns:
+        the relative error (0 for ``image`` equal to ``reference``).
+
+    Shape:
+        - image, reference: :math:`(B, C, P)`, ``P`` pixels
+
+    Convention:
+        Both are linear images in the same units; the exposure is the reference's, per portrait.
+
+    Examples:
+        >>> reference = torch.rand(2, 3, 100, generator=torch.Generator().manual_seed(0))
+        >>> lrec_like(reference, reference), lrec_like(2 * reference, reference) > 0
+        (0.0, True)
+    """
     scale = torch.quantile(reference.flatten(1).float(), 0.99, dim=1).clamp(min=1e-12)[:, None, None]
 
     def encode(x: torch.Tensor) -> torch.Tensor:
@@ -135,7 +227,28 @@ def video_rows(frames: Sequence[np.ndarray], truth: torch.Tensor, cut: int, sett
     ``|log(E_est / E_true)|``, the flicker over the truth's, the frames taken for a cut, detected and estimated,
     and two lags after the cut (:func:`lag`): behind the per-frame estimate (``lag``: this also counts a box
     held between detections, which crops the face a little differently), and behind the same crops estimated
-    on every frame (``lag_own_crops``: the delay of the reuse and the smoothing alone)."""
+    on every frame (``lag_own_crops``: the delay of the reuse and the smoothing alone).
+
+    Args:
+        frames: the clip (:func:`video_clip`), ``(H, W, 3)`` uint8 sRGB arrays.
+        truth: the frames' true mirror balls, ``(T, 3, 32, 32)``.
+        cut: the index of the first frame after the cut.
+        settings: setting name -> options of :class:`~kornia_ilum.video.LightingTracker` (:data:`VIDEO_SETTINGS`).
+        estimator: the registered estimator the trackers run.
+
+    Returns:
+        one row per setting: ``skip`` (``"video"``), ``setting``, ``ms``, ``speedup`` and ``error`` (``energy``,
+        ``flicker_x_truth``, ``lag``, ``lag_own_crops``, ``cuts``, ``detected``, ``estimated``).
+
+    Examples:
+        It needs a light-stage cache with an eval subject and two held-out maps:
+
+        >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
+        >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
+        >>> clip, truth, cut = video_clip(field, maps)  # doctest: +SKIP
+        >>> [r["setting"] for r in video_rows(clip, truth, cut, VIDEO_SETTINGS)]  # doctest: +SKIP
+        ['per frame', 'tracker defaults', 'tracker defaults, runtime auto']
+    """
     true_energy = lighting_energy(truth.double())
     rows, reference, base = [], None, None
     for name, options in settings.items():
@@ -160,7 +273,26 @@ def video_rows(frames: Sequence[np.ndarray], truth: torch.Tensor, cut: int, sett
 
 def video_skips(field: Any, maps: Sequence[Path], estimator: str = "ours", quick: bool = False
                 ) -> list[dict[str, Any]]:
-    """The video rows (module docstring)."""
+    """The video rows (module docstring).
+
+    Args:
+        field: the subject-view of the clip (:func:`video_clip`).
+        maps: at least two held-out maps (:func:`held_out_maps`).
+        estimator: the registered estimator the trackers run.
+        quick: a clip of 12 + 6 frames and the first two settings of :data:`VIDEO_SETTINGS` (CI), instead of
+            60 + 30 frames and all of them.
+
+    Returns:
+        the rows of :func:`video_rows`.
+
+    Examples:
+        It needs a light-stage cache with an eval subject and two held-out maps:
+
+        >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
+        >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
+        >>> [r["setting"] for r in video_skips(field, maps, quick=True)]  # doctest: +SKIP
+        ['per frame', 'tracker defaults']
+    """
     frames, truth, cut = video_clip(field, maps, (12, 6) if quick else (60, 30))
     settings = dict(list(VIDEO_SETTINGS.items())[:2]) if quick else VIDEO_SETTINGS
     return video_rows(frames, truth, cut, settings, estimator)
@@ -175,7 +307,25 @@ SUNNY = 0.5
 
 
 def top_share(lights: torch.Tensor) -> float:
-    """The share of the energy in the brightest 1 % of directions of the first light list of ``(B, N, C)``."""
+    """The share of the energy in the brightest 1 % of directions of the first light list of ``(B, N, C)``.
+
+    Args:
+        lights: light lists (:func:`~kornia_ilum.geometry.mirror_ball_to_lights`); only the first is read.
+
+    Returns:
+        the share in ``[0, 1]``, by the mean over the channels (at least one direction is counted).
+
+    Shape:
+        - lights: :math:`(B, N, C)`
+
+    Examples:
+        >>> lights = torch.ones(1, 200, 3)
+        >>> round(top_share(lights), 4)  # uniform: the top 1 % holds 1 %
+        0.01
+        >>> lights[0, 0] = 1000.0
+        >>> top_share(lights) >= SUNNY  # one sun
+        True
+    """
     energy = lights[0].mean(-1).sort(descending=True).values
     return float(energy[: max(1, len(energy) // 100)].sum() / energy.sum())
 
@@ -183,7 +333,28 @@ def top_share(lights: torch.Tensor) -> float:
 def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: int = 16) -> list[dict[str, Any]]:
     """The sparse-relighting rows (module docstring): times summed and errors averaged over all ``maps``, over
     the sun-dominated ones (:data:`SUNNY`), and over those of them that are outdoor
-    (:func:`~kornia_ilum.synth.environments.guess_label`): issue 24's target."""
+    (:func:`~kornia_ilum.synth.environments.guess_label`): issue 24's target.
+
+    Args:
+        field: the subject-view to relight.
+        maps: the held-out maps (:func:`held_out_maps`).
+        quick: the first two maps and fewer timed calls (CI).
+        batch: yaws per map (a relit batch).
+
+    Returns:
+        one row per group of maps and setting of :data:`RELIGHT_SETTINGS`: ``skip``, ``setting``, ``ms``,
+        ``speedup`` (over ``"dense"``) and ``error`` (``l_rec_like``, its mean over the maps, and
+        ``l_rec_like_max``, of :func:`lrec_like`; ``lights_kept``; ``maps``).
+
+    Examples:
+        It needs a light-stage cache with an eval subject and two held-out maps:
+
+        >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
+        >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
+        >>> rows = relight_skips(field, maps, quick=True)  # doctest: +SKIP
+        >>> rows[0]["skip"], rows[0]["setting"], rows[0]["speedup"]  # doctest: +SKIP
+        ('sparse relighting, all held-out maps', 'dense', 1.0)
+    """
     index = field.light_index
     prepared = {b: prepare_sparse(field.field, light_clusters(field.lighting_size, b, index))
                 for b in {b for _, b, _ in RELIGHT_SETTINGS if b is not None}}
@@ -224,7 +395,21 @@ def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: 
 
 def skip_rows(caches: Sequence[str | os.PathLike[str]], hdri: Sequence[str | os.PathLike[str]],
               quick: bool = False) -> tuple[list[dict[str, Any]], str]:
-    """Every skip's rows, and one line saying what they were measured on (or why nothing was)."""
+    """Every skip's rows, and one line saying what they were measured on (or why nothing was).
+
+    Args:
+        caches: light-stage caches; the first of their eval subject-views is relit.
+        hdri: folders of real maps; their held-out maps light it (two at least).
+        quick: the short form of each skip (CI).
+
+    Returns:
+        ``(rows, what)``: the rows of :func:`video_skips` then :func:`relight_skips`, and the line; no rows
+        without an eval subject or two held-out maps.
+
+    Examples:
+        >>> skip_rows([], [])
+        ([], 'skips: not measured (needs an eval subject in --cache and two held-out maps in --hdri)')
+    """
     try:
         fields = eval_fields(caches)
     except ValueCheckError:

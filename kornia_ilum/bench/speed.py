@@ -49,9 +49,22 @@ def estimator_speed(estimator: LightingEstimator, batches: tuple[int, ...] = (1,
                     ) -> dict[str, float]:
     r"""Median ms per call and per crop of ``estimator`` at each batch size.
 
+    Args:
+        estimator: the estimator, under the runtime to time (:func:`~kornia_ilum.estimators.with_runtime`).
+        batches: the batch sizes, of the probe's check crops (repeated to fill a batch).
+        repeats: timed calls at batch 1, after two warm-up calls.
+
     Returns:
         ``{"b{B}_ms": ms per call, "b{B}_ms_per_crop": ms per crop, "b{B}_crops_per_s": crops per second}`` for
         every ``B`` of ``batches``; larger batches are timed ``max(3, repeats // 4)`` times.
+
+    Examples:
+        A timing, so it is not run here:
+
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> speed = estimator_speed(create_estimator("uniform"), (1, 4), repeats=3)  # doctest: +SKIP
+        >>> sorted(speed)  # doctest: +SKIP
+        ['b1_crops_per_s', 'b1_ms', 'b1_ms_per_crop', 'b4_crops_per_s', 'b4_ms', 'b4_ms_per_crop']
     """
     out: dict[str, float] = {}
     for batch in batches:
@@ -65,7 +78,21 @@ def estimator_speed(estimator: LightingEstimator, batches: tuple[int, ...] = (1,
 
 
 def estimator_flops(estimator: LightingEstimator) -> float:
-    """Floating-point operations of one crop (a multiply-add counts two), by PyTorch's flop counter."""
+    """Floating-point operations of one crop (a multiply-add counts two), by PyTorch's flop counter.
+
+    Args:
+        estimator: the eager estimator; it runs once on one of the probe's check crops.
+
+    Returns:
+        the operations of one forward pass of one crop (0 for an estimator without matmuls or convolutions).
+
+    Examples:
+        It loads the probe and runs the estimator once, so it is not run here:
+
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> estimator_flops(create_estimator("ours", pretrained=False)) > 1e8  # doctest: +SKIP
+        True
+    """
 
     counter = FlopCounterMode(display=False)
     with torch.inference_mode(), counter:
@@ -75,7 +102,20 @@ def estimator_flops(estimator: LightingEstimator) -> float:
 
 def portrait_photo(width: int, height: int) -> np.ndarray:
     """scikit-image's astronaut scaled to the photo's height and centred on a black ``width x height`` canvas:
-    ``(height, width, 3)`` uint8, one face of about a fifth of the height."""
+    ``(height, width, 3)`` uint8, one face of about a fifth of the height.
+
+    Args:
+        width: the photo's width in pixels.
+        height: its height in pixels.
+
+    Returns:
+        the photo, an ``(height, width, 3)`` uint8 sRGB array (the astronaut scaled to the shorter side).
+
+    Examples:
+        >>> photo = portrait_photo(64, 48)
+        >>> photo.shape, photo.dtype, int(photo[:, :8].max())  # black beside the square portrait
+        ((48, 64, 3), dtype('uint8'), 0)
+    """
 
     astronaut = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1)[None].float() / 255
     side = min(width, height)
@@ -94,9 +134,25 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
     with the given estimator and detector, which reports ``check``, ``detect``, ``crop`` and ``estimate``)
     and writes the estimate (:meth:`~kornia_ilum.estimators.LightingEstimate.save`, float32 ``.exr``).
 
+    Args:
+        photo: an ``(H, W, 3)`` uint8 sRGB photo (:func:`portrait_photo`).
+        estimator: the estimator, under the runtime to time.
+        detector: the face detector (the bench's: :func:`~kornia_ilum.api.cached_detector`, possibly detecting
+            on a downscaled copy).
+        repeats: timed runs.
+
     Returns:
         ``{"read", "check", "detect", "crop", "estimate", "write", "total"}`` in ms, each the median over
         ``repeats`` runs (after one warm-up run); ``total`` is the median of the whole run, not the sum.
+
+    Examples:
+        A timing, so it is not run here:
+
+        >>> from kornia_ilum.detection import create_detector
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> estimator, detector = create_estimator("ours"), create_detector("opencv")  # doctest: +SKIP
+        >>> sorted(end_to_end(portrait_photo(640, 480), estimator, detector, repeats=3))  # doctest: +SKIP
+        ['check', 'crop', 'detect', 'estimate', 'read', 'total', 'write']
     """
     stages: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="kornia_ilum_bench_") as tmp:
@@ -118,7 +174,16 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
 
 
 def run_info() -> dict[str, Any]:
-    """The software of the run: versions and thread counts."""
+    """The software of the run: versions and thread counts.
+
+    Returns:
+        ``python``, ``torch``, ``torch_threads``, ``onnxruntime`` (``None`` without the onnx extra) and
+        ``opencv``.
+
+    Examples:
+        >>> sorted(run_info())
+        ['onnxruntime', 'opencv', 'python', 'torch', 'torch_threads']
+    """
     info: dict[str, Any] = {"python": platform.python_version(), "torch": torch.__version__,
                             "torch_threads": torch.get_num_threads()}
     try:

@@ -100,6 +100,30 @@ def lighting_cases(kind: str, dtype: torch.dtype, device: str | torch.device = "
     The lighting cases are a uniform map at each of :data:`LEVELS`, a sun (one pixel at 1e6) over a dim sky
     (1e-3), and a map with a NaN pixel; values a dtype cannot hold are what the cast makes of them (Inf in
     float16 above 65504).
+
+    Args:
+        kind: ``"mirror_ball"``, ``"latlong"`` or ``"log"`` (the first element of an :data:`OPS` entry).
+        dtype: the cases' dtype.
+        device: the cases' device.
+
+    Returns:
+        case name -> tensor: ``"uniform 1e-06"`` ... ``"uniform 1e+06"``, ``"sun 1e6 over 1e-3"`` and
+        ``"NaN pixel"``; ``"log -20"`` ... ``"log 20"`` for ``"log"``.
+
+    Shape:
+        - Output: :math:`(1, 3, 32, 32)` mirror balls, :math:`(1, 3, 32, 64)` lat-long maps, or :math:`(1,)`
+
+    Convention:
+        Linear lighting (docs/conventions.rst, "Mirror ball", "Lat-long" and "Units of lighting").
+
+    Examples:
+        >>> cases = lighting_cases("mirror_ball", torch.float16)
+        >>> len(cases), tuple(cases["sun 1e6 over 1e-3"].shape)
+        (8, (1, 3, 32, 32))
+        >>> bool(cases["uniform 1e+06"].isinf().any()), bool(cases["uniform 1000"].isfinite().all())
+        (True, True)
+        >>> list(lighting_cases("log", torch.float32))[:2]
+        ['log -20', 'log -5']
     """
     if kind == "log":
         return {f"log {y:g}": torch.tensor([y], dtype=dtype, device=device) for y in LOG_LEVELS}
@@ -117,7 +141,20 @@ def lighting_cases(kind: str, dtype: torch.dtype, device: str | torch.device = "
 
 @dataclass(frozen=True)
 class StressRow:
-    """One op on one input: ``outcome`` is one of ``ok``, ``typed error``, ``garbage``, ``untyped error``."""
+    """One op on one input: ``outcome`` is one of ``ok``, ``typed error``, ``garbage``, ``untyped error``.
+
+    Args:
+        op: the op's name (a key of :data:`OPS`).
+        dtype: the input's dtype without ``torch.`` (``"meta"`` for :func:`stress_meta`).
+        case: the input's name (:func:`lighting_cases`).
+        outcome: what happened.
+        detail: the error, or the largest output, or the output shapes.
+
+    Examples:
+        >>> row = StressRow("soft_clip", "float16", "NaN pixel", "garbage", "NaN or Inf in an output")
+        >>> row.failed, StressRow("soft_clip", "float32", "uniform 1", "ok").failed
+        (True, False)
+    """
 
     op: str
     dtype: str
@@ -156,7 +193,23 @@ def _run(op: Callable, x: torch.Tensor) -> tuple[str, str]:
 
 def stress_ops(ops: dict[str, tuple[str, Callable]] | None = None,
                dtypes: tuple[torch.dtype, ...] = DTYPES) -> list[StressRow]:
-    """Every op of ``ops`` (default :data:`OPS`) on every case of :func:`lighting_cases` in every dtype."""
+    """Every op of ``ops`` (default :data:`OPS`) on every case of :func:`lighting_cases` in every dtype.
+
+    Each runs on a copy of the case that requires gradients, and the sum of its floating-point outputs is
+    backpropagated; the outcomes are those of the module docstring.
+
+    Args:
+        ops: name -> (input kind, op), as :data:`OPS`.
+        dtypes: the dtypes of the inputs.
+
+    Returns:
+        one row per op, dtype and case, in that order.
+
+    Examples:
+        >>> rows = stress_ops({"soft_clip": OPS["soft_clip"]}, (torch.float32,))
+        >>> len(rows), [r.case for r in rows if r.failed]
+        (8, [])
+    """
     rows = []
     for name, (kind, op) in (OPS if ops is None else ops).items():
         for dtype in dtypes:
@@ -167,7 +220,21 @@ def stress_ops(ops: dict[str, tuple[str, Callable]] | None = None,
 
 
 def stress_meta(ops: dict[str, tuple[str, Callable]] | None = None) -> list[StressRow]:
-    """Every op on ``meta`` tensors (float32): its output's shape, or a typed error."""
+    """Every op on ``meta`` tensors (float32): its output's shape, or a typed error.
+
+    Args:
+        ops: name -> (input kind, op), as :data:`OPS` (the default).
+
+    Returns:
+        one row per op, of dtype ``"meta"`` and case ``"uniform 1"`` (``"log 0"`` for the head).
+
+    Examples:
+        Not run here: the first ``meta`` op of a process loads torch's meta kernels, which is slow.
+
+        >>> row, = stress_meta({"gamma_encode": OPS["gamma_encode"]})  # doctest: +SKIP
+        >>> row.outcome, row.detail  # doctest: +SKIP
+        ('ok', 'shapes [(1, 3, 32, 32)]')
+    """
     rows = []
     for name, (kind, op) in (OPS if ops is None else ops).items():
         x = lighting_cases(kind, torch.float32)["uniform 1" if kind != "log" else "log 0"].to("meta")
@@ -183,7 +250,27 @@ def stress_meta(ops: dict[str, tuple[str, Callable]] | None = None) -> list[Stre
 
 
 def format_stress(rows: list[StressRow]) -> str:
-    """The rows as a Markdown table, failures first, and a count per outcome."""
+    """The rows as a Markdown table, failures first, and a count per outcome.
+
+    Args:
+        rows: the rows of :func:`stress_ops` or :func:`stress_meta`.
+
+    Returns:
+        the table (a ``|`` in a detail becomes ``/``), then a line with the number of runs and the count of each
+        outcome.
+
+    Examples:
+        >>> rows = [StressRow("soft_clip", "float32", "uniform 1", "ok", "max |output| 0.5"),
+        ...         StressRow("soft_clip", "float16", "NaN pixel", "garbage", "NaN or Inf in an output")]
+        >>> print(format_stress(rows))
+        | op | dtype | input | outcome | detail |
+        |---|---|---|---|---|
+        | soft_clip | float16 | NaN pixel | garbage | NaN or Inf in an output |
+        | soft_clip | float32 | uniform 1 | ok | max /output/ 0.5 |
+        <BLANKLINE>
+        2 runs; garbage: 1, ok: 1
+        <BLANKLINE>
+    """
     counts: dict[str, int] = {}
     for r in rows:
         counts[r.outcome] = counts.get(r.outcome, 0) + 1

@@ -52,6 +52,22 @@ def centre_weights(
 
     Pixel ``(i, j)`` sits at ``((j + 0.5) / width - 0.5, (i + 0.5) / height - 0.5)``.
 
+    Args:
+        height: number of rows.
+        width: number of columns.
+        sigma: the Gaussian's standard deviation, a fraction of the side, > 0.
+        device: device of the result.
+        dtype: dtype of the result (computed in float64).
+
+    Returns:
+        the weights, non-negative, summing to 1.
+
+    Raises:
+        ValueCheckError: ``sigma`` not positive.
+
+    Shape:
+        - Output: :math:`(H, W)`
+
     Examples:
         >>> w = centre_weights(4, 4)
         >>> round(w.sum().item(), 6), bool(w[1, 1] > w[0, 0])
@@ -76,6 +92,13 @@ def metered_luminance(linear: torch.Tensor, sigma: float = METERING_SIGMA) -> to
 
     Returns:
         :math:`(B,)` in the dtype of ``linear``.
+
+    Shape:
+        - linear: :math:`(B, 3, H, W)`
+        - Output: :math:`(B,)`
+
+    Convention:
+        docs/conventions.rst, "Images": ``linear`` is linear RGB (decode sRGB first, :func:`srgb_to_linear`).
 
     Examples:
         >>> metered_luminance(torch.full((1, 3, 8, 8), 0.5)).tolist()
@@ -120,6 +143,17 @@ def normalize_exposure(
         ``(normalised, scale)``: :math:`(B, 3, H, W)` sRGB in ``[0, 1]`` and :math:`(B,)`, both in the dtype of
         ``srgb`` (half precision computed in float32, saturating on the way back).
 
+    Raises:
+        ValueCheckError: ``key`` not positive.
+
+    Shape:
+        - srgb: :math:`(B, 3, H, W)`
+        - Output: :math:`(B, 3, H, W)` and :math:`(B,)`
+
+    Convention:
+        docs/conventions.rst, "Units of lighting": an estimate made on the normalised crop, times ``scale``,
+        is in the units of the photograph.
+
     Examples:
         >>> x = torch.rand(2, 3, 16, 16)
         >>> a, s = normalize_exposure(x)
@@ -141,6 +175,14 @@ def normalize_exposure(
 
 class NormalizeExposure(nn.Module):
     r"""Module of :func:`normalize_exposure`: ``forward(srgb) -> (normalised, scale)``.
+
+    Args:
+        key: the target metered luminance.
+        sigma: the metering weights' standard deviation, a fraction of the side.
+
+    Shape:
+        - Input: :math:`(B, 3, H, W)`
+        - Output: :math:`(B, 3, H, W)` and :math:`(B,)`
 
     Examples:
         >>> normalised, scale = NormalizeExposure()(torch.full((1, 3, 8, 8), 0.5))

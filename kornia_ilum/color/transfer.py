@@ -52,6 +52,13 @@ def linear_to_srgb(image: torch.Tensor) -> torch.Tensor:
     Returns:
         sRGB-encoded image of the same shape and dtype (half precision computed in float32, saturating).
 
+    Shape:
+        - image: :math:`(*, 3, H, W)`
+        - Output: :math:`(*, 3, H, W)`
+
+    Convention:
+        docs/conventions.rst, "Images": HDR data is linear; LDR images are sRGB-encoded in ``[0, 1]``.
+
     Examples:
         >>> linear_to_srgb(torch.full((3, 1, 1), 0.5)).flatten()
         tensor([0.7354, 0.7354, 0.7354])
@@ -74,6 +81,14 @@ def srgb_to_linear(image: torch.Tensor) -> torch.Tensor:
     Returns:
         linear RGB of the same shape and dtype (half precision computed in float32; a value beyond the dtype's
         range saturates at its largest finite value).
+
+    Shape:
+        - image: :math:`(*, 3, H, W)`
+        - Output: :math:`(*, 3, H, W)`
+
+    Convention:
+        docs/conventions.rst, "Images": LDR inputs are sRGB-encoded in ``[0, 1]``; lighting and renders are
+        linear.
 
     Examples:
         >>> srgb_to_linear(torch.full((3, 1, 1), 0.5)).flatten()
@@ -114,6 +129,18 @@ def gamma_encode(x: torch.Tensor, gamma: float = 2.2, *, knee: float = GAMMA_KNE
     Returns:
         encoded values of the same shape and dtype.
 
+    Raises:
+        ValueCheckError: ``gamma`` not positive, or ``knee`` outside ``[0, 1)``.
+        NonFiniteError: NaN or Inf in ``x``.
+
+    Shape:
+        - x: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure ``L_rec``": the metric uses the exact power
+        (``knee=0``); a training loss may use the gradient-safe chord below a positive knee.
+
     Examples:
         >>> gamma_encode(torch.tensor([0.0, 0.25, 1.0]))
         tensor([0.0000, 0.5325, 1.0000])
@@ -142,6 +169,10 @@ def gamma_encode_unchecked(x: torch.Tensor, gamma: float = 2.2, knee: float = GA
     Returns:
         encoded values of the same shape and dtype.
 
+    Shape:
+        - x: :math:`(*)`
+        - Output: :math:`(*)`
+
     Examples:
         >>> gamma_encode_unchecked(torch.tensor([0.0, 0.25, 1.0]), 2.2, 0.0)
         tensor([0.0000, 0.5325, 1.0000])
@@ -158,9 +189,30 @@ def gamma_encode_unchecked(x: torch.Tensor, gamma: float = 2.2, knee: float = GA
 def gamma_decode(x: torch.Tensor, gamma: float = 2.2) -> torch.Tensor:
     r"""``x^gamma`` for ``x >= 0``; the inverse of :func:`gamma_encode` on ``[knee^(1/gamma), inf)``.
 
+    Below ``GAMMA_KNEE^(1/gamma)`` (the encoded default knee) it is the chord through the origin, the inverse
+    of :func:`gamma_encode`'s chord at the default :data:`GAMMA_KNEE`.
+
+    Args:
+        x: gamma-encoded values of any shape.
+        gamma: the display gamma, > 0.
+
+    Returns:
+        linear values of the same shape and dtype.
+
+    Raises:
+        ValueCheckError: ``gamma`` not positive.
+        NonFiniteError: NaN or Inf in ``x``.
+
+    Shape:
+        - x: :math:`(*)`
+        - Output: :math:`(*)`
+
     Examples:
         >>> gamma_decode(torch.tensor([0.5]))
         tensor([0.2176])
+        >>> x = torch.tensor([0.001, 0.25, 1.0])
+        >>> torch.allclose(gamma_decode(gamma_encode(x)), x)
+        True
     """
     check_tensor(x, "x", None, nonempty=False)
     if not gamma > 0:
@@ -193,6 +245,10 @@ def quantize(x: torch.Tensor, bits: int = 8, straight_through: bool = False) -> 
     Returns:
         quantised values in ``[0, 1]``, same dtype (use float32 or wider for 16 bits).
 
+    Shape:
+        - x: :math:`(*)`
+        - Output: :math:`(*)`
+
     Examples:
         >>> quantize(torch.tensor([-0.2, 0.5, 0.999, 3.0]))
         tensor([0.0000, 0.5020, 1.0000, 1.0000])
@@ -223,6 +279,13 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
     Returns:
         ``torch.uint8`` codes of the shape of ``linear`` (divide by 255 for ``[0, 1]``).
 
+    Raises:
+        NonFiniteError: ``linear`` holds NaN or Inf.
+
+    Shape:
+        - linear: :math:`(*)`
+        - Output: :math:`(*)`, ``torch.uint8``
+
     Convention:
         The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)`` (:func:`srgb8_table`):
         one lookup per value instead of the sRGB curve's power and the rounding, so it is several times
@@ -230,9 +293,6 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
         images; the numbers are in the docs' colour page). A value within a cell that straddles a code
         boundary may land on the neighbouring code: 0.1 % of the values of random images, never more than
         one code off.
-
-    Raises:
-        NonFiniteError: ``linear`` holds NaN or Inf.
 
     Examples:
         >>> encode_srgb8(torch.tensor([0.0, 0.2140, 1.0, 7.0, -1.0]))
@@ -273,21 +333,54 @@ def srgb8_table(device: torch.device) -> torch.Tensor:
 
 
 class LinearToSrgb(nn.Module):
-    """Module twin of :func:`linear_to_srgb`."""
+    """Module twin of :func:`linear_to_srgb`.
+
+    Shape:
+        - Input: :math:`(*, 3, H, W)`
+        - Output: :math:`(*, 3, H, W)`
+
+    Examples:
+        >>> x = torch.rand(2, 3, 4, 4)
+        >>> torch.allclose(LinearToSrgb()(x), linear_to_srgb(x))
+        True
+    """
 
     def forward(self, image: torch.Tensor) -> torch.Tensor:
         return linear_to_srgb(image)
 
 
 class SrgbToLinear(nn.Module):
-    """Module twin of :func:`srgb_to_linear`."""
+    """Module twin of :func:`srgb_to_linear`.
+
+    Shape:
+        - Input: :math:`(*, 3, H, W)`
+        - Output: :math:`(*, 3, H, W)`
+
+    Examples:
+        >>> x = torch.rand(2, 3, 4, 4)
+        >>> torch.allclose(SrgbToLinear()(LinearToSrgb()(x)), x, atol=1e-6)
+        True
+    """
 
     def forward(self, image: torch.Tensor) -> torch.Tensor:
         return srgb_to_linear(image)
 
 
 class GammaEncode(nn.Module):
-    """Module twin of :func:`gamma_encode`."""
+    """Module twin of :func:`gamma_encode`.
+
+    Args:
+        gamma: the display gamma, > 0.
+        knee: where the chord meets the curve, in ``[0, 1)``; 0 for the exact power.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Examples:
+        >>> [round(v, 4) for v in GammaEncode()(torch.tensor([0.0, 0.25, 1.0])).tolist()]
+        [0.0, 0.5325, 1.0]
+    """
 
     def __init__(self, gamma: float = 2.2, knee: float = GAMMA_KNEE) -> None:
         super().__init__()
@@ -299,7 +392,20 @@ class GammaEncode(nn.Module):
 
 
 class Quantize(nn.Module):
-    """Module twin of :func:`quantize`."""
+    """Module twin of :func:`quantize`.
+
+    Args:
+        bits: bit depth, 1 to 16.
+        straight_through: pass the gradient of the rounding through unchanged.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Examples:
+        >>> Quantize(bits=1)(torch.tensor([-0.5, 0.2, 0.7, 2.0])).tolist()
+        [0.0, 0.0, 1.0, 1.0]
+    """
 
     def __init__(self, bits: int = 8, straight_through: bool = False) -> None:
         super().__init__()

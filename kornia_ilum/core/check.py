@@ -39,7 +39,18 @@ _TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("kornia_ilum_tru
 
 
 def checks_active() -> bool:
-    """Whether input checks run now: Kornia's global switch, not while tracing, not inside :func:`trusted`."""
+    """Whether input checks run now: Kornia's global switch, not while tracing, not inside :func:`trusted`.
+
+    Returns:
+        ``True`` when :func:`check_tensor` and the other checks validate their arguments now.
+
+    Examples:
+        >>> checks_active()
+        True
+        >>> with trusted():
+        ...     checks_active()
+        False
+    """
     if not are_checks_enabled() or torch.jit.is_scripting():
         return False
     return torch.compiler.is_compiling() or not _TRUSTED.get()  # Dynamo cannot trace a ContextVar
@@ -53,6 +64,9 @@ def trusted() -> Iterator[None]:
     times on data they made themselves (:class:`~kornia_ilum.synth.lightstage.PortraitDataset`): a check scans
     every value of a tensor, which is a large part of the cost of cheap operations on large images. Code that
     :func:`torch.compile` traces ignores it (compiled checks never scan values).
+
+    Returns:
+        a context manager; the checks run again when its block ends.
 
     Examples:
         >>> with trusted():
@@ -87,12 +101,16 @@ def check_tensor(
         x: the value to check.
         name: the argument's name, used in the message.
         shape: expected shape as a list of dimension names. A name that is a number must match exactly,
-            a leading ``"*"`` accepts any number of leading dimensions, and ``"3|1"`` accepts either size.
+            a leading ``"*"`` accepts any number of leading dimensions, ``"3|1"`` accepts either size, and a
+            name used twice (``"S", "S"``) requires equal sizes.
         floating: require a floating-point dtype.
         finite: require every value to be finite (skipped while compiling, and for a ``meta`` tensor, which
             has no values).
         nonempty: require no zero-sized dimension.
         nonnegative: require every value to be ``>= 0`` (skipped while compiling and for ``meta``).
+
+    Returns:
+        ``None``; the checks raise on a bad argument.
 
     Raises:
         TypeCheckError: ``x`` is no tensor, or has the wrong dtype.
@@ -107,6 +125,10 @@ def check_tensor(
         Traceback (most recent call last):
         ...
         kornia.core.exceptions.ShapeError: sh must have shape (B, 9, 3), got (2, 8, 3)
+        >>> check_tensor(torch.zeros(4, 2), "x", ["S", "S"])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ShapeError: x must have shape (S, S), got (4, 2) (its two S sizes differ: ...)
     """
     if not checks_active():
         return
@@ -123,14 +145,19 @@ def check_tensor(
         else:
             ok = x.dim() == len(dims)
             tail = got
+        unequal = ""
         if ok:
+            named: dict[str, int] = {}  # a name used twice ("S", "S") means one size
             for want_dim, have in zip(dims, tail):
                 options = want_dim.split("|")
                 if all(o.isdigit() for o in options) and have not in {int(o) for o in options}:
                     ok = False
                     break
+                if not want_dim.isdigit() and named.setdefault(want_dim, have) != have:
+                    ok, unequal = False, f" (its two {want_dim} sizes differ: it must be square)"
+                    break
         if not ok:
-            raise ShapeError(f"{name} must have shape {_fmt(shape)}, got {got}")
+            raise ShapeError(f"{name} must have shape {_fmt(shape)}, got {got}{unequal}")
     if floating and not x.is_floating_point():
         raise TypeCheckError(f"{name} must be a floating-point tensor, got dtype {x.dtype}")
     if nonempty and x.numel() == 0:
@@ -153,6 +180,10 @@ def check_tensor(
 def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
     """The ``(min, max)`` of a floating-point tensor in one pass over it, which also finds NaN and Inf: for a
     caller that checks a range of its own (an image in ``[0, 1]``) without scanning the data twice.
+
+    Args:
+        x: the tensor to scan.
+        name: the argument's name, used in the message.
 
     Returns:
         ``(min, max)`` as floats; ``None`` when checks are off (:func:`checks_active`), while compiling, or for
@@ -179,7 +210,24 @@ def value_range(x: torch.Tensor, name: str) -> tuple[float, float] | None:
 
 
 def check_same_device(*named: tuple[str, torch.Tensor]) -> None:
-    """Raise :class:`ValueCheckError` unless all tensors share one device."""
+    """Raise :class:`ValueCheckError` unless all tensors share one device.
+
+    Args:
+        named: ``(name, tensor)`` pairs; the names are used in the message.
+
+    Returns:
+        ``None``; fewer than two tensors, or checks off (:func:`checks_active`), check nothing.
+
+    Raises:
+        ValueCheckError: the tensors are on more than one device; the message names each one's.
+
+    Examples:
+        >>> check_same_device(("a", torch.zeros(1)), ("b", torch.ones(2)))
+        >>> check_same_device(("a", torch.zeros(1)), ("b", torch.zeros(1, device="meta")))
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: tensors must be on one device, got a on cpu, b on meta
+    """
     if not checks_active() or len(named) < 2:
         return
     devices = {t.device for _, t in named}
@@ -189,7 +237,27 @@ def check_same_device(*named: tuple[str, torch.Tensor]) -> None:
 
 
 def check_positive_int(value: Any, name: str, allowed: Sequence[int] | None = None) -> None:
-    """Raise :class:`TypeCheckError` / :class:`ValueCheckError` unless ``value`` is a positive int."""
+    """Raise :class:`TypeCheckError` / :class:`ValueCheckError` unless ``value`` is a positive int.
+
+    Args:
+        value: the value to check.
+        name: the argument's name, used in the message.
+        allowed: if given, the values that are accepted.
+
+    Returns:
+        ``None``; it raises on a bad value.
+
+    Raises:
+        TypeCheckError: ``value`` is not an ``int`` (a ``bool`` is not one).
+        ValueCheckError: ``value`` is not positive, or not in ``allowed``.
+
+    Examples:
+        >>> check_positive_int(8, "bits", allowed=range(1, 17))
+        >>> check_positive_int(0, "bits")
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: bits must be positive, got 0
+    """
     if isinstance(value, bool) or not isinstance(value, int):
         raise TypeCheckError(f"{name} must be an int, got {type(value).__name__}")
     if value <= 0:
@@ -200,6 +268,14 @@ def check_positive_int(value: Any, name: str, allowed: Sequence[int] | None = No
 
 def check_choice(value: Any, name: str, choices: Sequence[str]) -> None:
     """Require ``value`` to be one of the strings ``choices`` (for ints: :func:`check_positive_int`).
+
+    Args:
+        value: the value to check.
+        name: the argument's name, used in the message.
+        choices: the accepted strings.
+
+    Returns:
+        ``None``; it raises on a bad value.
 
     Raises:
         ValueCheckError: ``value`` is not one of ``choices``; the message lists them.

@@ -18,6 +18,12 @@ __all__ = ["fraction", "nonnegative_int", "positive_int"]
 def positive_int(text: str) -> int:
     """An integer ``> 0`` (``type=`` of options such as ``--steps`` or ``--size``).
 
+    Args:
+        text: the option's text.
+
+    Returns:
+        the integer.
+
     Raises:
         argparse.ArgumentTypeError: ``text`` is no integer, or not positive.
 
@@ -41,6 +47,12 @@ def positive_int(text: str) -> int:
 def nonnegative_int(text: str) -> int:
     """``0`` (which turns something off, e.g. ``--sheet 0``) or a :func:`positive_int`.
 
+    Args:
+        text: the option's text.
+
+    Returns:
+        the integer, ``>= 0``.
+
     Raises:
         argparse.ArgumentTypeError: ``text`` is neither ``0`` nor a positive integer (the message is
             :func:`positive_int`'s).
@@ -54,6 +66,12 @@ def nonnegative_int(text: str) -> int:
 
 def fraction(text: str) -> float:
     """A float in ``[0, 1)`` (``type=`` of tolerances such as ``synth check-skin --rtol``).
+
+    Args:
+        text: the option's text.
+
+    Returns:
+        the float.
 
     Raises:
         argparse.ArgumentTypeError: ``text`` is no number, or outside ``[0, 1)``.

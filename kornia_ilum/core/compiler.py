@@ -30,6 +30,13 @@ def compiler_disable(fn: _F) -> _F:
     The wrapper keeps ``fn``'s name and docstring (``functools.wraps``), and an ``lru_cache``'s
     ``cache_info`` and ``cache_clear``.
 
+    Args:
+        fn: the function that Dynamo must not trace.
+
+    Returns:
+        a wrapper with ``fn``'s signature: ``fn`` itself is called until Dynamo is loaded,
+        ``torch.compiler.disable(fn)`` afterwards.
+
     Examples:
         >>> @compiler_disable
         ... def table(n):

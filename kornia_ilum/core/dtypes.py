@@ -20,6 +20,12 @@ HALF = (torch.float16, torch.bfloat16)
 def work_dtype(dtype: torch.dtype) -> torch.dtype:
     """The dtype to compute in: float32 for half precision, else ``dtype`` itself.
 
+    Args:
+        dtype: the dtype of the data.
+
+    Returns:
+        ``torch.float32`` for a dtype in :data:`HALF`, else ``dtype``.
+
     Examples:
         >>> work_dtype(torch.float16), work_dtype(torch.float64)
         (torch.float32, torch.float64)
@@ -54,6 +60,17 @@ def saturating_cast(x: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
     """``x`` in ``dtype``, with values beyond the dtype's finite range clamped to it (``x`` itself when it
     already has that dtype). Differentiable: the gradient that flows back into ``x``'s dtype saturates too, so
     a float16 input computed in float32 never gets an infinite gradient.
+
+    Args:
+        x: the tensor to cast.
+        dtype: the dtype to cast to.
+
+    Returns:
+        ``x`` in ``dtype``, same shape and device; NaN stays NaN.
+
+    Shape:
+        - x: :math:`(*)`
+        - Output: :math:`(*)`
 
     Examples:
         >>> y = saturating_cast(torch.tensor([1e6, -1e6, 1.0]), torch.float16)

@@ -26,21 +26,46 @@ __all__ = [
 
 
 class IlumError(BaseError):
-    """Base class of the errors that only kornia_ilum raises."""
+    """Base class of the errors that only kornia_ilum raises.
+
+    Examples:
+        >>> issubclass(HDRIOError, IlumError), issubclass(IlumError, BaseError)
+        (True, True)
+    """
 
 
 class NonFiniteError(ValueCheckError):
-    """A tensor argument holds NaN or Inf where finite values are required."""
+    """A tensor argument holds NaN or Inf where finite values are required.
+
+    Examples:
+        >>> try:
+        ...     raise NonFiniteError("x must be finite, but it holds NaN or Inf")
+        ... except ValueError as e:  # a ValueCheckError, so a ValueError
+        ...     print(type(e).__name__)
+        NonFiniteError
+    """
 
 
 class EmptyTensorError(ShapeError):
-    """A tensor argument has a zero-sized dimension where data is required."""
+    """A tensor argument has a zero-sized dimension where data is required.
+
+    Examples:
+        >>> issubclass(EmptyTensorError, ShapeError)
+        True
+    """
 
 
 class HDRIOError(IlumError, OSError):
     """An image file is missing, unreadable, corrupt, or cannot be written as asked.
 
     The message always names the path.
+
+    Examples:
+        >>> try:
+        ...     raise HDRIOError("cannot read missing.exr: no such file")
+        ... except OSError as e:  # also an OSError
+        ...     print(e)
+        cannot read missing.exr: no such file
     """
 
 
@@ -49,6 +74,10 @@ class TruncatedImageError(HDRIOError):
 
     Raised instead of returning a partly decoded image. The message says the file is truncated and names
     the path.
+
+    Examples:
+        >>> issubclass(TruncatedImageError, HDRIOError), issubclass(TruncatedImageError, OSError)
+        (True, True)
     """
 
 
@@ -58,6 +87,10 @@ class MissingWeightsError(IlumError):
     Either the estimator ships no trained weights yet (``pretrained=False`` gives the untrained model), or
     one of its weight files is missing from the weights folder. The message names the estimator, and the
     file and folder where one is missing.
+
+    Examples:
+        >>> issubclass(MissingWeightsError, IlumError), issubclass(MissingWeightsError, OSError)
+        (True, False)
     """
 
 
@@ -66,6 +99,10 @@ class WeightsChecksumError(IlumError):
 
     The file is corrupt, truncated, or from another release; it is never loaded. The message names the
     file and both digests.
+
+    Examples:
+        >>> issubclass(WeightsChecksumError, IlumError)
+        True
     """
 
 
@@ -74,4 +111,11 @@ class NoFaceError(IlumError):
 
     The message names the image and the detector, and says how to proceed (another detector, a crop with
     ``detector="none"``, or ``fallback="full_image"``).
+
+    Examples:
+        >>> try:
+        ...     raise NoFaceError("no face in photo.jpg (detector 'mediapipe')")
+        ... except IlumError as e:
+        ...     print(type(e).__name__)
+        NoFaceError
     """

@@ -23,6 +23,9 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
         path: the destination; its folder must exist.
         write: writes the whole file at the path it is given.
 
+    Returns:
+        ``None``; the file is at ``path`` when it returns.
+
     Examples:
         >>> import tempfile
         >>> with tempfile.TemporaryDirectory() as d:
@@ -47,6 +50,12 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
 
 def sha256_file(path: str | os.PathLike[str]) -> str:
     """The SHA-256 hex digest of a file's bytes, read in blocks (weights, cached fields).
+
+    Args:
+        path: the file.
+
+    Returns:
+        the digest, 64 lowercase hex digits.
 
     Examples:
         >>> import tempfile

@@ -17,6 +17,11 @@ class ProgressBar:
     When stderr is not a terminal (a log file, a pipe, CI), neither: a plain line ``desc: i/total`` every 10 %,
     so that a log holds a few readable lines instead of hundreds of carriage-return updates run together.
 
+    Args:
+        total: the number of steps.
+        desc: the label before the count.
+        unit: what one step is (tqdm's ``unit``).
+
     Examples:
         >>> bar = ProgressBar(2, "renders", "light")
         >>> bar.update(2)
@@ -62,7 +67,21 @@ def _is_terminal(stream: object) -> bool:
 
 
 def progress(items: Iterable[T], total: int, desc: str, unit: str = "item") -> Iterator[T]:
-    """Iterate ``items`` with a :class:`ProgressBar` of ``total`` steps."""
+    """Iterate ``items`` with a :class:`ProgressBar` of ``total`` steps.
+
+    Args:
+        items: what to iterate.
+        total: the number of steps shown (``len(items)`` for a sequence).
+        desc: the label before the count.
+        unit: what one step is (tqdm's ``unit``).
+
+    Returns:
+        an iterator over ``items``; the bar advances after each item and closes when the loop ends or stops.
+
+    Examples:
+        >>> list(progress(["a", "b"], 2, "files", "file"))  # the bar goes to stderr
+        ['a', 'b']
+    """
     bar = ProgressBar(total, desc, unit)
     try:
         for item in items:

@@ -55,6 +55,12 @@ def _factory(name: str) -> Callable[..., FaceDetector]:
 def list_detectors(pattern: str = "*") -> list[str]:
     """The registered detector names matching a shell-style ``pattern``, sorted.
 
+    Args:
+        pattern: a :mod:`fnmatch` pattern (``*``, ``?``, ``[...]``), matched case-sensitively.
+
+    Returns:
+        the matching names, sorted; empty when none matches.
+
     Examples:
         >>> list_detectors()
         ['none', 'opencv', 'yunet']
@@ -70,6 +76,14 @@ def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None = None
     ``max_side`` makes it detect on a copy whose longer side is at most that many pixels
     (:attr:`FaceDetector.max_side <kornia_ilum.detection.FaceDetector>`): faster, but blind to faces smaller than
     its window at that scale.
+
+    Args:
+        name: a registered detector name (:func:`list_detectors`).
+        max_side: the longest side, in pixels, of the copy the detector sees; ``None`` detects at full size.
+        kwargs: passed to the registered factory.
+
+    Returns:
+        the detector, a :class:`~kornia_ilum.detection.FaceDetector` with ``max_side`` set.
 
     Raises:
         ValueError: ``name`` is not registered; the message lists the registered names.
@@ -98,6 +112,12 @@ def register_detector(
 ) -> Callable[..., FaceDetector]:
     """Register ``factory`` (a :class:`~kornia_ilum.detection.FaceDetector` subclass or a function returning
     one) under ``name``, for this process.
+
+    Args:
+        name: the name :func:`create_detector` and the CLI's ``--detector`` will know it by.
+        factory: called with :func:`create_detector`'s keyword arguments; must return a
+            :class:`~kornia_ilum.detection.FaceDetector`.
+        clobber: replace an entry registered under ``name`` already.
 
     Returns:
         ``factory``, unchanged.
@@ -134,6 +154,12 @@ def describe_detector(name: str) -> str:
     """One line about the detector registered as ``name``, without building it (for ``kornia-ilum list``).
 
     The factory's ``description`` attribute, else the first line of its docstring.
+
+    Args:
+        name: a registered detector name (:func:`list_detectors`).
+
+    Returns:
+        the description, one line; empty when the factory has neither.
 
     Raises:
         ValueError: ``name`` is not registered; the message lists the registered names.

@@ -401,12 +401,21 @@ def check_crops(crops: Tensor, size: int = 256, *, values: bool = True) -> None:
         size: the side the estimator takes.
         values: scan the values (NaN/Inf, range); ``False`` checks only the type and shape.
 
+    Returns:
+        None; the crops are valid when nothing is raised.
+
     Raises:
         TypeCheckError: ``crops`` is no tensor or not floating point (for ``uint8`` images divide by 255).
         ShapeError: the shape is not ``(B, 3, size, size)``.
         EmptyTensorError: ``B == 0``.
         NonFiniteError: NaN or Inf.
         ValueCheckError: values outside ``[0, 1]``.
+
+    Shape:
+        - crops: :math:`(B, 3, size, size)`, ``B >= 1``
+
+    Convention:
+        sRGB-encoded values in ``[0, 1]`` (docs/conventions.rst, "Images").
 
     Examples:
         >>> check_crops(torch.rand(2, 3, 256, 256))
@@ -431,12 +440,26 @@ def check_crops(crops: Tensor, size: int = 256, *, values: bool = True) -> None:
 def check_crop_range(lo: float, hi: float) -> None:
     r"""The value half of :func:`check_crops`, on the crops' smallest and largest value (NaN where any is).
 
+    Args:
+        lo: the crops' smallest value.
+        hi: the crops' largest value.
+
+    Returns:
+        None; the range is valid when nothing is raised.
+
     Raises:
         NonFiniteError: NaN or Inf.
         ValueCheckError: values outside ``[0, 1]`` by more than :data:`CROP_RANGE_SLACK`.
 
+    Convention:
+        sRGB-encoded values in ``[0, 1]`` (docs/conventions.rst, "Images").
+
     Examples:
         >>> check_crop_range(0.0, 1.0)
+        >>> check_crop_range(0.0, 255.0)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: crops must be sRGB-encoded values in [0, 1], got min 0 and max 255; ...
     """
     if lo != lo or hi != hi or abs(lo) == float("inf") or abs(hi) == float("inf"):
         raise NonFiniteError("crops must be finite, but they hold NaN or Inf")

@@ -53,6 +53,14 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
         ShapeError: ``weights`` or ``groups`` does not have one entry per face.
         ValueCheckError: a negative weight, a group without positive weight, or a group index left unused.
 
+    Shape:
+        - estimate.mirror_ball: :math:`(B, 3, S, S)`; weights, groups: :math:`(B,)`
+        - Output: ``mirror_ball``, ``log_mirror_ball``: :math:`(G, 3, S, S)`; ``boxes``: :math:`(G, 4)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" and "Units of lighting": the fused lighting is in the faces' units,
+        0 outside the ball.
+
     Examples:
         >>> from kornia_ilum.geometry import mirror_ball_valid
         >>> valid = mirror_ball_valid(32)

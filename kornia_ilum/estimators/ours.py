@@ -84,6 +84,17 @@ def build_encoder(latent_dim: int = 1024) -> tuple[nn.Sequential, nn.Linear]:
     convolution, then the fully-connected layer to the ``latent_dim`` bottleneck (also used by plugins that
     share the encoder, such as ``sh``).
 
+    Args:
+        latent_dim: size of the bottleneck, the output of ``to_latent`` (1024 in the paper).
+
+    Returns:
+        ``(encoder, to_latent)``: the convolutional stages, ending in a flatten to 256 features, and the
+        fully-connected layer from them to the bottleneck; both untrained (PyTorch's default initialisation).
+
+    Shape:
+        - Input of ``encoder``: :math:`(B, 3, 256, 256)`
+        - Output of ``encoder``: :math:`(B, 256)`; of ``to_latent``: :math:`(B, latent\_dim)`
+
     Examples:
         >>> encoder, to_latent = build_encoder(64)
         >>> tuple(to_latent(encoder(torch.rand(1, 3, 256, 256))).shape)

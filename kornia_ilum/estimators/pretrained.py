@@ -22,6 +22,20 @@ def set_pretrained_lookup(lookup: Callable[[], list[str]]) -> None:
 
     Args:
         lookup: called with no arguments; returns the names, in the order they are shown.
+
+    Returns:
+        None; :func:`pretrained_names` calls ``lookup`` from now on.
+
+    Examples:
+        >>> import kornia_ilum.estimators
+        >>> from kornia_ilum.estimators import pretrained
+        >>> registry_lookup = pretrained._lookup
+        >>> set_pretrained_lookup(lambda: ["mine"])
+        >>> pretrained_names()
+        ['mine']
+        >>> set_pretrained_lookup(registry_lookup)  # restore the registry's
+        >>> "ours" in pretrained_names()
+        True
     """
     global _lookup
     _lookup = lookup

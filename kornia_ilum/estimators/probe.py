@@ -54,6 +54,15 @@ class Probe:
         crops: ``(N, 3, 256, 256)`` float32 sRGB face crops in ``[0, 1]``.
         mirror_ball: ``(N, 3, 32, 32)`` float32 linear lighting in the crops' units.
         meta: how the probe was made (caches, seed, command).
+
+    Convention:
+        Crops are sRGB (docs/conventions.rst, "Images"); the lighting is a mirror ball in the units of the crops
+        (docs/conventions.rst, "Mirror ball" and "Units of lighting").
+
+    Examples:
+        >>> probe = Probe(torch.rand(4, 3, 256, 256), torch.rand(4, 3, 32, 32), {"seed": 0})
+        >>> len(probe), len(probe.part(slice(0, 2))), probe.part(slice(0, 2)).meta
+        (4, 2, {'seed': 0})
     """
 
     crops: Tensor
@@ -81,8 +90,26 @@ def write_probe(folder: str | os.PathLike[str], crops: Tensor, mirror_ball: Tens
         mirror_ball: ``(N, 3, 32, 32)`` their lighting.
         meta: JSON-ready facts, stored in the safetensors header.
 
+    Returns:
+        None; ``folder`` holds ``probe.jpg`` and ``probe.safetensors``, replacing any there.
+
     Raises:
         ShapeError: wrong shapes.
+
+    Shape:
+        - crops: :math:`(N, 3, 256, 256)`, ``N`` a multiple of 8
+        - mirror_ball: :math:`(N, 3, 32, 32)`
+
+    Convention:
+        Crops are sRGB (docs/conventions.rst, "Images"), stored as JPEG quality 95; the mirror balls are linear
+        (docs/conventions.rst, "Mirror ball" and "Units of lighting"), stored as bfloat16.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     write_probe(folder, torch.rand(8, 3, 256, 256), torch.rand(8, 3, 32, 32), {"seed": 0})
+        ...     sorted(p.name for p in Path(folder).iterdir())
+        ['probe.jpg', 'probe.safetensors']
     """
     import safetensors.torch  # lazy: as read_weights
 
@@ -119,6 +146,12 @@ def _load(folder: str) -> Probe:
 def load_probe(folder: str | os.PathLike[str] | None = None) -> Probe:
     r"""The probe of ``folder`` (default: the shipped one), read once per process.
 
+    Args:
+        folder: a folder written by :func:`write_probe`; ``None`` for the probe shipped in ``weights/``.
+
+    Returns:
+        the :class:`Probe`, cached and shared between callers: do not modify its tensors.
+
     Raises:
         HDRIOError: ``probe.jpg`` is missing or unreadable; ``OSError`` for ``probe.safetensors``.
 
@@ -133,7 +166,18 @@ def load_probe(folder: str | os.PathLike[str] | None = None) -> Probe:
 @functools.lru_cache(maxsize=2)
 def probe_digest(folder: str | os.PathLike[str] | None = None) -> str:
     """The first 12 hex digits of the SHA-256 of the probe's two files: part of the name of every cache file that
-    depends on the probe (int8 models, parity verdicts), so a new probe never meets an old verdict."""
+    depends on the probe (int8 models, parity verdicts), so a new probe never meets an old verdict.
+
+    Args:
+        folder: a folder written by :func:`write_probe`; ``None`` for the probe shipped in ``weights/``.
+
+    Returns:
+        12 lowercase hex digits, computed once per process and folder.
+
+    Examples:
+        >>> len(probe_digest()), probe_digest() == probe_digest().lower()
+        (12, True)
+    """
     path = Path(os.fspath(folder)) if folder is not None else _default_dir()
     h = hashlib.sha256()
     for name in ("probe.jpg", "probe.safetensors"):
@@ -149,6 +193,20 @@ def fit_crops(estimator: Any, crops: Tensor) -> Tensor:
     The eval set's and the probe's crops are 256 px, the paper's size; an estimator that takes another size
     (``sipr``: 128) is scored on the same crops resized to it, as :func:`~kornia_ilum.estimate_lighting` cuts
     its crops at that size.
+
+    Args:
+        estimator: a lighting estimator, or anything with ``info.input_size``.
+        crops: sRGB face crops in ``[0, 1]``.
+
+    Returns:
+        ``crops`` itself when no resize is needed, else a new tensor of the estimator's side.
+
+    Shape:
+        - crops: :math:`(N, 3, H, W)`
+        - Output: :math:`(N, 3, S, S)`, ``S = estimator.info.input_size`` (the input's shape without ``info``)
+
+    Convention:
+        sRGB-encoded values in ``[0, 1]`` (docs/conventions.rst, "Images").
 
     Examples:
         >>> class Small:
@@ -169,6 +227,17 @@ def fit_crops(estimator: Any, crops: Tensor) -> Tensor:
 def probe_lrec(estimator: Any, probe: Probe, batch_size: int = 16) -> dict[str, float]:
     r"""Mean ``L_rec`` per sphere of ``estimator`` against the probe's true lighting.
 
+    Args:
+        estimator: a lighting estimator (``crops -> LightingEstimate``); its crops are fitted by :func:`fit_crops`.
+        probe: the portraits and their true lighting, e.g. ``load_probe().part(CHECK)``.
+        batch_size: crops per forward pass.
+
+    Returns:
+        ``{"diffuse", "matte_silver", "mirror"}`` -> mean ``L_rec`` over the probe's portraits.
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec" and "Reference spheres".
+
     Examples:
         >>> from kornia_ilum.estimators import create_estimator
         >>> sorted(probe_lrec(create_estimator("uniform"), load_probe().part(slice(0, 8))))
@@ -188,6 +257,17 @@ def probe_lrec_change(reference: Any, candidate: Any, probe: Probe | None = None
 
     The parity of a reduced-precision runtime (int8, bfloat16) against eager float32: it must stay within
     :data:`~kornia_ilum.estimators.runtime.LREC_RTOL`.
+
+    Args:
+        reference: the estimator to compare with, usually eager float32.
+        candidate: the estimator to check, e.g. the same weights under another runtime.
+        probe: the probe whose :data:`CHECK` part is used; ``None`` for the shipped one.
+
+    Returns:
+        the largest relative change over the three spheres; 0 when both score the same.
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec" and "Reference spheres".
 
     Examples:
         >>> from kornia_ilum.estimators import create_estimator

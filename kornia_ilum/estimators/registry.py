@@ -199,6 +199,10 @@ def estimator_registry() -> MappingProxyType[str, type[LightingEstimator]]:
 
     Pending ``"module:attr"`` registrations are imported first (an import failure raises).
 
+    Returns:
+        a :class:`types.MappingProxyType` of name -> :class:`~kornia_ilum.estimators.LightingEstimator`
+        subclass; it follows later registrations and cannot be written to.
+
     Examples:
         >>> reg = estimator_registry()
         >>> reg["ours"].info.name
@@ -216,6 +220,13 @@ def estimator_registry() -> MappingProxyType[str, type[LightingEstimator]]:
 
 def estimator_info(name: str) -> EstimatorInfo:
     r"""The metadata of a registered estimator (description, paper, input size, weight files).
+
+    Args:
+        name: a name from :func:`list_estimators`.
+
+    Returns:
+        the class attribute ``info`` (:class:`~kornia_ilum.estimators.EstimatorInfo`) of the estimator; nothing is
+        built and no weights are read.
 
     Raises:
         ValueError: unknown name; the message lists the valid names.
@@ -272,6 +283,9 @@ def register_estimator(name: str, target: type[LightingEstimator] | str, clobber
         target: a :class:`~kornia_ilum.estimators.LightingEstimator` subclass, or a ``"module:attr"``
             string imported on first use (as an entry point's value).
         clobber: replace an existing registration (runtime or entry point) of ``name``.
+
+    Returns:
+        None; :func:`create_estimator` and :func:`list_estimators` know ``name`` from now on, in this process.
 
     Raises:
         ValueError: ``name`` is taken and ``clobber`` is ``False``, or ``target`` is a malformed string.

@@ -259,6 +259,12 @@ def native_bf16(device: str | torch.device = "cpu") -> bool:
 
     Elsewhere (an AVX2-only CPU such as AMD Zen 3) bfloat16 is emulated, orders of magnitude slower than float32.
 
+    Args:
+        device: the device to ask about; any device other than CUDA or the CPU has no native bfloat16 here.
+
+    Returns:
+        ``True`` where the ``"bf16"`` runtime may run (:func:`runtime_available`).
+
     Examples:
         >>> isinstance(native_bf16(), bool)
         True
@@ -328,6 +334,20 @@ def quantize_int8(model: bytes, calibration: Tensor) -> bytes:
 
     Raises:
         ValueCheckError: the model has no convolution before a fully connected layer (nothing to quantise).
+        ImportError: ONNX Runtime or ONNX is not installed.
+
+    Shape:
+        - calibration: :math:`(N, 3, S, S)`, ``S`` the model's ``input_size``; read in batches of 8
+
+    Convention:
+        Crops are sRGB-encoded in ``[0, 1]`` (docs/conventions.rst, "Images").
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> from kornia_ilum.estimators.probe import CALIBRATION, load_probe
+        >>> model = export_onnx(create_estimator("ours"))  # doctest: +SKIP
+        >>> int8 = OnnxEstimator(quantize_int8(model, load_probe().part(CALIBRATION).crops),
+        ...                      runtime="onnx-int8")  # doctest: +SKIP
     """
     _onnxruntime()
     import onnx  # lazy, as all of ONNX: only for this runtime
@@ -370,6 +390,9 @@ def cache_dir() -> Path:
     r"""Where exported models are cached: ``$KORNIA_ILUM_CACHE``, else ``$XDG_CACHE_HOME/kornia_ilum``, else
     ``~/.cache/kornia_ilum``. Nothing is written there until a model is exported.
 
+    Returns:
+        the folder, read from the environment on each call; it may not exist yet.
+
     Examples:
         >>> cache_dir().name in ("kornia_ilum",) or "KORNIA_ILUM_CACHE" in os.environ
         True
@@ -405,8 +428,20 @@ def onnx_model(estimator: LightingEstimator, runtime: str = "onnx", *, cache: bo
             calibration part).
         cache: read and write :func:`cache_dir`; ``False`` always exports.
 
+    Returns:
+        the serialized ONNX model, as :func:`export_onnx` (or :func:`quantize_int8`) returns it.
+
     Raises:
         ValueCheckError: another runtime.
+        ImportError: ONNX Runtime or the exporter's packages are not installed.
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> onnx_model(create_estimator("uniform"), "bf16")
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: runtime must be 'onnx' or 'onnx-int8', got 'bf16'
+        >>> model = onnx_model(create_estimator("ours"), "onnx-int8")  # doctest: +SKIP
     """
     _check_estimator(estimator)
     if runtime not in ("onnx", "onnx-int8"):
@@ -467,6 +502,22 @@ def parity(reference: LightingEstimator, candidate: LightingEstimator, crops: Te
     Compares in log space, as the estimates are read and scored, so a bright light and the dark do not weigh
     by their radiance.
 
+    Args:
+        reference: the estimator to compare with, usually eager float32.
+        candidate: the estimator to check, e.g. the same weights under another runtime.
+        crops: the face crops both estimate from, at their input size.
+
+    Returns:
+        ``max |log(1 + L_reference) - log(1 + L_candidate)|`` over the mirror balls' pixels and channels
+        (negative radiance clamped to 0), compared with :data:`PARITY_ATOL` by the float32 runtimes.
+
+    Shape:
+        - crops: :math:`(B, 3, S, S)`, ``S`` the estimators' ``info.input_size``
+
+    Convention:
+        Crops are sRGB in ``[0, 1]`` (docs/conventions.rst, "Images"); ``L`` is the mirror ball's linear radiance
+        (docs/conventions.rst, "Mirror ball" and "Units of lighting"), ``log`` the natural log.
+
     Examples:
         >>> from kornia_ilum.estimators import create_estimator
         >>> net = create_estimator("ours", pretrained=False).eval()
@@ -480,7 +531,21 @@ def parity(reference: LightingEstimator, candidate: LightingEstimator, crops: Te
 
 def probe_parity(reference: LightingEstimator, candidate: LightingEstimator) -> float:
     r""":func:`parity` on the probe batch every float32 runtime is checked on: 4 seeded random crops of the
-    reference's input size (``with_runtime("auto")`` and ``kornia-ilum export`` use it)."""
+    reference's input size (``with_runtime("auto")`` and ``kornia-ilum export`` use it).
+
+    Args:
+        reference: the estimator to compare with, usually eager float32; its ``info.input_size`` sets the crops'.
+        candidate: the estimator to check.
+
+    Returns:
+        :func:`parity` of the two on the seeded crops, the same crops on every call.
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> net = create_estimator("uniform")
+        >>> probe_parity(net, net)
+        0.0
+    """
     size = reference.info.input_size
     return parity(reference, candidate, torch.rand(4, 3, size, size, generator=torch.Generator().manual_seed(0)))
 
@@ -491,6 +556,22 @@ def runtime_parity(reference: LightingEstimator, candidate: LightingEstimator, r
     Float32 runtimes (``"eager"``, ``"onnx"``): :func:`probe_parity` within :data:`PARITY_ATOL`. Reduced
     precision (``"bf16"``, ``"onnx-int8"``): :func:`~kornia_ilum.estimators.probe.probe_lrec_change` within
     :data:`LREC_RTOL`.
+
+    Args:
+        reference: the estimator under eager float32.
+        candidate: the same estimator under ``runtime``.
+        runtime: which check applies; any name but ``"bf16"`` and ``"onnx-int8"`` gets the float32 one.
+
+    Returns:
+        ``(value, tolerance, passed)``: the measured difference, the tolerance it is held to and
+        ``value <= tolerance``.
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> net = create_estimator("uniform")
+        >>> value, tolerance, passed = runtime_parity(net, net, "onnx")
+        >>> value, tolerance == PARITY_ATOL, passed
+        (0.0, True, True)
     """
     if runtime in ("bf16", "onnx-int8"):
         from kornia_ilum.estimators.probe import probe_lrec_change  # lazy: reads the probe
@@ -519,9 +600,22 @@ def _passes(reference: LightingEstimator, candidate: LightingEstimator, runtime:
 def runtime_available(runtime: str, device: str | torch.device = "cpu") -> str | None:
     r"""``None`` where ``runtime`` can run on ``device``, else the reason it cannot.
 
+    Args:
+        runtime: one of :data:`RUNTIMES`.
+        device: where the estimator runs.
+
+    Returns:
+        ``None`` where it can run; else one line saying why not (no native bfloat16, not the CPU, ONNX Runtime
+        not installed, with its install hint).
+
+    Raises:
+        ValueCheckError: ``runtime`` is not one of :data:`RUNTIMES`.
+
     Examples:
         >>> runtime_available("eager") is None
         True
+        >>> runtime_available("onnx", "meta")
+        'the ONNX runtimes run on the CPU'
     """
     if runtime not in RUNTIMES:
         raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
@@ -550,6 +644,10 @@ def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, thread
         runtime: the runtime.
         threads: ONNX Runtime's intra-op threads.
         cache: use the export cache (:func:`onnx_model`).
+
+    Returns:
+        ``estimator`` itself for ``"eager"`` (and for ``"auto"`` where nothing else passes), else a new
+        :class:`Bf16Estimator` or :class:`OnnxEstimator` around it.
 
     Raises:
         ValueCheckError: an unknown runtime (the message lists :data:`RUNTIMES`), or one that cannot run here

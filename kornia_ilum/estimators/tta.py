@@ -115,6 +115,13 @@ def jitter_windows(
         TypeCheckError, ValueCheckError: ``jitters`` is not a positive int, ``zoom`` or ``shift`` is not a
             finite number in range, or ``seed`` is not an int.
 
+    Shape:
+        - Output: :math:`(K, 3)`, ``K = jitters``
+
+    Convention:
+        Offsets in the image's axes, x to the right and y down (the rows of docs/conventions.rst, "Images"), not
+        the lighting frame's +Y up (docs/conventions.rst, "Frames").
+
     Examples:
         >>> w = jitter_windows(4)
         >>> w.shape, w[0].tolist()
@@ -160,6 +167,15 @@ def crop_windows(crops: Tensor, windows: Tensor, mirror: bool = False) -> Tensor
     Raises:
         ShapeError: ``crops`` is not ``(B, C, S, S)`` with square ``S``, or ``windows`` is not ``(K, 3)``.
         TypeCheckError: a tensor is not floating point.
+
+    Shape:
+        - crops: :math:`(B, C, S, S)`; windows: :math:`(K, 3)`
+        - Output: :math:`(K B, C, S, S)`
+
+    Convention:
+        Continuous pixel coordinates as above; crops are images, ``(B, C, H, W)`` (docs/conventions.rst,
+        "Images"), and ``mirror`` flips them left-right, ``x -> -x`` of docs/conventions.rst, "Frames"
+        (:func:`mirror_sh` mirrors the lighting to match).
 
     Examples:
         >>> x = torch.arange(16.0).reshape(1, 1, 4, 4)
@@ -221,12 +237,16 @@ def mirror_sh(sh: Tensor) -> Tensor:
     Returns:
         the mirrored coefficients, same shape, dtype and device.
 
+    Raises:
+        ShapeError: ``sh`` is not ``(*, 9, C)``.
+
     Shape:
         - sh: :math:`(*, 9, C)`
         - Output: as ``sh``
 
-    Raises:
-        ShapeError: ``sh`` is not ``(*, 9, C)``.
+    Convention:
+        docs/conventions.rst, "Spherical harmonics" (the order of the coefficients) and "Frames" (``x`` is +X,
+        to the right).
 
     Examples:
         >>> mirror_sh(torch.ones(9, 1)).flatten().tolist()

@@ -102,6 +102,9 @@ def lighting_energy(mirror_ball: torch.Tensor) -> torch.Tensor:
         - mirror_ball: :math:`(B, 3, S, S)`
         - Output: :math:`(B,)`
 
+    Convention:
+        docs/conventions.rst, "Mirror ball" (the solid angles, summing to 4 pi) and "Units of lighting".
+
     Examples:
         >>> from kornia_ilum.geometry import mirror_ball_valid
         >>> E = lighting_energy(torch.ones(2, 3, 32, 32) * mirror_ball_valid(32))
@@ -133,6 +136,9 @@ def dominant_direction(mirror_ball: torch.Tensor) -> torch.Tensor:
     Shape:
         - mirror_ball: :math:`(B, 3, S, S)`
         - Output: :math:`(B, 3)`
+
+    Convention:
+        docs/conventions.rst, "Frames" (light arriving from the direction) and "Mirror ball".
 
     Examples:
         >>> from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_valid, uv_to_pixel
@@ -227,6 +233,18 @@ def composite_background(images: torch.Tensor, alpha: torch.Tensor, value: float
     Returns:
         ``(N, 3, H, W)`` float32 in ``[0, 1]``.
 
+    Raises:
+        ShapeError: ``alpha`` does not match ``images``.
+        ValueCheckError: ``value`` is outside ``[0, 1]``.
+
+    Shape:
+        - images: :math:`(N, 3, H, W)`; alpha: :math:`(N, 1, H, W)`
+        - Output: :math:`(N, 3, H, W)`
+
+    Convention:
+        sRGB-encoded images (docs/conventions.rst, "Images"); the compositing is done on the codes, not in linear
+        light, as an image editor would.
+
     Examples:
         >>> x = torch.full((1, 3, 2, 2), 255, dtype=torch.uint8)
         >>> a = torch.tensor([[[[255, 0], [0, 0]]]], dtype=torch.uint8)
@@ -266,6 +284,29 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
 
     Raises:
         ValueCheckError: the set has no matte.
+
+    Shape:
+        - eval_set.images: :math:`(N, 3, H, W)`; prediction: :math:`(N, 3, S, S)`
+        - Output: each energy :math:`(N,)`
+
+    Convention:
+        Crops are sRGB (docs/conventions.rst, "Images"); energies are in the units of the lighting times
+        steradians (docs/conventions.rst, "Units of lighting", :func:`lighting_energy`).
+
+    Examples:
+        An "estimator" that reads the light from the crop's mean brightness, background included, on white
+        crops whose right half is background:
+
+        >>> from kornia_ilum.evaluation import EvalSet
+        >>> def brightness(crops):
+        ...     return torch.ones(len(crops), 3, 32, 32) * srgb_to_linear(crops).mean((1, 2, 3))[:, None, None, None]
+        >>> alpha = torch.zeros(2, 1, 8, 8, dtype=torch.uint8)
+        >>> alpha[..., :4] = 255
+        >>> white = EvalSet(torch.full((2, 3, 8, 8), 255, dtype=torch.uint8), torch.ones(2, 3, 32, 32),
+        ...                 ["indoor"] * 2, [3, 3], [0, 1], ["room"] * 2, alpha=alpha)
+        >>> table = transfer_check(brightness, white)["table"]
+        >>> sorted(table), round(table["all"]["black/with"], 4), round(table["all"]["with/true"], 4)
+        (['3', 'all'], 0.5, 1.0)
     """
     if eval_set.alpha is None:
         raise ValueCheckError("transfer_check needs the eval set's matte (alpha), as build_eval_set makes it")
@@ -311,6 +352,16 @@ def darken(images: torch.Tensor, k: float) -> torch.Tensor:
     Returns:
         ``(N, 3, H, W)`` float32 sRGB.
 
+    Raises:
+        ValueCheckError: ``k`` is not a positive finite number.
+
+    Shape:
+        - images: :math:`(N, 3, H, W)`
+        - Output: :math:`(N, 3, H, W)`
+
+    Convention:
+        sRGB-encoded in and out (docs/conventions.rst, "Images"); ``k`` applies in linear light.
+
     Examples:
         >>> darken(torch.full((1, 3, 1, 1), 0.5), 0.5).flatten()
         tensor([0.3608, 0.3608, 0.3608])
@@ -347,6 +398,17 @@ def exposure_equivariance(
         ``{"energy": {"1": (N,), f"{k:g}": (N,) ...}, "ratio": {f"{k:g}": (N,)}, "table": {f"{k:g}": row}}``;
         a row holds the ``median``, ``q25`` and ``q75`` of the ratio over the images and their ``count`` (the
         finite ratios).
+
+    Raises:
+        ValueCheckError: an empty ``ks`` or a factor that is not positive and finite.
+
+    Shape:
+        - images: :math:`(N, 3, H, W)`; prediction: :math:`(N, 3, S, S)`
+        - Output: each energy and ratio :math:`(N,)`
+
+    Convention:
+        Crops are sRGB (docs/conventions.rst, "Images"); the lighting is in their units (docs/conventions.rst,
+        "Units of lighting"), which is what makes the ratio 1.
 
     Examples:
         >>> def brightness(crops):  # lighting proportional to the crop's mean linear value
@@ -392,6 +454,11 @@ def default_photos() -> dict[str, np.ndarray]:
 
     Returns:
         ``{name: (H, W, 3) uint8 array}``.
+
+    Examples:
+        >>> photos = default_photos()
+        >>> list(photos), photos["skimage.data.astronaut"].shape
+        (['skimage.data.astronaut'], (512, 512, 3))
     """
     import skimage.data  # here: importing kornia_ilum.evaluation stays cheap
 
@@ -441,6 +508,21 @@ def face_crops(photos: Mapping[str, Any] | Sequence[Any], detector: str | FaceDe
     Returns:
         ``(crops, names, skipped)``: ``(M, 3, size, size)`` float32 sRGB crops, the name of each, and
         ``{name: reason}`` for the photos without a detected face.
+
+    Raises:
+        TypeCheckError: a photo or the detector of an unknown type.
+        ShapeError: a photo array of a wrong shape.
+
+    Shape:
+        - Output: crops :math:`(M, 3, size, size)`, ``M`` the photos with a face
+
+    Convention:
+        sRGB in ``[0, 1]`` (docs/conventions.rst, "Images"); as a NumPy image, a photo array is channels-last RGB.
+
+    Examples:
+        >>> crops, names, skipped = face_crops([torch.rand(3, 40, 60)], "none", size=32)
+        >>> tuple(crops.shape), names, skipped
+        ((1, 3, 32, 32), ['photo 0'], {})
     """
     check_positive_int(size, "size")
     if isinstance(photos, Mapping):
@@ -491,6 +573,17 @@ def jitter_boxes(nominal: torch.Tensor, jitters: int, height: int, width: int, *
 
     Returns:
         ``(N, jitters, 4)`` float64 boxes.
+
+    Raises:
+        ValueCheckError: a negative ``position`` or ``extent``.
+
+    Shape:
+        - nominal: :math:`(N, 4)`
+        - Output: :math:`(N, jitters, 4)`
+
+    Convention:
+        Continuous pixel coordinates of the image, ``(0, 0)`` its top-left corner, x to the right and y down,
+        as the boxes of :mod:`kornia_ilum.detection`.
 
     Examples:
         >>> boxes = jitter_boxes(torch.tensor([[64.0, 64.0, 192.0, 192.0]]), 4, 256, 256,
@@ -552,6 +645,26 @@ def crop_stability(
 
     Raises:
         ValueCheckError: the set has no ``nominal_boxes``, ``jitters < 2``.
+
+    Convention:
+        Crops are sRGB (docs/conventions.rst, "Images"); energies and directions as :func:`lighting_energy` and
+        :func:`dominant_direction` (docs/conventions.rst, "Frames", "Mirror ball" and "Units of lighting").
+
+    Examples:
+        An "estimator" that always sees one lamp above is perfectly stable:
+
+        >>> from kornia_ilum.evaluation import EvalSet
+        >>> def lamp(crops):
+        ...     ball = torch.zeros(len(crops), 3, 32, 32)
+        ...     ball[..., 8, 16] = 100.0
+        ...     return ball
+        >>> context = EvalSet(torch.zeros(2, 3, 16, 16, dtype=torch.uint8), torch.ones(2, 3, 32, 32),
+        ...                   ["indoor"] * 2, [3, 3], [0, 1], ["room"] * 2,
+        ...                   nominal_boxes=torch.tensor([[4.0, 4.0, 12.0, 12.0]] * 2, dtype=torch.float64))
+        >>> out = crop_stability(lamp, context, jitters=3, size=8)
+        >>> row = out["table"]["all"]
+        >>> tuple(out["boxes"].shape), row["count"], round(row["std_log_energy"], 6), round(row["angle_deg"], 3)
+        ((2, 3, 4), 2, 0.0, 0.0)
     """
     if context_set.nominal_boxes is None:
         raise ValueCheckError("crop_stability needs a set of context crops: build_eval_set(..., context=1.5)")
@@ -627,6 +740,20 @@ def run_checks(
 
     Raises:
         ValueCheckError: an unknown check, or ``"crop"`` without ``context_set``.
+
+    Shape:
+        - photos: :math:`(M, 3, 256, 256)`; prediction: :math:`(N, 3, S, S)`
+
+    Convention:
+        As the checks: sRGB crops (docs/conventions.rst, "Images") and lighting in their units
+        (docs/conventions.rst, "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.evaluation import probe_eval_set
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> out = run_checks(create_estimator("uniform"), probe_eval_set(slice(64, 68)), ["exposure"])
+        >>> sorted(out), sorted(out["exposure"]["eval"]), out["exposure"]["eval"]["0.5"]["count"]
+        (['exposure', 'seconds'], ['0.25', '0.5'], 4)
     """
     unknown = [c for c in checks if c not in CHECKS]
     if unknown:
@@ -666,9 +793,31 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
         **options: the keyword arguments of :func:`run_checks` (``context_set``, ``photos``, ``ks``,
             ``jitters``, ``position``, ``extent``, ``seed``, ``batch_size``).
 
+    Returns:
+        ``checks(estimator, prediction)``: :func:`run_checks`'s tables for ``estimator``, whose lighting on
+        ``eval_set.images`` is ``prediction``.
+
     Raises:
         ValueCheckError: an unknown check, or ``"crop"`` without ``context_set`` or with ``jitters`` below 2
             (at once, before any estimator runs).
+
+    Shape:
+        - prediction (of the returned callable): :math:`(N, 3, S, S)`, ``N = len(eval_set)``
+
+    Convention:
+        As :func:`run_checks` (docs/conventions.rst, "Images" and "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.evaluation import predict, probe_eval_set
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> eval_set, net = probe_eval_set(slice(64, 68)), create_estimator("uniform")
+        >>> runner = check_runner(eval_set, ["exposure"], ks=[0.5])
+        >>> sorted(runner(net, predict(net, eval_set.images))["exposure"]["eval"])
+        ['0.5']
+        >>> check_runner(eval_set, ["crop"])
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: the crop check needs context_set (build_eval_set(..., context=...))
     """
     unknown = [c for c in checks if c not in CHECKS]
     if unknown:

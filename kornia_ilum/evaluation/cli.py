@@ -57,6 +57,16 @@ examples:
 def parse_checks(text: str) -> tuple[str, ...]:
     """A comma list of checks (``transfer,exposure,crop``), or ``none`` / ``all``.
 
+    Args:
+        text: the value of ``--checks``; blanks around the names are ignored.
+
+    Returns:
+        the checks named, in the order of :data:`~kornia_ilum.evaluation.checks.CHECKS`; empty for ``none``
+        (or an empty text).
+
+    Raises:
+        argparse.ArgumentTypeError: an unknown check (argparse reports it as a usage error).
+
     Examples:
         >>> parse_checks("crop,transfer"), parse_checks("none"), parse_checks("all")
         (('transfer', 'crop'), (), ('transfer', 'exposure', 'crop'))
@@ -90,6 +100,15 @@ def _factor(text: str) -> float:
 def parse_weights(text: str) -> tuple[str, str]:
     """``NAME=PATH.safetensors`` -> ``(NAME, PATH)``.
 
+    Args:
+        text: the value of ``--weights``; split at its first ``=``.
+
+    Returns:
+        ``(name, path)``, as given (the path is not checked here).
+
+    Raises:
+        argparse.ArgumentTypeError: no ``=``, or an empty name or path.
+
     Examples:
         >>> parse_weights("ours=runs/best.safetensors")
         ('ours', 'runs/best.safetensors')
@@ -102,6 +121,12 @@ def parse_weights(text: str) -> tuple[str, str]:
 
 def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``evaluate`` to ``subparsers``.
+
+    Args:
+        subparsers: from ``parser.add_subparsers()`` of the ``kornia-ilum`` parser.
+
+    Returns:
+        the ``evaluate`` parser; its ``func`` default is :func:`run_evaluate`.
 
     Examples:
         >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
@@ -165,7 +190,30 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 
 
 def print_curve(run: str, rows: list[dict]) -> None:
-    """Write a run's learning curve (:func:`~kornia_ilum.evaluation.curve.write_curve`) and print it."""
+    """Write a run's learning curve (:func:`~kornia_ilum.evaluation.curve.write_curve`) and print it.
+
+    Args:
+        run: the run's folder; ``curve.csv`` (and ``curve.png``) are written into it.
+        rows: the rows of :func:`~kornia_ilum.evaluation.curve.learning_curve`.
+
+    Returns:
+        None; the table (wall time in minutes) and the paths written are printed.
+
+    Examples:
+        Without matplotlib (hidden here), only the CSV is written:
+
+        >>> import tempfile
+        >>> from unittest import mock
+        >>> rows = [{"step": 400, "samples": 12800, "elapsed_s": 393.8, "diffuse": 0.16, "matte_silver": 0.18,
+        ...          "mirror": 0.33}]
+        >>> with tempfile.TemporaryDirectory() as run, mock.patch.dict("sys.modules", {"matplotlib": None}):
+        ...     print_curve(run, rows)  # doctest: +ELLIPSIS
+        learning curve of ...: L_rec on the eval split per snapshot
+        | step | portraits | wall time (min) | diffuse | matte_silver | mirror |
+        |---:|---:|---:|---:|---:|---:|
+        | 400 | 12800 | 6.6 | 0.1600 | 0.1800 | 0.3300 |
+        wrote .../curve.csv
+    """
     print(f"learning curve of {run}: L_rec on the eval split per snapshot")
     print("| step | portraits | wall time (min) | " + " | ".join(BRDF_NAMES) + " |")
     print("|---:|---:|---:|" + "---:|" * len(BRDF_NAMES))
@@ -182,9 +230,33 @@ def run_evaluate(args: argparse.Namespace) -> int:
     ``args`` needs ``cache`` unless every ``curve`` is a ``curve.csv``; the other options of
     :func:`add_evaluate_parser` are optional (their defaults).
 
+    Args:
+        args: the parsed command line of :func:`add_evaluate_parser`, or any namespace with some of its
+            attributes.
+
+    Returns:
+        0, the command's exit status.
+
     Raises:
         ValueCheckError: no cache (and curves to score), or no eval subject in the caches.
         HDRIOError: a ``--hdri`` folder is missing or holds no eval map.
+
+    Examples:
+        Two curves written before, compared at equal budgets (no cache needed):
+
+        >>> import contextlib, io, tempfile
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     for name, diffuse in (("a", 0.2), ("b", 0.15)):
+        ...         _ = Path(tmp, f"{name}.csv").write_text("step,samples,elapsed_s,diffuse,matte_silver,mirror\\n"
+        ...                                                 f"400,12800,393.8,{diffuse},0.18,0.33\\n")
+        ...     with contextlib.redirect_stdout(io.StringIO()) as out:
+        ...         code = run_evaluate(argparse.Namespace(curve=[f"{tmp}/a.csv", f"{tmp}/b.csv"]))
+        >>> code, "at equal budgets" in out.getvalue()
+        (0, True)
+        >>> run_evaluate(argparse.Namespace())  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: evaluate needs --cache DIR (a light-stage cache with eval subjects); ...
     """
     t0 = time.perf_counter()
     hdri, samples = getattr(args, "hdri", None) or [], getattr(args, "samples", 512)

@@ -34,8 +34,23 @@ CURVE_FIELDS: tuple[str, ...] = ("step", "samples", "elapsed_s", *BRDF_NAMES)
 def snapshot_files(run: str | os.PathLike[str]) -> list[Path]:
     r"""The snapshots of a run, in step order.
 
+    Args:
+        run: the run's folder (``kornia-ilum train --out``); its snapshots are ``snapshots/step_*.safetensors``.
+
+    Returns:
+        the snapshot files, sorted by name (the step is zero-padded, so that is step order).
+
     Raises:
         ValueCheckError: the run keeps none (it was trained without ``--snapshot-every``).
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     Path(run, "snapshots").mkdir()
+        ...     for step in (200, 100):
+        ...         _ = Path(run, "snapshots", f"step_{step:06d}.safetensors").write_bytes(b"")
+        ...     [p.name for p in snapshot_files(run)]
+        ['step_000100.safetensors', 'step_000200.safetensors']
     """
     files = sorted(Path(run, "snapshots").glob("step_*.safetensors"))
     if not files:
@@ -49,9 +64,34 @@ def learning_curve(eval_set: EvalSet, run: str | os.PathLike[str], batch_size: i
     Each snapshot is loaded as its metadata's registered estimator (:func:`~kornia_ilum.evaluation.
     load_checkpoint`: safetensors only) and scored as :func:`~kornia_ilum.evaluation.evaluate` scores it.
 
+    Args:
+        eval_set: the set to score on (:func:`~kornia_ilum.evaluation.build_eval_set`).
+        run: the run's folder (:func:`snapshot_files`).
+        batch_size: crops per forward pass.
+
     Returns:
         rows with :data:`CURVE_FIELDS`: ``step``, ``samples``, ``elapsed_s`` (the run's training wall time at
         the snapshot) and the mean ``L_rec`` per sphere.
+
+    Raises:
+        ValueCheckError: the run keeps no snapshot, or a snapshot's metadata lacks the estimator or step.
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec" and "Reference spheres".
+
+    Examples:
+        A run of the ``uniform`` estimator (no parameters: its snapshot holds only the metadata), scored on 8
+        portraits of the probe:
+
+        >>> import tempfile, safetensors.torch
+        >>> from kornia_ilum.evaluation import probe_eval_set
+        >>> meta = {"estimator": "uniform", "step": "100", "samples": "3200", "elapsed_s": "60.0"}
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     Path(run, "snapshots").mkdir()
+        ...     safetensors.torch.save_file({}, str(Path(run, "snapshots", "step_000100.safetensors")), metadata=meta)
+        ...     rows = learning_curve(probe_eval_set(slice(64, 72)), run)
+        >>> len(rows), tuple(rows[0]) == CURVE_FIELDS, rows[0]["samples"], rows[0]["diffuse"] > 0
+        (1, True, 3200, True)
     """
     rows = []
     for path in snapshot_files(run):
@@ -68,6 +108,12 @@ def learning_curve(eval_set: EvalSet, run: str | os.PathLike[str], batch_size: i
 
 def read_curve(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     r"""Read a ``curve.csv`` that :func:`write_curve` wrote: the rows of :func:`learning_curve`, in step order.
+
+    Args:
+        path: the ``curve.csv`` file; other columns than :data:`CURVE_FIELDS` are ignored.
+
+    Returns:
+        the rows, sorted by step: ``step`` and ``samples`` as ints, the other fields as floats.
 
     Raises:
         ValueCheckError: the file is missing, has no row, or lacks a column of :data:`CURVE_FIELDS`.
@@ -99,7 +145,29 @@ def read_curve(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
 
 def write_curve(run: str | os.PathLike[str], rows: list[dict[str, Any]]) -> list[Path]:
     r"""Write ``run/curve.csv`` and, where matplotlib is installed, ``run/curve.png`` (``L_rec`` per sphere
-    against the samples seen); both atomically. Returns the paths written."""
+    against the samples seen); both atomically. Returns the paths written.
+
+    Args:
+        run: an existing folder, the run's.
+        rows: the rows of :func:`learning_curve` (each with :data:`CURVE_FIELDS`); the scores are written with 6
+            significant digits.
+
+    Returns:
+        ``[run/curve.csv]``, and ``run/curve.png`` after it where matplotlib is installed.
+
+    Examples:
+        Without matplotlib (hidden here), only the CSV is written; :func:`read_curve` reads it back:
+
+        >>> import tempfile
+        >>> from unittest import mock
+        >>> rows = [{"step": 400, "samples": 12800, "elapsed_s": 393.8, "diffuse": 0.16, "matte_silver": 0.18,
+        ...          "mirror": 0.33}]
+        >>> with tempfile.TemporaryDirectory() as run, mock.patch.dict("sys.modules", {"matplotlib": None}):
+        ...     written = write_curve(run, rows)
+        ...     back = read_curve(written[0])
+        >>> [p.name for p in written], back == rows
+        (['curve.csv'], True)
+    """
     run = Path(run)
 
     def table(tmp: Path) -> None:
@@ -171,7 +239,25 @@ def equal_budget(curves: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
 
 
 def format_equal_budget(table: dict[str, Any]) -> str:
-    """:func:`equal_budget`'s table as Markdown: one row per run and budget, ``L_rec`` per sphere."""
+    """:func:`equal_budget`'s table as Markdown: one row per run and budget, ``L_rec`` per sphere.
+
+    Args:
+        table: from :func:`equal_budget`.
+
+    Returns:
+        the Markdown table, ending in a newline: the portraits budget first, then the wall-time budget (in
+        minutes); a run without a snapshot within a budget gets dashes.
+
+    Examples:
+        >>> row = {"step": 1, "samples": 10, "elapsed_s": 60.0, "diffuse": 0.3, "matte_silver": 0.4, "mirror": 0.5}
+        >>> budget = {"budget": 10, "runs": {"a": row, "b": None}}
+        >>> lines = format_equal_budget({"samples": budget, "elapsed_s": {**budget, "budget": 60.0}}).splitlines()
+        >>> print("\\n".join(lines[2:4]))
+        | portraits 10 | a | 1 | 10 | 1.0 | 0.3000 | 0.4000 | 0.5000 |
+        | portraits 10 | b | - | - | - | - | - | - |
+        >>> len(lines)
+        6
+    """
     lines = ["| budget | run | step | portraits | wall time (min) | " + " | ".join(BRDF_NAMES) + " |",
              "|---|---|---:|---:|---:|" + "---:|" * len(BRDF_NAMES)]
     for key, what in (("samples", "portraits"), ("elapsed_s", "wall time")):

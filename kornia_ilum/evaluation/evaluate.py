@@ -1,8 +1,8 @@
 r"""Build the held-out eval set, run estimators and oracles on it, and score them.
 
-The eval set (:func:`build_eval_set`) is ``N`` portraits of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`
-(split ``"eval"``) from the eval subjects, lit by environments of the eval sources
-(:func:`~kornia_ilum.evaluation.split.eval_environment_sources`) drawn with the seed
+The eval set (:func:`build_eval_set`) is ``N`` portraits of
+:class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset` (split ``"eval"``) from the eval subjects, lit by
+environments of the eval sources (:func:`~kornia_ilum.evaluation.split.eval_environment_sources`) drawn with the seed
 :data:`~kornia_ilum.evaluation.split.EVAL_SEED`, with the training recipe's crops, flips, backgrounds, exposure
 and phone-camera effects. Each chunk of the dataset takes ``fields_per_chunk`` fields and relights each with
 ``lightings_per_field`` lightings picked from ``env_pool`` environments that are all new at every chunk, so the
@@ -93,6 +93,21 @@ class EvalSet:
             float64 ``(x0, y0, x1, y1)``: where the nominal face crop (side 1.25 times the face box, no
             jitter) lies in each crop's pixels; ``None`` for the usual crops.
         description: JSON-ready facts: counts, subjects, maps, seeds, settings, build time.
+
+    Shape:
+        - images: :math:`(N, 3, S, S)` uint8; alpha: :math:`(N, 1, S, S)` uint8
+        - mirror_ball: :math:`(N, 3, 32, 32)`; nominal_boxes: :math:`(N, 4)`
+
+    Convention:
+        ``images`` are sRGB codes (docs/conventions.rst, "Images", times 255); ``mirror_ball`` is linear
+        lighting in the units of the images (docs/conventions.rst, "Mirror ball" and "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> tiny = EvalSet(torch.zeros(2, 3, 8, 8, dtype=torch.uint8), torch.ones(2, 3, 32, 32) * mirror_ball_valid(32),
+        ...                label=["indoor", "outdoor"], skin_tone=[3, 7], subject_seed=[0, 1], source=["room", "sky"])
+        >>> len(tiny), tiny.alpha is None, tiny.description
+        (2, True, {})
     """
 
     images: torch.Tensor
@@ -165,6 +180,19 @@ def build_eval_set(
     Raises:
         ValueCheckError: no eval subject, a lighting size other than 32, ``context`` below 1.
         HDRIOError: a folder of ``hdri`` is missing or holds no eval map.
+
+    Convention:
+        As :class:`EvalSet`: sRGB crops and linear lighting in their units (docs/conventions.rst, "Images",
+        "Mirror ball" and "Units of lighting").
+
+    Examples:
+        It needs a light-stage cache with eval subjects (``kornia-ilum synth subjects --split eval``):
+
+        >>> build_eval_set([], samples=8)
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: no eval subject in the caches [] (or fields)
+        >>> eval_set = build_eval_set(["lightstage/"], samples=8)  # doctest: +SKIP
     """
     check_positive_int(samples, "samples")
     if context is not None and not (isinstance(context, (int, float)) and math.isfinite(context)
@@ -249,6 +277,14 @@ def probe_eval_set(part: slice = CHECK) -> EvalSet:
     light-stage cache is at hand (``kornia-ilum bench`` without ``--cache``, and CI). By default its check part
     (:data:`~kornia_ilum.estimators.probe.CHECK`, 256 portraits, never used to calibrate).
 
+    Args:
+        part: which portraits of the probe (:data:`~kornia_ilum.estimators.probe.CALIBRATION` or
+            :data:`~kornia_ilum.estimators.probe.CHECK`, or any slice of them).
+
+    Returns:
+        the :class:`EvalSet` of those portraits: uint8 crops (the probe's, rounded), the probe's lighting, the
+        labels, skin tones, subjects and sources of its metadata; no matte, so no transfer check.
+
     Examples:
         >>> small = probe_eval_set(slice(64, 72))
         >>> len(small), small.description["source"]
@@ -295,6 +331,10 @@ def oracle_predictions(mirror_ball: torch.Tensor) -> dict[str, torch.Tensor]:
         - mirror_ball: :math:`(B, 3, S, S)`
         - Output: each :math:`(B, 3, S, S)`
 
+    Convention:
+        docs/conventions.rst, "Mirror ball", "Units of lighting" and "Spherical harmonics"; the outputs are in the
+        units of ``mirror_ball``.
+
     Examples:
         >>> gt = torch.rand(2, 3, 32, 32)
         >>> out = oracle_predictions(gt)
@@ -315,6 +355,23 @@ def oracle_predictions(mirror_ball: torch.Tensor) -> dict[str, torch.Tensor]:
 def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
     r"""Per-sample scores: ``L_rec`` per sphere ``(B,)`` and ``"relative_radiance"`` ``(B, 3)``.
 
+    Args:
+        pred: the estimated lighting.
+        target: the true lighting.
+
+    Returns:
+        ``{"diffuse", "matte_silver", "mirror"}`` -> ``L_rec`` per sample (32-pixel spheres, the metric form of
+        :func:`~kornia_ilum.metrics.reconstruction_loss`), and ``"relative_radiance"`` per sample and channel
+        (:func:`~kornia_ilum.metrics.relative_radiance`).
+
+    Shape:
+        - pred, target: :math:`(B, 3, 32, 32)`
+        - Output: ``L_rec`` :math:`(B,)` each; ``relative_radiance`` :math:`(B, 3)`
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec", "Reference spheres" and "Relative radiance";
+        both lightings are mirror balls in the same units ("Mirror ball", "Units of lighting").
+
     Examples:
         >>> gt = torch.ones(2, 3, 32, 32)
         >>> s = score(gt, gt)
@@ -331,6 +388,28 @@ def predict(estimator: Callable[[torch.Tensor], Any], images: torch.Tensor, batc
 
     ``estimator`` returns a :class:`~kornia_ilum.estimators.LightingEstimate` (or a tensor of mirror balls); the
     crops are brought to its input size first (:func:`fit_crops`).
+
+    Args:
+        estimator: a lighting estimator, or any callable from crops to an estimate or a tensor of mirror balls.
+        images: uint8 crops, such as :attr:`EvalSet.images`.
+        batch_size: crops per forward pass.
+
+    Returns:
+        the estimated mirror balls, float32, without autograd graph (:func:`torch.inference_mode`).
+
+    Shape:
+        - images: :math:`(N, 3, S, S)` uint8
+        - Output: :math:`(N, 3, 32, 32)`
+
+    Convention:
+        Crops are sRGB codes (docs/conventions.rst, "Images", divided by 255 here); the lighting is in their
+        units (docs/conventions.rst, "Mirror ball" and "Units of lighting").
+
+    Examples:
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> crops = torch.randint(0, 256, (3, 3, 256, 256), dtype=torch.uint8)
+        >>> tuple(predict(create_estimator("uniform"), crops, batch_size=2).shape)
+        (3, 3, 32, 32)
     """
     out = []
     with torch.inference_mode():
@@ -349,11 +428,23 @@ def load_estimator(name: str, weights: str | os.PathLike[str] | None = None) -> 
     :meth:`~kornia_ilum.estimators.LightingEstimator.from_pretrained`; for a file of ``weights``, whose digest
     is not known in advance, :func:`load_checkpoint` also returns the digest.
 
+    Args:
+        name: a registered estimator name (:func:`~kornia_ilum.estimators.list_estimators`).
+        weights: a ``.safetensors`` file of the class of ``name``; ``None`` for its shipped weights.
+
+    Returns:
+        the estimator, in ``eval()`` mode.
+
     Raises:
         ValueError: unknown name.
         MissingWeightsError: no shipped weights (``weights=None``) or the file is missing.
         ValueCheckError: the file is not ``.safetensors``.
         WeightsChecksumError: a shipped weight file fails its SHA-256 check.
+
+    Examples:
+        >>> net = load_estimator("uniform")
+        >>> net.info.name, net.training
+        ('uniform', False)
     """
     if weights is None:
         return create_estimator(name)
@@ -377,6 +468,19 @@ def load_checkpoint(name: str, weights: str | os.PathLike[str]) -> tuple[Lightin
         ValueError: unknown name.
         MissingWeightsError: the file is missing.
         ValueCheckError: the file is not ``.safetensors``.
+
+    Examples:
+        >>> import tempfile, safetensors.torch
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     path = Path(tmp, "uniform.safetensors")
+        ...     safetensors.torch.save_file({}, str(path))  # uniform has no parameters
+        ...     net, digest = load_checkpoint("uniform", path)
+        >>> type(net).__name__, net.training, len(digest)
+        ('UniformEstimator', False, 64)
+        >>> load_checkpoint("uniform", "weights.pt")
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: weights must be a .safetensors file, got weights.pt
     """
     path = Path(weights)
     if path.suffix != ".safetensors":
@@ -430,6 +534,24 @@ def evaluate(
         ``"sha256"``, the file's digest, and with ``checks`` an estimator has ``"checks"``, what it returned.
         An estimator without weights (:class:`MissingWeightsError`) is skipped with the reason instead of
         failing the evaluation; other errors propagate.
+
+    Raises:
+        ValueCheckError: two methods would be reported under one name (weight files of the same name), or
+            ``tta`` is not a positive int.
+
+    Shape:
+        - Output: each method's ``L_rec`` scores :math:`(N,)`, its ``relative_radiance`` :math:`(N, 3)`
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec", "Reference spheres" and "Relative radiance"
+        (:func:`score`).
+
+    Examples:
+        >>> results = evaluate(probe_eval_set(slice(64, 72)), ["uniform"])
+        >>> sorted(results["methods"]), results["skipped"]
+        (['SH of GT', 'mean of GT', 'uniform'], {})
+        >>> tuple(results["methods"]["uniform"]["scores"]["diffuse"].shape)
+        (8,)
     """
     if tta is not None:
         check_positive_int(tta, "tta")

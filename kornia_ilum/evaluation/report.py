@@ -51,6 +51,17 @@ def paired_differences(scores: dict[str, torch.Tensor], reference: dict[str, tor
     Args:
         scores, reference: per-sample scores of :func:`~kornia_ilum.evaluation.score` on one eval set.
 
+    Returns:
+        ``{sphere: {"mean", "low", "high", "better"}}`` for the three spheres, floats; ``low`` and ``high`` are
+        NaN with a single sample.
+
+    Shape:
+        - scores[sphere], reference[sphere]: :math:`(N,)`, the same portraits in the same order
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure L_rec": lower is better, so a negative ``mean`` favours
+        the method.
+
     Examples:
         >>> ref = {b: torch.tensor([0.2, 0.3]) for b in BRDF_NAMES}
         >>> mine = {b: torch.tensor([0.1, 0.3]) for b in BRDF_NAMES}
@@ -88,6 +99,19 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
         ``checks`` (method to the tables of :func:`~kornia_ilum.evaluation.checks.run_checks`) and
         ``check_settings`` (the checks, their options, the number of real photos, the context set's
         description).
+
+    Examples:
+        >>> from kornia_ilum.evaluation import score
+        >>> gt = torch.ones(2, 3, 32, 32)
+        >>> eval_set = EvalSet(torch.zeros(2, 3, 8, 8, dtype=torch.uint8), gt, ["indoor", "outdoor"], [3, 7],
+        ...                    [0, 1], ["room", "sky"])
+        >>> results = {"methods": {"ours": {"scores": score(gt, gt), "seconds": 1.0},
+        ...                        "half": {"scores": score(gt / 2, gt), "seconds": 1.0}}, "skipped": {}}
+        >>> summary = summarize(results, eval_set)
+        >>> summary["table1_l_rec"]["ours"]["all"]["diffuse"], summary["paired"]["reference"]
+        (0.0, 'ours')
+        >>> [round(v, 4) for v in summary["table2_relative_radiance"]["half"]["indoor"]["mean"]]
+        [0.5, 0.5, 0.5]
     """
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
@@ -134,7 +158,27 @@ def _rgb(x: list[float] | None) -> str:
 
 def format_markdown(summary: dict[str, Any]) -> str:
     r"""The tables of :func:`summarize` as Markdown (with a line on the eval set, the skipped estimators and
-    the SHA-256 of the weight files scored)."""
+    the SHA-256 of the weight files scored).
+
+    Args:
+        summary: from :func:`summarize` (or read back from its JSON).
+
+    Returns:
+        the Markdown text, ending in a newline: Table 1, Table 2, the skin-tone table, and where the summary has
+        them the paired differences, the checks' tables, the skipped methods, the weight files and the held-out
+        maps.
+
+    Examples:
+        >>> from kornia_ilum.evaluation import score
+        >>> gt = torch.ones(2, 3, 32, 32)
+        >>> eval_set = EvalSet(torch.zeros(2, 3, 8, 8, dtype=torch.uint8), gt, ["indoor", "outdoor"], [3, 7],
+        ...                    [0, 1], ["room", "sky"])
+        >>> results = {"methods": {"ours": {"scores": score(gt, gt), "seconds": 1.0}},
+        ...            "skipped": {"sipr": "no weights"}}
+        >>> text = format_markdown(summarize(results, eval_set))
+        >>> text.splitlines()[0], "| ours | 0.0000 |" in text, "- sipr: no weights" in text
+        ('# Held-out evaluation', True, True)
+    """
     d = summary["eval_set"]
     lab = d.get("labels", {})
     n_maps = sum(len(v) for v in d.get("eval_maps", {}).values())
@@ -269,7 +313,26 @@ def _check_tables(summary: dict[str, Any]) -> list[str]:
 
 def write_report(summary: dict[str, Any], markdown: str | os.PathLike[str] | None = None,
                  json_path: str | os.PathLike[str] | None = None) -> list[Path]:
-    """Write the Markdown and / or JSON files (parents created); returns the paths written."""
+    """Write the Markdown and / or JSON files (parents created); returns the paths written.
+
+    Args:
+        summary: from :func:`summarize`.
+        markdown: where to write :func:`format_markdown`'s text; ``None`` writes none.
+        json_path: where to write ``summary`` as JSON; ``None`` writes none.
+
+    Returns:
+        the paths written, Markdown first.
+
+    Examples:
+        >>> import tempfile
+        >>> summary = {"eval_set": {}, "skipped": {}, "table1_l_rec": {}, "table2_relative_radiance": {},
+        ...            "per_skin_tone": {}}
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     written = write_report(summary, Path(tmp, "eval", "evaluation.md"), Path(tmp, "evaluation.json"))
+        ...     back = json.loads(written[1].read_text())
+        >>> [p.name for p in written], back == summary
+        (['evaluation.md', 'evaluation.json'], True)
+    """
     written = []
     if markdown is not None:
         path = Path(markdown)

@@ -54,6 +54,14 @@ def heldout_maps(folders: Sequence[str | os.PathLike[str]]) -> dict[str, dict[st
 
     Raises:
         HDRIOError: a folder does not exist.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     for name in ("studio.exr", "meadow.exr"):
+        ...         Path(tmp, name).touch()  # only the names count: the maps are not read
+        ...     heldout_maps([tmp])[tmp]
+        {'eval': {'studio.exr': 'indoor'}, 'train': {'meadow.exr': 'outdoor'}}
     """
     out: dict[str, dict[str, Any]] = {}
     for folder in folders:
@@ -81,6 +89,10 @@ def eval_environment_sources(hdri: Sequence[str | os.PathLike[str]] = (), height
 
     Raises:
         HDRIOError: a folder does not exist or holds no map of split ``"eval"``.
+
+    Examples:
+        >>> [type(s).__name__ for s in eval_environment_sources()]
+        ['SkySource', 'IndoorSource', 'PortraitLightSource']
     """
     procedural = [SkySource(height=height), IndoorSource(height=height), PortraitLightSource(height=height)]
     return procedural + [
@@ -103,6 +115,14 @@ def eval_fields(caches: Sequence[str | os.PathLike[str]] = (), fields: Sequence[
     Raises:
         ValueCheckError: no eval field at all, the same subject seed in two caches, or a lighting size other
             than 32 (the estimators' and the metrics' size).
+        TypeCheckError: ``caches`` is one folder, not a sequence of them.
+
+    Examples:
+        >>> eval_fields([])
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: no eval subject in the caches [] (or fields)
+        >>> fields = eval_fields(["lightstage/"])  # a cache built by kornia-ilum synth  # doctest: +SKIP
     """
     if isinstance(caches, (str, os.PathLike)):
         raise TypeCheckError("caches must be a sequence of folders, not one folder")

@@ -29,6 +29,11 @@ def blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2) -> t
     Returns:
         the pooled map, same dtype and device.
 
+    Raises:
+        ShapeError: ``input`` is not ``(B, C, H, W)``.
+        TypeCheckError: ``input`` is not a floating-point tensor.
+        NonFiniteError: NaN or Inf in ``input``.
+
     Shape:
         - Input: :math:`(B, C, H, W)`
         - Output: :math:`(B, C, \lceil H / s \rceil, \lceil W / s \rceil)`
@@ -43,6 +48,14 @@ def blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2) -> t
 
 class BlurPool2D(kornia.filters.BlurPool2D):
     r"""Module twin of :func:`blur_pool2d` (Kornia's module plus the typed shape check).
+
+    Args:
+        kernel_size: side of the square binomial kernel.
+        stride: subsampling step.
+
+    Shape:
+        - Input: :math:`(B, C, H, W)`
+        - Output: :math:`(B, C, \lceil H / s \rceil, \lceil W / s \rceil)`
 
     Examples:
         >>> BlurPool2D(3, stride=2)(torch.ones(1, 2, 8, 8)).shape

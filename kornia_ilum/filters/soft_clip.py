@@ -49,13 +49,17 @@ def soft_clip(x: torch.Tensor, sharpness: float = 20.0) -> torch.Tensor:
     Returns:
         tensor of the shape and dtype of ``x``, in ``[0, 1]``.
 
+    Raises:
+        NonFiniteError: ``x`` holds NaN.
+        ValueCheckError: ``sharpness`` is not positive.
+
     Shape:
         - Input: :math:`(*)`
         - Output: :math:`(*)`
 
-    Raises:
-        NonFiniteError: ``x`` holds NaN.
-        ValueCheckError: ``sharpness`` is not positive.
+    Convention:
+        docs/conventions.rst, "The paper's error measure ``L_rec``": the smooth, monotone, differentiable
+        clamp ``softclip`` applied to the sphere renders; negative values count as 0.
 
     Examples:
         >>> soft_clip(torch.tensor([-3.0, 0.0, 0.5, 1.0, 1e6]))
@@ -82,6 +86,10 @@ def soft_clip_unchecked(x: torch.Tensor, beta: float = 20.0) -> torch.Tensor:
     Returns:
         tensor of the shape and dtype of ``x``, in ``[0, 1]``.
 
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
     Examples:
         >>> soft_clip_unchecked(torch.tensor([-3.0, 0.0, 0.5, 1.0, 1e6]))
         tensor([0.0000, 0.0000, 0.5000, 0.9653, 1.0000])
@@ -106,6 +114,10 @@ class SoftClip(nn.Module):
 
     Args:
         sharpness: :math:`\beta`, see :func:`soft_clip`.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
 
     Examples:
         >>> SoftClip(sharpness=5.0)(torch.tensor([0.5, 1.0, 2.0]))

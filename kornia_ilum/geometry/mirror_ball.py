@@ -59,6 +59,17 @@ def mirror_ball_uv(
     Returns:
         ``(S, S, 2)`` tensor; ``[..., 0]`` is ``u`` (right), ``[..., 1]`` is ``v`` (up).
 
+    Raises:
+        TypeCheckError: ``size`` is not an int.
+        ValueCheckError: ``size`` is not positive.
+
+    Shape:
+        - Output: :math:`(S, S, 2)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": ``u = (2j + 1)/S - 1``, ``v = 1 - (2i + 1)/S`` for row ``i`` and
+        column ``j``; valid iff ``r <= 1``.
+
     Examples:
         >>> mirror_ball_uv(2)[0, 0]
         tensor([-0.5000,  0.5000])
@@ -71,6 +82,24 @@ def mirror_ball_uv(
 
 def mirror_ball_valid(size: int, *, device: torch.device | str | None = None) -> torch.Tensor:
     r"""Boolean ``(S, S)`` mask of the pixels whose centre lies on the ball (``r <= 1``).
+
+    Args:
+        size: the side ``S`` in pixels.
+        device: device of the result.
+
+    Returns:
+        ``torch.bool`` mask, ``True`` on the ball.
+
+    Raises:
+        TypeCheckError: ``size`` is not an int.
+        ValueCheckError: ``size`` is not positive.
+
+    Shape:
+        - Output: :math:`(S, S)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": ``u = (2j + 1)/S - 1``, ``v = 1 - (2i + 1)/S`` for row ``i`` and
+        column ``j``; valid iff ``r <= 1``.
 
     Examples:
         >>> mirror_ball_valid(4).sum().item()
@@ -89,6 +118,14 @@ def mirror_ball_to_direction(uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tens
     Returns:
         ``(d, valid)``: ``(..., 3)`` unit directions and the ``(...)`` boolean mask ``r <= 1``. Points
         outside the ball are clamped radially onto the rim (direction -Z) so that ``d`` stays finite.
+
+    Raises:
+        ShapeError: ``uv``'s last dimension is not 2.
+        NonFiniteError: NaN or Inf in ``uv``.
+
+    Shape:
+        - uv: :math:`(*, 2)`
+        - Output: :math:`(*, 3)` and :math:`(*)`
 
     Convention:
         ``d = (2u sqrt(1 - r^2), 2v sqrt(1 - r^2), 1 - 2 r^2)`` (docs/conventions.rst, "Mirror ball").
@@ -121,6 +158,18 @@ def direction_to_mirror_ball(d: torch.Tensor) -> torch.Tensor:
         ``(..., 2)`` coordinates with ``r = sqrt((1 - z) / 2) <= 1``. Directions near -Z map to the rim
         along the azimuth of ``(x, y)``; exactly -Z maps to the rim point ``(0, -1)``.
 
+    Raises:
+        ShapeError: ``d``'s last dimension is not 3.
+        NonFiniteError: NaN or Inf in ``d``.
+
+    Shape:
+        - d: :math:`(*, 3)`
+        - Output: :math:`(*, 2)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" and "Frames": +Z (toward the camera) maps to the centre, -Z to the
+        rim.
+
     Examples:
         >>> direction_to_mirror_ball(torch.tensor([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]))
         tensor([[0.0000, 0.0000],
@@ -142,6 +191,23 @@ def direction_to_mirror_ball(d: torch.Tensor) -> torch.Tensor:
 def uv_to_pixel(uv: torch.Tensor, size: int) -> torch.Tensor:
     r"""Continuous ``(u, v)`` to continuous pixel coordinates ``(col, row)``; centres are integers.
 
+    ``col = ((u + 1) S - 1) / 2``, ``row = ((1 - v) S - 1) / 2``. Nothing is checked or clamped.
+
+    Args:
+        uv: coordinates ``(u, v)``, ``u`` right and ``v`` up.
+        size: the side ``S`` in pixels.
+
+    Returns:
+        ``(col, row)`` stacked on the last dimension, in the dtype of ``uv``.
+
+    Shape:
+        - uv: :math:`(*, 2)`
+        - Output: :math:`(*, 2)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": ``u = (2j + 1)/S - 1``, ``v = 1 - (2i + 1)/S`` for row ``i`` and
+        column ``j``; valid iff ``r <= 1``.
+
     Examples:
         >>> uv_to_pixel(torch.tensor([-0.75, 0.75]), 4)
         tensor([0., 0.])
@@ -152,7 +218,30 @@ def uv_to_pixel(uv: torch.Tensor, size: int) -> torch.Tensor:
 
 
 def pixel_to_uv(px: torch.Tensor, size: int) -> torch.Tensor:
-    r"""Continuous pixel coordinates ``(col, row)`` to ``(u, v)``; the inverse of :func:`uv_to_pixel`."""
+    r"""Continuous pixel coordinates ``(col, row)`` to ``(u, v)``; the inverse of :func:`uv_to_pixel`.
+
+    Args:
+        px: pixel coordinates ``(col, row)``; pixel centres are integers.
+        size: the side ``S`` in pixels.
+
+    Returns:
+        ``(u, v)`` stacked on the last dimension, in the dtype of ``px``. Nothing is checked or clamped.
+
+    Shape:
+        - px: :math:`(*, 2)`
+        - Output: :math:`(*, 2)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": ``u = (2j + 1)/S - 1``, ``v = 1 - (2i + 1)/S`` for row ``i`` and
+        column ``j``; valid iff ``r <= 1``.
+
+    Examples:
+        >>> pixel_to_uv(torch.tensor([0.0, 0.0]), 4).tolist()  # the top-left pixel's centre
+        [-0.75, 0.75]
+        >>> px = torch.tensor([[1.5, 2.25]])
+        >>> torch.allclose(uv_to_pixel(pixel_to_uv(px, 8), 8), px)
+        True
+    """
     u = (2.0 * px[..., 0] + 1.0) / size - 1.0
     v = 1.0 - (2.0 * px[..., 1] + 1.0) / size
     return torch.stack([u, v], dim=-1)
@@ -163,9 +252,25 @@ def mirror_ball_directions(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     r"""Directions of the pixel centres of an ``S x S`` mirror ball.
 
+    Args:
+        size: the side ``S`` in pixels.
+        device: device of the result.
+        dtype: dtype of the directions (computed in float64).
+
     Returns:
         ``(d, valid)``: ``(S, S, 3)`` unit directions (invalid pixels hold the clamped rim direction -Z)
         and the ``(S, S)`` valid mask.
+
+    Raises:
+        TypeCheckError: ``size`` is not an int.
+        ValueCheckError: ``size`` is not positive.
+
+    Shape:
+        - Output: :math:`(S, S, 3)` and :math:`(S, S)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" and "Frames": the centre is +Z (behind the camera), the rim -Z;
+        a direction is where the light arrives from.
 
     Examples:
         >>> d, valid = mirror_ball_directions(32)
@@ -247,6 +352,17 @@ def mirror_ball_pixel_index(uv: torch.Tensor, size: int) -> torch.Tensor:
     Returns:
         ``(...)`` int64 indices into the flattened ``S x S`` grid, always of a valid pixel.
 
+    Raises:
+        ShapeError: ``uv``'s last dimension is not 2.
+        NonFiniteError: NaN or Inf in ``uv``.
+
+    Shape:
+        - uv: :math:`(*, 2)`
+        - Output: :math:`(*)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": the rim slivers belong to the nearest valid pixel.
+
     Examples:
         >>> uv = torch.tensor([[0.1, 0.1], [0.95, 0.9]])  # the 2nd is in an invalid corner
         >>> mirror_ball_pixel_index(uv, 4)
@@ -300,8 +416,24 @@ def mirror_ball_solid_angles(
 ) -> torch.Tensor:
     r"""Solid angle in steradians of every pixel of an ``S x S`` mirror ball, exact at the rim.
 
+    Args:
+        size: the side ``S`` in pixels.
+        device: device of the result.
+        dtype: dtype of the result (computed in float64, cached per size).
+
     Returns:
         ``(S, S)`` tensor; invalid pixels hold 0, interior pixels ``16 / S^2``, and the sum is ``4 pi``.
+
+    Raises:
+        TypeCheckError: ``size`` is not an int.
+        ValueCheckError: ``size`` is not positive.
+
+    Shape:
+        - Output: :math:`(S, S)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": equal-area, every fully valid pixel spans ``16 / S^2`` sr, and
+        the rim slivers belong to the nearest valid pixel so that the valid pixels sum to ``4 pi``.
 
     Examples:
         >>> omega = mirror_ball_solid_angles(32, dtype=torch.float64)
@@ -321,6 +453,25 @@ def mirror_ball_solid_angles(
 def mirror_ball_to_lights(x: torch.Tensor) -> torch.Tensor:
     r"""Reshape a mirror-ball image ``(B, C, S, S)`` to the light list ``(B, S*S, C)`` (row-major pixels).
 
+    Light ``n`` is pixel ``(n // S, n % S)``, of direction ``mirror_ball_directions(S)[0].reshape(-1, 3)[n]``.
+
+    Args:
+        x: mirror-ball images (any values, NaN included: only the layout changes).
+
+    Returns:
+        a view of ``x`` where possible, with the lights on dimension 1.
+
+    Raises:
+        ShapeError: ``x`` is not ``(B, C, S, S)``.
+
+    Shape:
+        - x: :math:`(B, C, S, S)`
+        - Output: :math:`(B, S^2, C)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": the pixel grid; the lights are its pixels, invalid ones
+        included.
+
     Examples:
         >>> mirror_ball_to_lights(torch.zeros(2, 3, 32, 32)).shape
         torch.Size([2, 1024, 3])
@@ -330,7 +481,32 @@ def mirror_ball_to_lights(x: torch.Tensor) -> torch.Tensor:
 
 
 def lights_to_mirror_ball(lights: torch.Tensor) -> torch.Tensor:
-    r"""Reshape a light list ``(B, N, C)`` with ``N = S*S`` back to a mirror-ball image ``(B, C, S, S)``."""
+    r"""Reshape a light list ``(B, N, C)`` with ``N = S*S`` back to a mirror-ball image ``(B, C, S, S)``.
+
+    The inverse of :func:`mirror_ball_to_lights`.
+
+    Args:
+        lights: light lists in row-major pixel order (any values: only the layout changes).
+
+    Returns:
+        mirror-ball images of side ``S = sqrt(N)``.
+
+    Raises:
+        ShapeError: ``lights`` is not ``(B, N, C)``, or ``N`` is not a square.
+
+    Shape:
+        - lights: :math:`(B, S^2, C)`
+        - Output: :math:`(B, C, S, S)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": the pixel grid.
+
+    Examples:
+        >>> x = torch.rand(2, 3, 8, 8)
+        >>> lights = mirror_ball_to_lights(x)
+        >>> lights.shape, torch.equal(lights_to_mirror_ball(lights), x)
+        (torch.Size([2, 64, 3]), True)
+    """
     check_tensor(lights, "lights", ["B", "N", "C"], finite=False)
     s = math.isqrt(lights.shape[1])
     if s * s != lights.shape[1]:

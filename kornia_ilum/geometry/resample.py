@@ -148,6 +148,13 @@ def grid_solid_angles(layout: str, size: int) -> torch.Tensor:
         (:func:`~kornia_ilum.geometry.mirror_ball_solid_angles`,
         :func:`~kornia_ilum.geometry.latlong_solid_angles`).
 
+    Shape:
+        - Output: :math:`(S^2,)` for a mirror ball, :math:`(2 S^2,)` for lat-long
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" and "Lat-long": the grids and their solid angles (rim slivers
+        included, so the valid mirror-ball pixels sum to ``4 pi``).
+
     Examples:
         >>> round(grid_solid_angles("latlong", 8).sum().item(), 6)  # 4 pi
         12.566371
@@ -275,6 +282,15 @@ def grid_overlaps(
     Returns:
         float64 CPU ``(s, t, a)``, one entry per overlap (per sub-cell pair without ``merge``), with
         ``sum_t a[s, t] = Omega_s``.
+
+    Shape:
+        - rotation: :math:`(3, 3)`
+        - Output: :math:`(K,)` int64, :math:`(K,)` int64 (flat row-major pixel indices) and :math:`(K,)`
+          float64
+
+    Convention:
+        docs/conventions.rst, "Mirror ball", "Lat-long" and "Rotation": source content seen along ``d`` lands
+        along ``R d`` in the target.
 
     Examples:
         >>> s, t, a = grid_overlaps(("mirror_ball", 8), ("mirror_ball", 4))
@@ -422,6 +438,16 @@ def resample_bilinear(
     Returns:
         ``(B, C, H_t, W_t)`` samples in the dtype of ``x``.
 
+    Shape:
+        - x: :math:`(B, C, H, W)`
+        - grid: :math:`(1, H_t, W_t, 2)` or :math:`(B, H_t, W_t, 2)`
+        - nearest: :math:`(H W,)`
+        - Output: :math:`(B, C, H_t, W_t)`
+
+    Convention:
+        docs/conventions.rst, "Lat-long" and "Mirror ball": the source grids; the lat-long padding follows
+        its wrap in azimuth and across the poles.
+
     Examples:
         >>> grid = torch.zeros(1, 1, 1, 2)  # the centre of the padded 4 x 8 map
         >>> resample_bilinear(torch.ones(1, 3, 2, 4), ("latlong", 2), grid).flatten()
@@ -446,6 +472,12 @@ def resample_bilinear(
 def check_layout(layout: str) -> None:
     """Require ``layout`` to be ``"mirror_ball"`` or ``"latlong"``.
 
+    Args:
+        layout: the value to check.
+
+    Returns:
+        ``None``; it raises on any other value.
+
     Raises:
         ValueCheckError: any other value; the message lists both.
 
@@ -467,11 +499,20 @@ def check_lighting(x: torch.Tensor, name: str, layout: str) -> None:
         name: the argument's name, used in the messages.
         layout: ``"mirror_ball"`` or ``"latlong"`` (checked by the caller, :func:`check_layout`).
 
+    Returns:
+        ``None``; it raises on a bad argument (nothing is checked when :func:`checks_active` is false).
+
     Raises:
         ShapeError: a wrong shape for ``layout``.
         TypeCheckError: no floating-point tensor.
         NonFiniteError: NaN or Inf.
         ValueCheckError: a negative value.
+
+    Shape:
+        - x: :math:`(B, C, S, S)` for a mirror ball, :math:`(B, C, H, 2H)` for lat-long
+
+    Convention:
+        docs/conventions.rst, "Images": lighting is linear HDR, never negative.
 
     Examples:
         >>> check_lighting(torch.ones(1, 3, 4, 8), "env", "latlong")
@@ -544,6 +585,11 @@ def latlong_to_mirror_ball(env: torch.Tensor, size: int = 32, mode: Mode = "auto
     Returns:
         the mirror ball, 0 at invalid pixels, in the dtype and on the device of ``env``.
 
+    Raises:
+        ShapeError: ``env`` is not ``(B, C, H, 2H)``.
+        ValueCheckError: negative lighting, or an unknown ``mode``.
+        NonFiniteError: ``env`` holds NaN or Inf.
+
     Shape:
         - Input: :math:`(B, C, H, 2H)`
         - Output: :math:`(B, C, S, S)`
@@ -553,11 +599,6 @@ def latlong_to_mirror_ball(env: torch.Tensor, size: int = 32, mode: Mode = "auto
         equal-area ball for the output (centre +Z, rim -Z). In ``"area"`` mode
         ``sum(L * Omega)`` per channel is conserved to float precision (module docstring). Half
         precision is computed in float32 and cast back.
-
-    Raises:
-        ShapeError: ``env`` is not ``(B, C, H, 2H)``.
-        ValueCheckError: negative lighting, or an unknown ``mode``.
-        NonFiniteError: ``env`` holds NaN or Inf.
 
     Examples:
         >>> env = torch.ones(1, 3, 64, 128)
@@ -646,6 +687,10 @@ class LatLongToMirrorBall(nn.Module):
         size: the mirror ball's side ``S``.
         mode: ``"auto"``, ``"area"`` or ``"bilinear"``.
 
+    Shape:
+        - Input: :math:`(B, C, H, 2H)`
+        - Output: :math:`(B, C, S, S)`
+
     Examples:
         >>> LatLongToMirrorBall(16)(torch.rand(2, 3, 32, 64)).shape
         torch.Size([2, 3, 16, 16])
@@ -671,6 +716,10 @@ class MirrorBallToLatLong(nn.Module):
         height: the map's height ``H``.
         mode: ``"auto"``, ``"area"`` or ``"bilinear"``.
 
+    Shape:
+        - Input: :math:`(B, C, S, S)`
+        - Output: :math:`(B, C, H, 2H)`
+
     Examples:
         >>> MirrorBallToLatLong(16)(torch.rand(2, 3, 32, 32)).shape
         torch.Size([2, 3, 16, 32])
@@ -695,6 +744,10 @@ class ResizeMirrorBall(nn.Module):
     Args:
         size: the new side ``S'``.
         mode: ``"auto"``, ``"area"`` or ``"bilinear"``.
+
+    Shape:
+        - Input: :math:`(B, C, S, S)`
+        - Output: :math:`(B, C, S', S')`
 
     Examples:
         >>> ResizeMirrorBall(8)(torch.rand(2, 3, 32, 32)).shape

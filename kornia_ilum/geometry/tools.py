@@ -22,8 +22,9 @@ tool             the camera frame in the tool's world                  the map's
 "Checked by a render": ``tests/geometry/test_tools.py`` renders a test map in Mitsuba and compares it with
 :func:`~kornia_ilum.render.render_spheres` (4.5 % apart, Monte Carlo noise included; the map as stored: 76 %);
 ``docs/_scripts/check_blender.py`` does the same in Blender's Cycles (``bpy`` 5.0.1), outside the test suite
-since its wheel is 370 MB: 0.6 % apart, against 52 % to 74 % for the three other quarter-turn rolls. "The source": three.js's ``equirectUv`` (``u =
-atan2(z, x) / 2 pi + 0.5``, ``v = asin(y) / pi + 0.5``, image rows flipped on upload) and Unity's
+since its wheel is 370 MB: 0.6 % apart, against 52 % to 74 % for the three other quarter-turn rolls.
+"The source": three.js's ``equirectUv`` (``u = atan2(z, x) / 2 pi + 0.5``, ``v = asin(y) / pi + 0.5``, image
+rows flipped on upload) and Unity's
 ``Skybox-Panoramic.shader`` (``ToRadialCoords``: ``u = 0.5 - atan2(z, x) / 2 pi``, ``v = 1 - acos(y) / pi``),
 not rendered here.
 """

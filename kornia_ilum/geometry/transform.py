@@ -117,6 +117,11 @@ def rotate_lighting(
     Returns:
         the rotated lighting, same shape, dtype and device (mirror balls hold 0 at invalid pixels).
 
+    Raises:
+        ShapeError: wrong shapes.
+        ValueCheckError: negative lighting, unknown layout, or ``rotation`` not orthonormal with det +1.
+        NonFiniteError: NaN or Inf in an argument.
+
     Shape:
         - lighting: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
         - rotation: :math:`(3, 3)` or :math:`(B, 3, 3)`
@@ -126,11 +131,6 @@ def rotate_lighting(
         Frame of docs/conventions.rst. ``R`` acts on the directions light arrives from: with ``R`` the
         rotation by +90 degrees about +Y (``R (0, 0, -1) = (-1, 0, 0)``), light from straight ahead (-Z)
         arrives from the left (-X) afterwards. Half precision is computed in float32 and cast back.
-
-    Raises:
-        ShapeError: wrong shapes.
-        ValueCheckError: negative lighting, unknown layout, or ``rotation`` not orthonormal with det +1.
-        NonFiniteError: NaN or Inf in an argument.
 
     Examples:
         >>> ball = torch.zeros(1, 1, 8, 8)
@@ -169,17 +169,17 @@ def flip_lighting_horizontal(lighting: torch.Tensor, layout: Layout = "mirror_ba
     Returns:
         the flipped lighting, same shape, dtype and device.
 
+    Raises:
+        ShapeError: wrong shape for ``layout``.
+        ValueCheckError: negative lighting or an unknown layout.
+        NonFiniteError: NaN or Inf in ``lighting``.
+
     Shape:
         - lighting: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
         - Output: as ``lighting``
 
     Convention:
         Frame and grids of docs/conventions.rst.
-
-    Raises:
-        ShapeError: wrong shape for ``layout``.
-        ValueCheckError: negative lighting or an unknown layout.
-        NonFiniteError: NaN or Inf in ``lighting``.
 
     Examples:
         >>> env = torch.zeros(1, 1, 2, 4)
@@ -199,6 +199,10 @@ class RotateLighting(nn.Module):
     Args:
         rotation: a proper rotation ``(3, 3)`` or ``(B, 3, 3)``.
         layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Shape:
+        - Input: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
+        - Output: the shape of the input
 
     Examples:
         >>> RotateLighting(torch.eye(3))(torch.rand(2, 3, 8, 8)).shape
@@ -226,6 +230,10 @@ class FlipLightingHorizontal(nn.Module):
 
     Args:
         layout: ``"mirror_ball"`` or ``"latlong"``.
+
+    Shape:
+        - Input: :math:`(B, C, S, S)` or :math:`(B, C, H, 2H)`
+        - Output: the shape of the input
 
     Examples:
         >>> FlipLightingHorizontal("latlong")(torch.rand(1, 3, 4, 8)).shape

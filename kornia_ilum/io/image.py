@@ -241,6 +241,9 @@ def check_ldr(path: str | os.PathLike[str]) -> tuple[int, int]:
     valid header is found only by reading it (:class:`~kornia_ilum.core.errors.TruncatedImageError` from
     :func:`read_ldr`), except a PNG's, whose chunks are checked here too.
 
+    Args:
+        path: the file.
+
     Returns:
         ``(height, width)`` as stored (before the EXIF orientation).
 
@@ -371,6 +374,9 @@ def write_hdr(
             :data:`HALF_MAX` = 65504) instead of float32. EXR files are ZIP-compressed (lossless).
         clamp_overflow: with ``half=True``, clamp values above 65504 to 65504 instead of raising.
 
+    Returns:
+        ``None``; the file is complete at ``path`` when it returns.
+
     Raises:
         HDRIOError: the extension is not ``.exr``/``.hdr``; the folder is missing; ``half=True`` with a
             value above 65504 and ``clamp_overflow=False`` (the message names the path and the maximum;
@@ -425,6 +431,9 @@ def write_ldr(path: str | os.PathLike[str], image: torch.Tensor, *, quality: int
             :func:`kornia_ilum.color.linear_to_srgb` first).
         quality: JPEG quality, 1 to 100 (ignored for PNG).
 
+    Returns:
+        ``None``; the file is complete at ``path`` when it returns.
+
     Raises:
         HDRIOError: the extension is not supported, the folder is missing, or OpenImageIO fails; the
             destination is then left untouched.
@@ -436,6 +445,7 @@ def write_ldr(path: str | os.PathLike[str], image: torch.Tensor, *, quality: int
         - Input: :math:`(3, H, W)` or :math:`(1, 3, H, W)`.
 
     Convention:
+        sRGB-encoded, display-referred (docs/conventions.rst, "Images"); nothing is encoded here.
         Each value ``x`` is stored as the code value ``round(255 x)``, so :func:`read_ldr` returns it
         within ``1/510``. PNG is lossless; JPEG is lossy and subsamples chroma.
 

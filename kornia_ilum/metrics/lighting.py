@@ -66,6 +66,12 @@ def check_lighting_pair(pred: torch.Tensor, target: torch.Tensor, lighting_size:
         TypeCheckError: no floating-point tensor.
         NonFiniteError: NaN or Inf in either.
 
+    Shape:
+        - pred, target: :math:`(B, 3, S_L, S_L)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": both are mirror-ball lighting.
+
     Examples:
         >>> check_lighting_pair(torch.ones(2, 3, 16, 16), torch.zeros(2, 3, 16, 16))
         16
@@ -204,6 +210,14 @@ def multiscale_reconstruction_loss(
     Returns:
         a scalar, or ``(B,)`` for ``reduction="none"``.
 
+    Shape:
+        - pred, target: :math:`(B, 3, S_L, S_L)`
+        - Output: :math:`()` or :math:`(B,)`
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure ``L_rec``" and "Reference spheres" (multi-scale: the
+        lighting at each size keeps the energy of the lighting at ``S_L``).
+
     Examples:
         >>> gt = torch.ones(1, 3, 32, 32)
         >>> multiscale_reconstruction_loss(gt, gt, "matte_silver").item()
@@ -228,6 +242,25 @@ def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) 
     ``dtype`` (default: the input's; half precision is summed in float32 and saturates at the dtype's largest
     finite value on the way back, :mod:`kornia_ilum.core.dtypes`). A uniform lighting of radiance 1 gives
     :math:`4\pi`. Raises :class:`~kornia_ilum.core.errors.NonFiniteError` on NaN or Inf.
+
+    Args:
+        mirror_ball: linear mirror-ball lighting (or any ``(C, S, S)`` images on the mirror-ball grid).
+        dtype: the dtype to sum in, or ``None`` for the input's (half precision: float32, cast back).
+
+    Returns:
+        the per-channel totals in ``dtype`` (the input's dtype when ``dtype`` is ``None``).
+
+    Raises:
+        NonFiniteError: NaN or Inf in ``mirror_ball``.
+        ShapeError: fewer than 3 dimensions.
+
+    Shape:
+        - mirror_ball: :math:`(*, C, S, S)`
+        - Output: :math:`(*, C)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" (the exact solid angles, rim slivers included) and "Relative
+        radiance" (the sums it compares).
 
     Examples:
         >>> import math
@@ -259,15 +292,15 @@ def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         ``(B, 3)`` relative errors. Half-precision inputs are summed in float32 (a float16 sum of an HDR
         sun overflows) and the result is cast back.
 
+    Raises:
+        ValueCheckError: ``target`` has a negative value or a channel with zero total radiance.
+
     Shape:
         - pred, target: :math:`(B, 3, S, S)`
         - Output: :math:`(B, 3)`
 
     Convention:
         docs/conventions.rst, "Relative radiance"; its mirror-ball grid (equal-area, exact rim solid angles).
-
-    Raises:
-        ValueCheckError: ``target`` has a negative value or a channel with zero total radiance.
 
     Examples:
         >>> gt = torch.ones(1, 3, 32, 32)
@@ -312,6 +345,10 @@ class ReconstructionLoss(_PlanBuffers):
         reduction: ``"mean"``, ``"sum"`` or ``"none"``.
         lighting_size: side ``S_L`` of the lighting the module accepts.
         gamma: ``"exact"`` (default, the metric) or ``"safe"`` (training), see :func:`reconstruction_loss`.
+
+    Shape:
+        - pred, target: :math:`(B, 3, S_L, S_L)` with ``S_L = lighting_size``
+        - Output: :math:`()` or :math:`(B,)` for ``reduction="none"``
 
     Examples:
         >>> loss = ReconstructionLoss("mirror", gamma="safe")
@@ -361,6 +398,10 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
         lighting_size: side ``S_L`` of the lighting the module accepts.
         gamma: ``"exact"`` (default, the metric) or ``"safe"`` (training), see :func:`reconstruction_loss`.
 
+    Shape:
+        - pred, target: :math:`(B, 3, S_L, S_L)` with ``S_L = lighting_size``
+        - Output: :math:`()` or :math:`(B,)` for ``reduction="none"``
+
     Examples:
         >>> loss = MultiscaleReconstructionLoss("diffuse", sizes=(4, 8))
         >>> loss(torch.ones(1, 3, 32, 32), torch.ones(1, 3, 32, 32)).item()
@@ -400,6 +441,10 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
 
 class RelativeRadiance(nn.Module):
     r"""Module twin of :func:`relative_radiance`.
+
+    Shape:
+        - pred, target: :math:`(B, 3, S, S)`
+        - Output: :math:`(B, 3)`
 
     Examples:
         >>> RelativeRadiance()(torch.ones(1, 3, 8, 8), torch.ones(1, 3, 8, 8))

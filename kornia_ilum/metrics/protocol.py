@@ -69,6 +69,19 @@ def tonemap_stylelight(lighting: torch.Tensor, gamma: float = 2.4, median_to: fl
     Returns:
         the tone-mapped lighting, same shape and dtype (computed in float32 for half inputs).
 
+    Raises:
+        ShapeError: ``lighting`` is not ``(B, C, H, W)``.
+        NonFiniteError: NaN or Inf in ``lighting``.
+        ValueCheckError: negative lighting.
+
+    Shape:
+        - lighting: :math:`(B, C, H, W)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        docs/conventions.rst, "Images": the input is linear HDR; the output is display-encoded and unbounded
+        above (no clipping), with the absolute scale of each lighting removed.
+
     Examples:
         >>> tonemap_stylelight(torch.tensor([[[[0.0, 1.0, 16.0]]]]))
         tensor([[[[0.0000, 0.2395, 0.7605]]]])
@@ -183,6 +196,10 @@ class ThreeSphereMetrics(nn.Module):
         tonemap: apply the protocol's tone map first.
         lighting_size: side ``S_L`` of the lighting the module accepts.
 
+    Shape:
+        - pred, target: :math:`(B, 3, S_L, S_L)` with ``S_L = lighting_size``
+        - Output: ``{(brdf, metric):`` :math:`(B,)` ``}``
+
     Examples:
         >>> metrics = ThreeSphereMetrics(size=8)
         >>> gt = torch.rand(1, 3, 32, 32)
@@ -212,6 +229,14 @@ class ThreeSphereMetrics(nn.Module):
 
 class TonemapStylelight(nn.Module):
     r"""Module twin of :func:`tonemap_stylelight`.
+
+    Args:
+        gamma: the encoding gamma (2.4 in the protocol).
+        median_to: the value the median is mapped to (0.5 in the protocol).
+
+    Shape:
+        - Input: :math:`(B, C, H, W)`
+        - Output: :math:`(B, C, H, W)`
 
     Examples:
         >>> TonemapStylelight()(torch.tensor([[[[0.0, 1.0, 16.0]]]]))

@@ -100,6 +100,18 @@ def mirror_ball_downsample_matrix(
         ``(S'^2, S^2)`` matrix over row-major pixels; rows of invalid coarse pixels and columns of invalid
         fine pixels are zero. ``omega' @ D = omega`` (energy), ``D 1 = 1`` on the valid pixels to 0.03 %.
 
+    Raises:
+        TypeCheckError: ``size`` or ``target`` is not an int.
+        ValueCheckError: ``size`` or ``target`` outside :data:`PYRAMID_SIZES`, or ``target > size``.
+
+    Shape:
+        - Output: :math:`(S'^2, S^2)`
+
+    Convention:
+        docs/conventions.rst, "Reference spheres" (multi-scale): each coarse pixel holds the energy of the
+        fine pixels it covers over its own solid angle, and the energy under an invalid coarse pixel goes to
+        the nearest valid one.
+
     Examples:
         >>> d = mirror_ball_downsample_matrix(32, 16, dtype=torch.float64)
         >>> from kornia_ilum.geometry import mirror_ball_solid_angles
@@ -191,6 +203,10 @@ class MirrorBallPyramid(nn.Module):
 
     Args:
         sizes: the sides wanted.
+
+    Shape:
+        - Input: :math:`(B, C, S, S)`
+        - Output: ``{s:`` :math:`(B, C, s, s)` ``}``
 
     Examples:
         >>> levels = MirrorBallPyramid((4, 8))(torch.ones(2, 3, 32, 32))

@@ -95,6 +95,11 @@ def relight_product(field: torch.Tensor, lights: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, C, P)``, possibly a non-contiguous view of the product.
 
+    Shape:
+        - field: :math:`(C, P, N)` or :math:`(P, N)`
+        - lights: :math:`(B, N, C)`
+        - Output: :math:`(B, C, P)`
+
     Examples:
         >>> relight_product(torch.eye(2), torch.tensor([[[1.0, 2.0], [3.0, 4.0]]]))
         tensor([[[1., 3.],
@@ -110,6 +115,18 @@ def relight_product(field: torch.Tensor, lights: torch.Tensor) -> torch.Tensor:
 def light_norms(field: torch.Tensor) -> torch.Tensor:
     """Per-light L1 norms ``||R[c, :, n]||_1``, ``(C', N)`` in float64 (``C' = 1`` for a shared field).
 
+    The ``norms`` of :func:`kept_lights`. Nothing is checked; the result is detached from autograd.
+
+    Args:
+        field: reflectance field, channel-major ``(C, P, N)`` or shared ``(P, N)``.
+
+    Returns:
+        the norms in float64, on the field's device.
+
+    Shape:
+        - field: :math:`(C, P, N)` or :math:`(P, N)`
+        - Output: :math:`(C, N)` or :math:`(1, N)`
+
     Examples:
         >>> light_norms(torch.eye(3)).tolist()
         [[1.0, 1.0, 1.0]]
@@ -124,6 +141,22 @@ def kept_lights(lighting: torch.Tensor, norms: torch.Tensor, eps: float) -> torc
     The energy of light ``n`` in batch item ``b`` is ``E[b, n] = sum_c |L[b, n, c]| ||R[c, :, n]||_1`` (``norms``
     from :func:`light_norms`). The lights are sorted by energy and the longest prefix of the weakest whose
     cumulative energy is ``<= eps * sum_n E[b, n]`` is dropped. Computed in float64.
+
+    Nothing is checked; the selection is not differentiable.
+
+    Args:
+        lighting: light list ``(B, N, C)``.
+        norms: per-light norms ``(C', N)`` from :func:`light_norms`, ``C'`` 1 or ``C``.
+        eps: fraction of the energy that may be dropped, in ``[0, 1)``; 0 keeps every light of non-zero
+            energy.
+
+    Returns:
+        ``torch.bool`` mask, ``True`` for the lights kept.
+
+    Shape:
+        - lighting: :math:`(B, N, C)`
+        - norms: :math:`(C, N)` or :math:`(1, N)`
+        - Output: :math:`(B, N)`
 
     Examples:
         >>> kept_lights(torch.tensor([[[5.0], [0.01], [1.0]]]), torch.ones(1, 3), 0.01).tolist()
@@ -210,6 +243,13 @@ def relight(
         the relit images ``(B, C, H, W)``. The result may be a non-contiguous view of the product (it is
         laid out as the matrix product writes it); call ``.contiguous()`` if you need one.
 
+    Raises:
+        ShapeError: wrong ranks, ``N`` or ``C`` mismatch, or ``P`` no square without ``size``.
+        TypeCheckError: non-tensor or non-floating inputs.
+        NonFiniteError: ``lighting`` holds NaN or Inf.
+        EmptyTensorError: an empty input.
+        ValueCheckError: ``eps`` outside ``[0, 1)`` or a malformed ``size``.
+
     Shape:
         - field: :math:`(C, P, N)` or :math:`(P, N)`
         - lighting: :math:`(B, N, C)`
@@ -223,13 +263,6 @@ def relight(
         the result (relative error ~2^-8); float16 lighting above 65504 overflows, use bfloat16. Other
         dtype pairs compute in the promoted dtype. Units: ``I`` is in the units of ``L`` times those of
         ``R`` (docs/conventions.rst: radiance in, linear pixel values out).
-
-    Raises:
-        ShapeError: wrong ranks, ``N`` or ``C`` mismatch, or ``P`` no square without ``size``.
-        TypeCheckError: non-tensor or non-floating inputs.
-        NonFiniteError: ``lighting`` holds NaN or Inf.
-        EmptyTensorError: an empty input.
-        ValueCheckError: ``eps`` outside ``[0, 1)`` or a malformed ``size``.
 
     Examples:
         >>> field = torch.eye(4)  # 2 x 2 pixels, each lit by its own light
@@ -271,6 +304,10 @@ class Relight(nn.Module):
         field: reflectance field, ``(C, P, N)`` or ``(P, N)``.
         size: output ``(H, W)`` (or an int for a square); default ``sqrt(P)``.
         eps: energy fraction that may be dropped, in ``[0, 1)``.
+
+    Shape:
+        - Input: :math:`(B, N, C)` lighting
+        - Output: :math:`(B, C, H, W)`, :math:`H W = P`
 
     Examples:
         >>> relight_module = Relight(torch.eye(4), eps=0.1)

@@ -58,6 +58,21 @@ def light_clusters(size: int, block: int, light_index: torch.Tensor | None = Non
         light_index: ``(N,)`` the field's lights as row-major pixel indices (a compact field's
             ``light_index``); ``None``: all ``S * S`` pixels.
 
+    Returns:
+        each light's cluster, ``0 .. G - 1``; only the blocks that hold a light are numbered.
+
+    Raises:
+        TypeCheckError: ``size`` or ``block`` is not an int.
+        ValueCheckError: ``size`` or ``block`` is not positive.
+
+    Shape:
+        - light_index: :math:`(N,)`
+        - Output: :math:`(N,)`, with :math:`N = S^2` without ``light_index``
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": the lights are the ball's pixels in row-major order (row ``i``,
+        column ``j`` is light ``i S + j``).
+
     Examples:
         >>> light_clusters(4, 2).reshape(4, 4).tolist()
         [[0, 0, 1, 1], [0, 0, 1, 1], [2, 2, 3, 3], [2, 2, 3, 3]]
@@ -84,6 +99,11 @@ class SparseField:
         clusters: ``(N,)`` long, each light's cluster.
         members: ``(N, G)`` float32, one-hot of ``clusters`` (the cluster means as one product).
         coarse: ``(C', P, G)`` the field summed over each cluster's lights, in the field's dtype.
+
+    Examples:
+        >>> prepared = prepare_sparse(torch.rand(3, 16, 4), light_clusters(2, 1))  # 4 lights, 4 clusters
+        >>> prepared.rows.shape, prepared.norms.shape, prepared.members.shape, prepared.coarse.shape
+        (torch.Size([13, 16]), torch.Size([3, 4]), torch.Size([4, 4]), torch.Size([3, 16, 4]))
     """
 
     field: torch.Tensor
@@ -102,10 +122,18 @@ def prepare_sparse(field: torch.Tensor, clusters: torch.Tensor) -> SparseField:
         field: ``(C, P, N)`` or ``(P, N)``, any floating dtype (the light stage's fields are bfloat16).
         clusters: ``(N,)`` each light's cluster, ``0 .. G - 1`` (:func:`light_clusters`).
 
+    Returns:
+        a :class:`SparseField` on the field's device (``G`` is the largest cluster plus one).
+
     Raises:
         ShapeError: ``clusters`` does not have the field's ``N`` entries.
         TypeCheckError: ``clusters`` is not an integer tensor.
         ValueCheckError: a negative cluster.
+
+    Shape:
+        - field: :math:`(C, P, N)` or :math:`(P, N)`
+        - clusters: :math:`(N,)`
+        - Output: see :class:`SparseField`
 
     Examples:
         >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))
@@ -152,6 +180,22 @@ def _select(prepared: SparseField, lights: torch.Tensor, eps: float) -> tuple[to
 def sparse_kept(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.Tensor:
     """``(B,)`` long: how many lights :func:`relight_sparse` keeps exactly for each lighting.
 
+    Args:
+        prepared: from :func:`prepare_sparse`.
+        lighting: ``(B, N, C)`` light lists in radiance, non-negative.
+        eps: the threshold of :func:`relight_sparse`, in ``[0, 1)``.
+
+    Returns:
+        the number of kept lights per lighting, at most ``ceil(KEPT_FRACTION * N)``.
+
+    Raises:
+        ValueCheckError: ``eps`` outside ``[0, 1)``, or negative lighting.
+        ShapeError: ``lighting`` does not match the field.
+
+    Shape:
+        - lighting: :math:`(B, N, C)`
+        - Output: :math:`(B,)`
+
     Examples:
         >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))
         >>> sparse_kept(prepared, torch.tensor([[[5.0], [0.0], [1.0], [1.0]]]), eps=0.2).tolist()
@@ -176,6 +220,10 @@ def relight_sparse(prepared: SparseField, lighting: torch.Tensor, eps: float) ->
     Raises:
         ValueCheckError: ``eps`` outside ``[0, 1)``, or negative lighting.
         ShapeError: ``lighting`` does not match the field.
+
+    Shape:
+        - lighting: :math:`(B, N, C)`
+        - Output: :math:`(B, C, P)`
 
     Examples:
         >>> prepared = prepare_sparse(torch.eye(4), torch.tensor([0, 0, 1, 1]))

@@ -101,6 +101,9 @@ def check_brdf(brdf: str, name: str = "brdf") -> None:
         brdf: the value to check.
         name: the argument's name, used in the message.
 
+    Returns:
+        ``None``; it raises on any other value.
+
     Raises:
         ValueCheckError: ``brdf`` is not in :data:`BRDFS`; the message lists them.
 
@@ -280,6 +283,10 @@ def sphere_reflectance_field(
         the field ``R``, shared across colour channels, of shape ``(S^2, S_L^2)``; rows of pixels off the
         sphere are zero.
 
+    Raises:
+        ValueCheckError: unknown ``brdf`` or a size outside :data:`SPHERE_SIZES`.
+        TypeCheckError: a size is not an int.
+
     Shape:
         - Output: :math:`(S^2, S_L^2)`, row-major sphere pixels by row-major lighting pixels.
 
@@ -287,10 +294,6 @@ def sphere_reflectance_field(
         docs/conventions.rst, "Reference spheres": orthographic view along -Z, sphere pixel ``(u, v)`` has
         normal ``(u, v, sqrt(1 - r^2))`` and is shaded at its centre with view direction ``+Z``; lighting in
         radiance, so a white uniform environment renders the diffuse sphere at 0.8 everywhere.
-
-    Raises:
-        ValueCheckError: unknown ``brdf`` or a size outside :data:`SPHERE_SIZES`.
-        TypeCheckError: a size is not an int.
 
     Examples:
         >>> R = sphere_reflectance_field("diffuse", 8)
@@ -361,6 +364,13 @@ def shared_sphere_field(
     Returns:
         the field ``(S^2, S_L^2)``, or ``(P_valid, S_L^2)`` with ``on_sphere``.
 
+    Shape:
+        - Output: :math:`(S^2, S_L^2)`, or :math:`(P_\mathrm{valid}, S_L^2)` with ``on_sphere``
+
+    Convention:
+        docs/conventions.rst, "Reference spheres" and "Mirror ball": row-major sphere pixels by row-major
+        lighting pixels, as :func:`sphere_reflectance_field`.
+
     Examples:
         >>> args = ("mirror", 8, 32, torch.device("cpu"), torch.float32)
         >>> field = shared_sphere_field(*args, on_sphere=True)
@@ -379,6 +389,11 @@ class SpherePlan(NamedTuple):
     Built by :func:`sphere_plan`, applied by :func:`render_plan`. The rows of the multi-scale fields
     (:func:`sphere_reflectance_field` with ``multiscale=True``) are one matrix product, except the mirror at
     the lighting's own size, whose renders are copies of lighting pixels.
+
+    Examples:
+        >>> plan = sphere_plan(("mirror",), (8, 32), 32, torch.device("cpu"), torch.float32)
+        >>> plan.field.shape, plan.index.shape, plan.order is None  # the 8 px mirror: one product
+        (torch.Size([52, 1024]), torch.Size([812]), True)
     """
 
     #: ``(P_mm, N)``: the rows rendered by one matrix product.
@@ -460,6 +475,10 @@ def render_plan(plan: SpherePlan, lights: torch.Tensor, *, knee: float | None = 
         ``(B, 3, P)``: the pixels on each sphere in row-major order, brdf-major, in the order of the plan's
         sizes; in the dtype of the plan's field.
 
+    Shape:
+        - lights: :math:`(B, N, 3)`, :math:`N = S_L^2`
+        - Output: :math:`(B, 3, P)`
+
     Examples:
         >>> plan = sphere_plan(("diffuse",), (4,), 32, torch.device("cpu"), torch.float32)
         >>> out = render_plan(plan, torch.ones(1, 1024, 3))
@@ -492,6 +511,12 @@ def check_sphere_lighting(lighting: torch.Tensor, name: str = "lighting", size: 
         ShapeError: wrong shape, a side outside :data:`SPHERE_SIZES`, or not ``size``.
         TypeCheckError: no floating-point tensor.
         NonFiniteError: ``lighting`` holds NaN or Inf.
+
+    Shape:
+        - lighting: :math:`(B, 3, S_L, S_L)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball": the lighting is a mirror-ball image.
 
     Examples:
         >>> check_sphere_lighting(torch.ones(2, 3, 32, 32))
@@ -550,6 +575,12 @@ def gamma_knee(gamma: str) -> float:
     ``0.0`` for ``"exact"`` (the exact power), :data:`SAFE_GAMMA_KNEE` for ``"safe"``: the ``knee`` of
     :func:`~kornia_ilum.color.gamma_encode` and of :func:`render_plan`.
 
+    Args:
+        gamma: ``"exact"`` or ``"safe"``.
+
+    Returns:
+        the knee, ``>= 0``.
+
     Raises:
         ValueCheckError: ``gamma`` is not one of :data:`GAMMA_MODES`.
 
@@ -577,6 +608,18 @@ def encode_sphere(render: torch.Tensor, gamma: str = "exact") -> torch.Tensor:
 
     Returns:
         encoded values in ``[0, 1]``, same shape and dtype.
+
+    Raises:
+        ValueCheckError: ``gamma`` is not one of :data:`GAMMA_MODES`.
+        NonFiniteError: NaN or Inf in ``render``.
+
+    Shape:
+        - render: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Convention:
+        docs/conventions.rst, "The paper's error measure ``L_rec``": ``softclip`` then the exact power
+        ``x^(1/2.2)`` for the metric; a training loss may use the gradient-safe variant.
 
     Examples:
         >>> encode_sphere(torch.tensor([-0.5, 0.0, 0.25, 100.0]))
@@ -730,6 +773,10 @@ class RenderSpheres(nn.Module):
         size: side of the sphere renders, one of :data:`SPHERE_SIZES`.
         brdfs: the spheres to render, names from :data:`BRDFS`.
         lighting_size: side ``S_L`` of the mirror-ball lighting the module accepts.
+
+    Shape:
+        - Input: :math:`(B, 3, S_L, S_L)` with ``S_L = lighting_size``
+        - Output: ``{name:`` :math:`(B, 3, S, S)` ``}``
 
     Examples:
         >>> render = RenderSpheres(8, brdfs=("mirror",))

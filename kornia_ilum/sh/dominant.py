@@ -51,6 +51,13 @@ class DominantLight:
             it: the units of the lighting times steradians.
         ambient_sh: ``(B, 9, 3)`` order-2 radiance SH of the rest (docs/conventions.rst, "Spherical
             harmonics").
+
+    Examples:
+        >>> light = dominant_light(torch.zeros(2, 3, 32, 32))  # black: no light at all
+        >>> light.direction.shape, light.ambient_sh.shape, light.intensity.tolist()
+        (torch.Size([2, 3]), torch.Size([2, 9, 3]), [0.0, 0.0])
+        >>> light.color[0].tolist()  # (1, 1, 1) where there is no light
+        [1.0, 1.0, 1.0]
     """
 
     direction: torch.Tensor

@@ -236,14 +236,14 @@ def sh_project(lighting: torch.Tensor, layout: str = "mirror_ball") -> torch.Ten
         ``(B, 9, 3)`` radiance SH coefficients, dtype of ``lighting`` (half precision is computed in float32
         and cast back).
 
-    Shape:
-        - Input: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`
-        - Output: :math:`(B, 9, 3)`
-
     Raises:
         ValueCheckError: unknown ``layout``, or a grid too small to determine 9 coefficients (mirror ball
             ``S`` of 1, 2 or 4; lat-long ``H < 3``).
         ShapeError: ``lighting`` has the wrong shape for ``layout``.
+
+    Shape:
+        - Input: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`
+        - Output: :math:`(B, 9, 3)`
 
     Convention:
         docs/conventions.rst: frame, mirror-ball and lat-long pixel centres, SH order. Pixel-centre directions
@@ -339,6 +339,13 @@ def sh_irradiance(sh: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 9, 3)`` irradiance SH coefficients.
 
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9, 3)`
+
     Convention:
         docs/conventions.rst, "Spherical harmonics". Irradiance in the lighting's units times steradians; a
         white Lambertian surface shows ``E / pi``.
@@ -369,12 +376,12 @@ def sh_irradiance_at(sh: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
         ``(B, N, 3)`` RGB irradiance, dtype of ``sh``. It can be slightly negative facing away from a
         strong light (order-2 ringing).
 
+    Raises:
+        ShapeError: the batch sizes differ (and ``normals``' is not 1).
+
     Shape:
         - Input: :math:`(B, 9, 3)` and :math:`(B, N, 3)`
         - Output: :math:`(B, N, 3)`
-
-    Raises:
-        ShapeError: the batch sizes differ (and ``normals``' is not 1).
 
     Convention:
         docs/conventions.rst, "Frames" and "Spherical harmonics".
@@ -418,6 +425,10 @@ class SHProject(nn.Module):
         device: device of the buffer.
         dtype: dtype of the buffer (default: :func:`torch.get_default_dtype`); pass ``torch.float64`` for
             float64 inputs, as ``.double()`` of a float32 buffer keeps its float32 rounding.
+
+    Shape:
+        - Input: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`, of the module's ``size``
+        - Output: :math:`(B, 9, 3)`
 
     Examples:
         >>> proj = SHProject(32)
@@ -466,6 +477,10 @@ class SHReconstruct(nn.Module):
         device: device of the buffer.
         dtype: dtype of the buffer (default: :func:`torch.get_default_dtype`).
 
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`
+
     Examples:
         >>> SHReconstruct(16, "latlong")(torch.zeros(2, 9, 3)).shape
         torch.Size([2, 3, 16, 32])
@@ -500,6 +515,10 @@ class SHReconstruct(nn.Module):
 class SHIrradiance(nn.Module):
     r"""Module twin of :func:`sh_irradiance`.
 
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9, 3)`
+
     Examples:
         >>> SHIrradiance()(torch.zeros(1, 9, 3)).shape
         torch.Size([1, 9, 3])
@@ -511,6 +530,10 @@ class SHIrradiance(nn.Module):
 
 class SHIrradianceAt(nn.Module):
     r"""Module twin of :func:`sh_irradiance_at`.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)` and :math:`(B, N, 3)` (or :math:`(1, N, 3)`)
+        - Output: :math:`(B, N, 3)`
 
     Examples:
         >>> SHIrradianceAt()(torch.zeros(2, 9, 3), torch.ones(2, 5, 3)).shape

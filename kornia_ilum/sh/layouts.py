@@ -144,6 +144,13 @@ def sh_to_deca(sh: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 9, 3)`` DECA ``codedict['light']``.
 
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9, 3)`
+
     Convention:
         Source: ``decalib/utils/renderer.py`` of https://github.com/yfeng95/DECA (``SRenderY.__init__``,
         ``constant_factor``; ``SRenderY.add_SHlight``). The normals DECA shades with are FLAME-space vertex
@@ -176,6 +183,17 @@ def sh_from_deca(light: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 9, 3)`` our SH lighting (see :func:`sh_to_deca` for the convention and its source).
 
+    Raises:
+        ShapeError: ``light`` is not ``(B, 9, 3)``.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9, 3)`
+
+    Convention:
+        docs/conventions.rst, "Spherical harmonics" (our order and frame) and "Units of lighting"; the other
+        layout as in :func:`sh_to_deca`.
+
     Examples:
         >>> light = torch.zeros(1, 9, 3)
         >>> light[:, 0] = 1.0
@@ -202,6 +220,13 @@ def sh_to_arcore(sh: torch.Tensor) -> torch.Tensor:
 
     Returns:
         ``(B, 27)`` ARCore coefficients.
+
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 27)`
 
     Convention:
         Source: the ARCore SDK sample ``samples/hello_ar_java`` of
@@ -240,6 +265,17 @@ def sh_from_arcore(coefficients: torch.Tensor) -> torch.Tensor:
 
     Returns:
         ``(B, 9, 3)`` our SH lighting (see :func:`sh_to_arcore` for the convention and its sources).
+
+    Raises:
+        ShapeError: ``coefficients`` is not ``(B, 27)``.
+
+    Shape:
+        - Input: :math:`(B, 27)`
+        - Output: :math:`(B, 9, 3)`
+
+    Convention:
+        docs/conventions.rst, "Spherical harmonics" (our order and frame) and "Units of lighting"; the other
+        layout as in :func:`sh_to_arcore`.
 
     Examples:
         >>> sh_from_arcore(torch.arange(27.0)[None])[0, 1]  # coefficient 1 changes sign
@@ -297,13 +333,13 @@ def sh_to_dpr(sh: torch.Tensor, channel: str = "luminance") -> torch.Tensor:
     Returns:
         ``(B, 9)`` DPR coefficients (DPR's network takes them as ``(B, 9, 1, 1)``: ``reshape(B, 9, 1, 1)``).
 
-    Shape:
-        - Input: :math:`(B, 9, 3)`
-        - Output: :math:`(B, 9)`
-
     Raises:
         ShapeError: ``sh`` is not ``(B, 9, 3)``.
         ValueCheckError: ``channel`` is not one of :data:`DPR_CHANNELS`.
+
+    Shape:
+        - Input: :math:`(B, 9, 3)`
+        - Output: :math:`(B, 9)`
 
     Convention:
         Source: https://github.com/zhhoper/DPR, ``utils/utils_SH.py`` (basis, constants, ``att``),
@@ -342,12 +378,16 @@ def sh_from_dpr(coefficients: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 9, 3)`` our SH lighting, the same in R, G and B.
 
+    Raises:
+        ShapeError: ``coefficients`` is not ``(B, 9)``.
+
     Shape:
         - Input: :math:`(B, 9)`
         - Output: :math:`(B, 9, 3)`
 
-    Raises:
-        ShapeError: ``coefficients`` is not ``(B, 9)``.
+    Convention:
+        docs/conventions.rst, "Spherical harmonics" (our order and frame) and "Units of lighting"; the other
+        layout as in :func:`sh_to_dpr`.
 
     Examples:
         >>> c = torch.zeros(1, 9)
@@ -385,12 +425,12 @@ def sh_to_sfsnet(sh: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 27)`` SfSNet ``fc_light``: ``[R c_0..c_8, G c_0..c_8, B c_0..c_8]``.
 
+    Raises:
+        ShapeError: ``sh`` is not ``(B, 9, 3)``.
+
     Shape:
         - Input: :math:`(B, 9, 3)`
         - Output: :math:`(B, 27)`
-
-    Raises:
-        ShapeError: ``sh`` is not ``(B, 9, 3)``.
 
     Convention:
         Source: https://github.com/senguptaumd/SfSNet: ``SfSNet_train/python/Shading_Layer.py`` and
@@ -432,12 +472,16 @@ def sh_from_sfsnet(light: torch.Tensor) -> torch.Tensor:
     Returns:
         ``(B, 9, 3)`` our SH lighting.
 
+    Raises:
+        ShapeError: ``light`` is not ``(B, 27)``.
+
     Shape:
         - Input: :math:`(B, 27)`
         - Output: :math:`(B, 9, 3)`
 
-    Raises:
-        ShapeError: ``light`` is not ``(B, 27)``.
+    Convention:
+        docs/conventions.rst, "Spherical harmonics" (our order and frame) and "Units of lighting"; the other
+        layout as in :func:`sh_to_sfsnet`.
 
     Examples:
         >>> light = torch.zeros(1, 27)

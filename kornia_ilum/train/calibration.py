@@ -42,8 +42,42 @@ def energy_log_ratios(estimator: torch.nn.Module, dataset: PortraitDataset, samp
     r"""``log(E_true / E_pred)`` per portrait and channel, :math:`(N, 3)` float64, on ``samples`` portraits of
     ``dataset``'s :data:`CALIBRATION_STREAM` (the estimator runs in float32, without gradients).
 
+    Args:
+        estimator: a lighting estimator: ``estimator(crops).mirror_ball`` from sRGB crops in ``[0, 1]``.
+        dataset: the training portraits (:func:`~kornia_ilum.train.data.training_dataset`).
+        samples: the number of portraits.
+        batch: portraits per forward pass.
+
+    Returns:
+        ``log(E_true / E_pred)``, float64, with ``E`` the energy per channel
+        (:func:`~kornia_ilum.metrics.total_radiance`).
+
     Raises:
         ValueCheckError: ``samples`` is not positive, or an estimate has no energy in some channel.
+
+    Shape:
+        - Output: :math:`(N, 3)`, ``N = samples``
+
+    Convention:
+        The estimate and the truth are mirror balls in the units of the crops (docs/conventions.rst, "Mirror
+        ball" and "Units of lighting"); a positive log ratio means the estimate is too dark.
+
+    Examples:
+        ``samples`` is checked before any portrait is drawn:
+
+        >>> energy_log_ratios(torch.nn.Identity(), None, samples=0)
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: samples must be a positive integer, got 0
+
+        A real call draws portraits from a light-stage cache:
+
+        >>> from kornia_ilum.train import TrainConfig
+        >>> from kornia_ilum.train.data import training_dataset
+        >>> dataset = training_dataset(TrainConfig(out="runs/ours", cache=("lightstage/",)))  # doctest: +SKIP
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> energy_log_ratios(create_estimator("ours"), dataset, samples=64).shape  # doctest: +SKIP
+        torch.Size([64, 3])
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
         raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
@@ -66,9 +100,30 @@ def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: Portra
                      samples: int) -> dict[str, Any]:
     r"""Scale ``estimator``'s output per channel, in place, by the gain of the module's docstring.
 
+    Args:
+        estimator: the trained estimator (float32, on the CPU), changed in place.
+        recipe: its training recipe, which applies the gain (:meth:`~kornia_ilum.train.recipes.Recipe.scale_output`).
+        dataset: the training portraits (:func:`~kornia_ilum.train.data.training_dataset`).
+        samples: the portraits the gain is measured on (:func:`energy_log_ratios`).
+
     Returns:
         ``{"samples", "gain", "median_ratio_before", "median_ratio_after"}`` (the ratios are
         ``E_pred / E_true`` per channel, R, G, B), for the run's ``summary.json``.
+
+    Raises:
+        ValueCheckError: as :func:`energy_log_ratios`, or the recipe cannot scale its estimator's output.
+
+    Examples:
+        It needs a light-stage cache and a trained estimator (``kornia-ilum train --calibrate-energy N`` calls
+        it at export):
+
+        >>> from kornia_ilum.train import TrainConfig, get_recipe
+        >>> from kornia_ilum.train.data import training_dataset
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> dataset = training_dataset(TrainConfig(out="runs/ours", cache=("lightstage/",)))  # doctest: +SKIP
+        >>> report = calibrate_energy(create_estimator("ours"), get_recipe("ours"), dataset, 256)  # doctest: +SKIP
+        >>> sorted(report)  # doctest: +SKIP
+        ['gain', 'median_ratio_after', 'median_ratio_before', 'samples']
     """
     before = energy_log_ratios(estimator, dataset, samples)
     gain = torch.exp(before.median(0).values)

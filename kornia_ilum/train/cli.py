@@ -40,7 +40,23 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add ``train`` to the ``kornia-ilum`` subcommands."""
+    """Add ``train`` to the ``kornia-ilum`` subcommands.
+
+    Args:
+        subparsers: the subparsers of ``kornia-ilum``'s parser (:meth:`argparse.ArgumentParser.add_subparsers`).
+
+    Returns:
+        the ``train`` parser, with :class:`~kornia_ilum.train.TrainConfig`'s defaults; its ``func`` default is
+        :func:`run_train`.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser()
+        >>> _ = add_train_parser(parser.add_subparsers())
+        >>> args = parser.parse_args(["train", "--cache", "lightstage/", "--out", "runs/ours",
+        ...                           "--model", "normalize_exposure=False"])
+        >>> args.steps, args.model, args.func is run_train
+        (3000, [('normalize_exposure', False)], True)
+    """
     d = TrainConfig(out="", cache=("-",))
     cmd = subparsers.add_parser("train", help="train an estimator on the light stage",
                                 description=_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -93,7 +109,22 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def run_train(args: argparse.Namespace) -> int:
-    """Run ``kornia-ilum train``; prints the weight file and its SHA-256."""
+    """Run ``kornia-ilum train``; prints the weight file and its SHA-256.
+
+    Args:
+        args: the options of :func:`add_train_parser`'s parser.
+
+    Returns:
+        the exit status, 0 (a failure raises).
+
+    Examples:
+        It trains, so it is not run here:
+
+        >>> parser = argparse.ArgumentParser()
+        >>> _ = add_train_parser(parser.add_subparsers())
+        >>> run_train(parser.parse_args(["train", "--cache", "lightstage/", "--out", "runs/ours"]))  # doctest: +SKIP
+        0
+    """
     config = TrainConfig(out=args.out, cache=tuple(args.cache), hdri=tuple(args.hdri), estimator=args.estimator,
                          steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, workers=args.workers,
                          threads=args.threads, device=args.device, bf16=args.bf16,

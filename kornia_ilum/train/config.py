@@ -98,6 +98,22 @@ class TrainConfig:
         data: fields of :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` to replace (for
             example ``{"fields_per_chunk": 8}``), over :data:`~kornia_ilum.train.data.TRAINING_PORTRAITS`;
             ``split`` and ``environments`` are set by the trainer.
+
+    Raises:
+        ValueCheckError: a setting out of its range (a step count that is not a positive integer, no cache,
+            an unknown ``loss``, ``average_tail`` without ``snapshot_every``, more crop pairs than half a
+            batch, ...).
+
+    Examples:
+        >>> config = TrainConfig(out="runs/ours", cache=("lightstage/",))
+        >>> config.estimator, config.steps, config.batch, config.bf16
+        ('ours', 3000, 32, None)
+        >>> "out" in config.data_key(), "seed" in config.data_key()  # what a checkpoint must agree on
+        (False, True)
+        >>> TrainConfig(out="runs/x", cache=("lightstage/",), average_tail=0.25)
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: average_tail averages the run's snapshots: it needs snapshot_every > 0
     """
 
     out: str
@@ -211,6 +227,13 @@ def resolve_runtime(config: TrainConfig, device: torch.device) -> RuntimeSetting
 
     ``bf16``: on CUDA, and on CPUs with native bfloat16; ``channels_last``: on; ``workers``: 1 on CPU,
     ``min(8, cores - 1)`` on CUDA (:class:`TrainConfig`). Settings that are given are kept.
+
+    Args:
+        config: the run's settings.
+        device: the device the run trains on.
+
+    Returns:
+        the :class:`RuntimeSettings`, none of them ``None``.
 
     Examples:
         >>> config = TrainConfig(out="run", cache=("cache",), bf16=False, workers=0)

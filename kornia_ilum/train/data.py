@@ -51,9 +51,28 @@ def _training_environments(config: TrainConfig) -> EnvironmentSampler:
 def training_dataset(config: TrainConfig) -> PortraitDataset:
     """The run's portraits (module docstring), seeded with ``config.seed``.
 
+    Args:
+        config: the run's settings: its ``cache``, ``hdri``, ``seed``, ``data`` and ``lambda_crop`` (a second
+            crop per sample when it is on).
+
+    Returns:
+        the endless dataset of the run's portraits, without sphere targets.
+
     Raises:
         ValueCheckError: no ``"train"`` subject in the caches, or ``config.data`` names a setting that
             :class:`~kornia_ilum.synth.lightstage.portraits.PortraitConfig` does not have.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as empty:
+        ...     training_dataset(TrainConfig(out=empty, cache=(empty,)))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: no reflectance field in '...' for split 'train'
+        >>> dataset = training_dataset(TrainConfig(out="runs/ours", cache=("lightstage/",)))  # doctest: +SKIP
+        >>> sample = next(iter(dataset))  # doctest: +SKIP
+        >>> tuple(sample["image"].shape), sample["image"].dtype, tuple(sample["mirror_ball"].shape)  # doctest: +SKIP
+        ((3, 256, 256), torch.uint8, (3, 32, 32))
     """
     fields = [f for folder in config.cache for f in load_fields(folder, split="train")]
     allowed = {f.name for f in dataclasses.fields(PortraitConfig)} - {"split", "environments"}
@@ -85,8 +104,26 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
     procedural environments and the ``"train"`` maps of ``hdri``, :data:`TRAINING_PORTRAITS`), one lighting per
     view and a chunk of 8 views, so the probe spans many subjects; drawn with ``seed``, not a training run's.
 
+    Args:
+        folder: the folder that gets ``probe.jpg`` and ``probe.safetensors``
+            (:func:`~kornia_ilum.estimators.probe.write_probe`).
+        cache: light-stage caches with ``"train"`` subjects.
+        hdri: folders of real maps (their ``"train"`` maps).
+        samples: the number of portraits.
+        seed: the seed of the portraits.
+
     Returns:
         the probe's metadata (also stored in ``probe.safetensors``).
+
+    Raises:
+        ValueCheckError: as :func:`training_dataset`.
+
+    Examples:
+        It relights subjects of a light-stage cache (``kornia-ilum export --probe DIR --cache CACHE`` calls it):
+
+        >>> meta = write_training_probe("probe/", ["lightstage/"], ["hdri/"])  # doctest: +SKIP
+        >>> meta["samples"], meta["split"], meta["seed"]  # doctest: +SKIP
+        (320, 'train', 7)
     """
     config = TrainConfig(out=str(folder), cache=[str(c) for c in cache], hdri=[str(h) for h in hdri], seed=seed,
                          data={"fields_per_chunk": 8, "lightings_per_field": 1, "env_pool": 8, "env_refresh": 8,
@@ -111,7 +148,29 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
     """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels; for paired
     samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8); with
-    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``."""
+    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``.
+
+    Args:
+        samples: samples of a :class:`~kornia_ilum.synth.lightstage.portraits.PortraitDataset`.
+
+    Returns:
+        the batch: ``image``, ``mirror_ball`` and ``skin_tone`` stacked, ``label`` a list, and the paired and
+        second-crop fields where the samples have them.
+
+    Shape:
+        - image: :math:`(B, 3, S, S)` uint8; mirror_ball: :math:`(B, 3, 32, 32)`; skin_tone: :math:`(B,)`
+
+    Convention:
+        ``image`` holds sRGB codes (docs/conventions.rst, "Images", times 255); ``mirror_ball`` is linear
+        lighting in their units ("Mirror ball", "Units of lighting").
+
+    Examples:
+        >>> sample = {"image": torch.zeros(3, 8, 8, dtype=torch.uint8), "mirror_ball": torch.ones(3, 32, 32),
+        ...           "label": "indoor", "skin_tone": 5}
+        >>> batch = collate([sample, sample])
+        >>> tuple(batch["image"].shape), tuple(batch["mirror_ball"].shape), batch["label"]
+        ((2, 3, 8, 8), (2, 3, 32, 32), ['indoor', 'indoor'])
+    """
     batch = {
         "image": torch.stack([s["image"] for s in samples]),
         "mirror_ball": torch.stack([s["mirror_ball"] for s in samples]),
@@ -136,6 +195,15 @@ class StepBatches(IterableDataset):
         start: the first step.
         rank, world: this process's rank and the number of processes.
         workers: the loader's workers (0: the batches are made in the iterating process).
+
+    Examples:
+        Its batches are drawn from a light-stage cache's portraits:
+
+        >>> config = TrainConfig(out="runs/ours", cache=("lightstage/",))
+        >>> steps = StepBatches(training_dataset(config), batch=8, start=100)  # doctest: +SKIP
+        >>> batch = next(iter(steps))  # doctest: +SKIP
+        >>> tuple(batch["image"].shape)  # doctest: +SKIP
+        (8, 3, 256, 256)
     """
 
     def __init__(self, dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
@@ -170,7 +238,25 @@ class StepBatches(IterableDataset):
 
 def batch_loader(dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
                  workers: int = 0) -> Iterator[dict[str, Any]]:
-    """An endless iterator of the batches of steps ``start, start + 1, ...`` (:class:`StepBatches`)."""
+    """An endless iterator of the batches of steps ``start, start + 1, ...`` (:class:`StepBatches`).
+
+    Args:
+        dataset: the portraits.
+        batch: samples per batch on this rank.
+        start: the first step.
+        rank: this process's rank.
+        world: the number of processes.
+        workers: loader worker processes (forked; 0: the batches are made in this process).
+
+    Returns:
+        the iterator of collated batches (:func:`collate`), in step order.
+
+    Examples:
+        >>> config = TrainConfig(out="runs/ours", cache=("lightstage/",))
+        >>> batches = batch_loader(training_dataset(config), batch=8, workers=2)  # doctest: +SKIP
+        >>> sorted(next(batches))  # doctest: +SKIP
+        ['image', 'label', 'mirror_ball', 'skin_tone']
+    """
     steps = StepBatches(dataset, batch, start, rank, world, workers)
     if workers == 0:
         return iter(steps)

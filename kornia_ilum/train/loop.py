@@ -84,7 +84,22 @@ def _load_checkpoint(out: Path, config: TrainConfig) -> dict[str, Any] | None:
 
 
 def read_log(out: str | os.PathLike) -> list[dict[str, float]]:
-    """The rows of a run's ``log.csv`` as dicts of floats."""
+    """The rows of a run's ``log.csv`` as dicts of floats.
+
+    Args:
+        out: the run's folder.
+
+    Returns:
+        one dict per row, column -> value; an empty list without ``log.csv``.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     empty = read_log(run)
+        ...     _ = (Path(run) / "log.csv").write_text("step,loss\\n10,0.5\\n20,0.25\\n")
+        ...     empty, read_log(run)
+        ([], [{'step': 10.0, 'loss': 0.5}, {'step': 20.0, 'loss': 0.25}])
+    """
     path = Path(out) / "log.csv"
     if not path.is_file():
         return []
@@ -152,6 +167,15 @@ def train(config: TrainConfig) -> dict[str, Any]:
 
     Raises:
         ValueCheckError: bad settings, or a checkpoint in ``out`` from a run with other settings.
+        FloatingPointError: the loss became NaN or infinite.
+
+    Examples:
+        A run trains (``kornia-ilum train`` calls it), so it is not run here:
+
+        >>> config = TrainConfig(out="runs/ours", cache=("lightstage/",), steps=3000)
+        >>> summary = train(config)  # doctest: +SKIP
+        >>> summary["steps"], summary["weights"]["file"]  # doctest: +SKIP
+        (3000, 'ours.safetensors')
     """
     rank, world, local_rank = _world()
     if config.batch % world:
@@ -294,6 +318,23 @@ def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, name: str,
     The file's safetensors metadata holds ``estimator`` (the registry name), ``step``, ``samples`` and
     ``elapsed_s`` (the run's training wall time so far): what the learning curve
     (:func:`~kornia_ilum.evaluation.curve.learning_curve`) reads. Written atomically.
+
+    Args:
+        out: the run's folder (``snapshots/`` is created in it).
+        estimator: the estimator whose ``state_dict`` is kept.
+        name: its registry name.
+        step: the training step.
+        samples: the samples seen so far.
+        elapsed_s: the run's training wall time so far, in seconds.
+
+    Returns:
+        the path of the snapshot.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     save_snapshot(run, torch.nn.Linear(2, 1), "ours", step=100, samples=3200, elapsed_s=60.0).name
+        'step_000100.safetensors'
     """
     path = Path(out) / "snapshots" / f"step_{step:06d}.safetensors"
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -310,8 +351,27 @@ def average_snapshots(out: str | os.PathLike, after: float,
     Floating-point tensors are averaged in float64 and returned in float32; any other tensor is the last
     snapshot's. Used by :attr:`~kornia_ilum.train.TrainConfig.average_tail` (stochastic weight averaging).
 
+    Args:
+        out: the run's folder.
+        after: the snapshots of steps above this are averaged (a fraction of the run's steps, so a float).
+        upto: and of steps up to this.
+
+    Returns:
+        ``(mean, steps)``: the averaged ``state_dict`` and the steps of the snapshots in it, in order.
+
     Raises:
         ValueCheckError: no snapshot in that range.
+
+    Examples:
+        >>> import tempfile
+        >>> model = torch.nn.Linear(2, 1, bias=False)
+        >>> with tempfile.TemporaryDirectory() as run:
+        ...     for step in (100, 200, 300):
+        ...         _ = torch.nn.init.constant_(model.weight, step / 100)
+        ...         _ = save_snapshot(run, model, "ours", step, 32 * step, 1.0)
+        ...     mean, steps = average_snapshots(run, after=150, upto=300)
+        >>> steps, mean["weight"].tolist()
+        ([200, 300], [[2.5, 2.5]])
     """
     found = []
     for path in sorted((Path(out) / "snapshots").glob("step_*.safetensors")):
@@ -335,8 +395,33 @@ def export_weights(estimator: torch.nn.Module, path: str | os.PathLike, probe: d
     ``L_rec`` (the metric form, all three spheres) is measured on ``probe`` (``image`` uint8 crops and
     ``mirror_ball`` truth) with the float32 weights and with the float16-rounded ones (both run in float32).
 
+    Args:
+        estimator: the estimator to export: ``estimator(crops).mirror_ball`` from sRGB crops in ``[0, 1]``.
+        path: the ``.safetensors`` file to write.
+        probe: a collated batch with ``image`` (uint8 crops) and ``mirror_ball`` (their lighting)
+            (:meth:`~kornia_ilum.train.recipes.Recipe.probe`).
+        tolerance: the largest change of ``L_rec`` (any sphere) that float16 weights may make.
+
     Returns:
-        ``{"file", "sha256", "dtype", "l_rec_change"}``.
+        ``{"file", "sha256", "dtype", "l_rec_change"}``, and ``l_rec_probe``: the float32 weights' ``L_rec``
+        on the probe per sphere.
+
+    Examples:
+        Not run here: the first ``L_rec`` of a process builds the spheres' render operators, which is slow.
+
+        >>> import tempfile
+        >>> from types import SimpleNamespace
+        >>> class Constant(torch.nn.Module):  # a lighting of 1 everywhere, whatever the crop
+        ...     def __init__(self):
+        ...         super().__init__()
+        ...         self.light = torch.nn.Parameter(torch.ones(3, 1, 1))
+        ...     def forward(self, crops):
+        ...         return SimpleNamespace(mirror_ball=self.light.expand(len(crops), 3, 32, 32))
+        >>> probe = {"image": torch.zeros(2, 3, 8, 8, dtype=torch.uint8), "mirror_ball": torch.ones(2, 3, 32, 32)}
+        >>> with tempfile.TemporaryDirectory() as run:  # doctest: +SKIP
+        ...     done = export_weights(Constant(), Path(run) / "constant.safetensors", probe)
+        >>> done["file"], done["dtype"], done["l_rec_change"]  # doctest: +SKIP
+        ('constant.safetensors', 'float16', 0.0)
     """
     crops = probe["image"].float() / 255.0
     truth = probe["mirror_ball"].float()

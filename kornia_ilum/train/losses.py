@@ -92,6 +92,16 @@ def log_l2_loss(pred: dict[int, torch.Tensor], truth: dict[int, torch.Tensor], l
         truth: the ground truth at the same sizes (:func:`~kornia_ilum.render.mirror_ball_pyramid`).
         lambda_scale: the weight of each scale.
 
+    Returns:
+        the loss, a float32 scalar (negative radiance counts as 0).
+
+    Shape:
+        - pred[size], truth[size]: :math:`(B, 3, size, size)`
+        - Output: :math:`()`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" (only the texels on the ball count) and "Units of lighting".
+
     Examples:
         >>> light = {4: torch.ones(2, 3, 4, 4), 32: torch.ones(2, 3, 32, 32)}
         >>> float(log_l2_loss(light, light))
@@ -125,6 +135,16 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
         pred: ``(B, 3, S, S)`` predicted linear mirror-ball lighting.
         target: ``(B, 3, S, S)`` ground truth at the same size.
         eps: added to both energies (in the lighting's units times steradians), for black lightings.
+
+    Returns:
+        the loss, a float32 scalar.
+
+    Shape:
+        - pred, target: :math:`(B, 3, S, S)`
+        - Output: :math:`()`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" and "Units of lighting": both lightings in the same units.
 
     Examples:
         >>> light = torch.ones(2, 3, 32, 32)

@@ -63,12 +63,50 @@ PROBE_SIZE = 32
 
 def batch_images(batch: dict[str, Any], key: str, device: torch.device,
                  memory: torch.memory_format = torch.contiguous_format) -> torch.Tensor:
-    """``batch[key]`` (uint8 codes) as float32 in ``[0, 1]`` on ``device``, in memory format ``memory``."""
+    """``batch[key]`` (uint8 codes) as float32 in ``[0, 1]`` on ``device``, in memory format ``memory``.
+
+    Args:
+        batch: a collated batch (:func:`~kornia_ilum.train.data.collate`).
+        key: the images to take (``"image"``, ``"pair_image"``).
+        device: where the result goes (copied without blocking).
+        memory: the result's memory format (:attr:`~kornia_ilum.train.RuntimeSettings.memory_format`).
+
+    Returns:
+        the images divided by 255, float32.
+
+    Shape:
+        - batch[key]: :math:`(B, 3, S, S)` uint8
+        - Output: :math:`(B, 3, S, S)` float32
+
+    Convention:
+        sRGB codes in, sRGB values in ``[0, 1]`` out (docs/conventions.rst, "Images").
+
+    Examples:
+        >>> batch = {"image": torch.full((2, 3, 4, 4), 255, dtype=torch.uint8)}
+        >>> crops = batch_images(batch, "image", torch.device("cpu"), torch.channels_last)
+        >>> crops.dtype, float(crops.max()), crops.is_contiguous(memory_format=torch.channels_last)
+        (torch.float32, 1.0, True)
+    """
     return batch[key].to(device, non_blocking=True).float().div_(255.0).contiguous(memory_format=memory)
 
 
 class Recipe:
-    """The default recipe: a multi-scale lighting generator plus an optional discriminator."""
+    """The default recipe: a multi-scale lighting generator plus an optional discriminator.
+
+    A subclass sets :attr:`name` and implements :meth:`build` and :meth:`estimator`; the other methods have
+    defaults (the data as it is, :func:`~kornia_ilum.train.data.batch_loader`, :func:`train_step`, no extra
+    loss, a probe batch of the training distribution, no output scaling). It is found through
+    :data:`RECIPE_ENTRY_POINT_GROUP` (:func:`get_recipe`).
+
+    Examples:
+        >>> recipe = Recipe()
+        >>> recipe.extra_losses({32: torch.ones(1, 3, 32, 32)}), recipe.log_fields
+        ({}, ())
+        >>> recipe.build()
+        Traceback (most recent call last):
+        ...
+        NotImplementedError
+    """
 
     name = ""
     #: Columns of ``log.csv`` beyond the common ones, taken from :meth:`step`'s result by name.
@@ -139,7 +177,17 @@ class Recipe:
 
 
 class OursRecipe(Recipe):
-    """``ours``: :class:`~kornia_ilum.train.models.MultiScaleOurs` with the MSG-GAN discriminator."""
+    """``ours``: :class:`~kornia_ilum.train.models.MultiScaleOurs` with the MSG-GAN discriminator.
+
+    Its ``build`` options are :class:`~kornia_ilum.estimators.OursEstimator`'s; the exported estimator is the
+    generator's ``estimator``, and its energy calibration adds ``log(gain)`` to the head's bias (exact).
+
+    Examples:
+        >>> recipe = OursRecipe()
+        >>> model, disc = recipe.build(normalize_exposure=False)
+        >>> type(model).__name__, type(disc).__name__, recipe.estimator(model) is model.estimator
+        ('MultiScaleOurs', 'MSGDiscriminator', True)
+    """
 
     name = "ours"
 
@@ -200,6 +248,19 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
     scaled by ``c`` lie about ``c^(1/2.2)`` times as far apart. (Measured, that pull was not what made the
     fine-tuned estimates dark: docs/training.rst, "Why the energy drifts low".)
 
+    Args:
+        pred: ``{size: (B, 3, size, size)}`` the generator's linear lighting per scale; only the finest is read.
+        pairs: the number of pairs ``P`` at the ends of the batch (:func:`crop_pairs`).
+        brdf_weights: ``lambda_k`` per sphere.
+
+    Returns:
+        the term, a scalar (:func:`~kornia_ilum.train.losses.training_losses` with the first crops of the pairs
+        as the truth of the second).
+
+    Shape:
+        - pred[size]: :math:`(B, 3, size, size)`, :math:`B \ge 2P`
+        - Output: :math:`()`
+
     Examples:
         >>> light = torch.ones(4, 3, 32, 32)
         >>> float(crop_consistency({32: light}, 2, {"diffuse": 1.0}))
@@ -255,6 +316,28 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
         without pairs), ``energy`` (:func:`~kornia_ilum.train.losses.energy_loss`, 0 without
         ``lambda_energy``) and ``rec_<brdf>`` (at 32 px).
+
+    Examples:
+        One step of a toy generator, a constant lighting, without a discriminator (not run here: the first
+        optimiser of a process imports ``torch._dynamo``, which is slow):
+
+        >>> class Constant(nn.Module):
+        ...     def __init__(self):
+        ...         super().__init__()
+        ...         self.light = nn.Parameter(torch.ones(3, 1, 1))
+        ...     def forward(self, crops):
+        ...         return {32: self.light.expand(len(crops), 3, 32, 32)}
+        >>> model = Constant()
+        >>> config = TrainConfig(out="runs/toy", cache=("lightstage/",), lambda_adv=0.0,
+        ...                      brdf_weights={"mirror": 1.0})
+        >>> opt_g = torch.optim.SGD(model.parameters(), lr=0.1)  # doctest: +SKIP
+        >>> losses = train_step(model=model, disc=None, opt_g=opt_g, opt_d=None, crops=torch.rand(2, 3, 8, 8),
+        ...                     target=torch.ones(2, 3, 32, 32), config=config,
+        ...                     runtime=RuntimeSettings(bf16=False, channels_last=False, workers=0))  # doctest: +SKIP
+        >>> sorted(losses)  # doctest: +SKIP
+        ['adv', 'crop', 'disc', 'energy', 'extra', 'loss', 'rec', 'rec_mirror']
+        >>> round(losses["loss"].item(), 6)  # doctest: +SKIP
+        0.0
     """
     memory = runtime.memory_format
     autocast = torch.autocast(crops.device.type, dtype=torch.bfloat16, enabled=runtime.bf16)
@@ -320,6 +403,9 @@ def _recipe_classes() -> dict[str, type[Recipe]]:
 def list_recipes() -> list[str]:
     """The estimators that ``kornia-ilum train`` can train: the names of the recipe entry points, sorted.
 
+    Returns:
+        the names (broken entry points are left out with a :class:`RuntimeWarning`).
+
     Examples:
         >>> "ours" in list_recipes()
         True
@@ -329,6 +415,12 @@ def list_recipes() -> list[str]:
 
 def get_recipe(name: str) -> Recipe:
     """The recipe of estimator ``name``, from :data:`RECIPE_ENTRY_POINT_GROUP`.
+
+    Args:
+        name: the estimator's registry name (:func:`list_recipes`).
+
+    Returns:
+        a new instance of its recipe class.
 
     Raises:
         ValueCheckError: no recipe for ``name``.

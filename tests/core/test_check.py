@@ -7,7 +7,7 @@ import threading
 import pytest
 import torch
 
-from kornia_ilum.core import NonFiniteError, check_tensor, checks_active, trusted
+from kornia_ilum.core import NonFiniteError, ShapeError, check_tensor, checks_active, trusted
 
 
 def test_trusted_skips_checks_only_inside_the_block() -> None:
@@ -33,3 +33,14 @@ def test_trusted_is_local_to_its_thread() -> None:
         thread.start()
         thread.join()
     assert seen == [True]
+
+
+def test_a_dimension_name_used_twice_means_one_size() -> None:
+    """A non-square mirror ball is a ShapeError where it enters, not a broadcasting error deep inside an op."""
+    from kornia_ilum.metrics import total_radiance  # lazy: a higher layer, used here as the example of the bug
+
+    check_tensor(torch.zeros(2, 3, 8, 8), "mirror_ball", ["B", "3", "S", "S"])
+    with pytest.raises(ShapeError, match=r"\(B, 3, S, S\), got \(2, 3, 8, 6\)"):
+        check_tensor(torch.zeros(2, 3, 8, 6), "mirror_ball", ["B", "3", "S", "S"])
+    with pytest.raises(ShapeError, match="mirror_ball must have shape"):
+        total_radiance(torch.ones(1, 3, 32, 16))

@@ -259,6 +259,20 @@ class TestYuNetFaceDetector:
         assert dets[0, 4] > 0.99
         assert not yunet.model.training
 
+    def test_no_face_in_a_motorcycle_or_a_cat(self, yunet, astronaut):
+        """The default threshold rejects the false faces measured on scikit-image's face-free photographs
+        (``benchmarks/bench_detection.py --yunet-thresholds``: a motorcycle's headlights 0.92, the only one above
+        0.9 of 19; a cat 0.78), and keeps real faces (the astronaut 1.0, the cameraman 0.94)."""
+        motorcycle = to_tensor(skimage.data.stereo_motorcycle()[0])
+        cat = to_tensor(skimage.data.chelsea())
+        for image in (motorcycle, cat):
+            assert yunet.detect(image)[0].shape == (0, 5)
+        looser = YuNetFaceDetector(weights_path=yunet.weights_path, confidence_threshold=0.9)
+        assert looser.detect(motorcycle)[0].shape[0] == 1  # the earlier default let it through
+        cameraman = torch.from_numpy(skimage.data.camera().astype("float32") / 255)[None].expand(3, -1, -1)
+        for image in (astronaut, cameraman.contiguous()):
+            assert yunet.detect(image)[0].shape[0] == 1
+
     def test_device(self, yunet_weights, astronaut, device):
         """The network runs on its own device; boxes come back on the image's device."""
         det = YuNetFaceDetector(weights_path=yunet_weights).to(device)
