@@ -128,7 +128,7 @@ def lighting_cases(kind: str, dtype: torch.dtype, device: str | torch.device = "
     if kind == "log":
         return {f"log {y:g}": torch.tensor([y], dtype=dtype, device=device) for y in LOG_LEVELS}
     shape = (1, 3, 32, 32) if kind == "mirror_ball" else (1, 3, 32, 64)
-    valid = mirror_ball_valid(32).to(device) if kind == "mirror_ball" else torch.ones(32, 64, dtype=torch.bool)
+    valid = mirror_ball_valid(32) if kind == "mirror_ball" else torch.ones(32, 64, dtype=torch.bool)  # on the CPU
     cases = {f"uniform {v:g}": torch.full(shape, v, dtype=torch.float64) for v in LEVELS}
     sun = torch.full(shape, 1e-3, dtype=torch.float64)
     sun[..., 10, 20] = 1e6

@@ -53,3 +53,10 @@ def test_the_table_lists_failures_first() -> None:
     rows = [StressRow("a", "float32", "x", "ok", "fine"), StressRow("b", "float16", "y", "garbage", "NaN")]
     text = format_stress(rows)
     assert text.index("| b |") < text.index("| a |") and "garbage: 1, ok: 1" in text
+
+
+def test_lighting_cases_on_another_device() -> None:
+    """The cases are built on the CPU and moved: a device other than the CPU gets them all (``meta`` here)."""
+    for kind in ("mirror_ball", "latlong"):
+        cases = lighting_cases(kind, torch.float32, "meta")
+        assert all(v.device.type == "meta" and v.dtype == torch.float32 for v in cases.values())
