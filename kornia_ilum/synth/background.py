@@ -54,6 +54,13 @@ def axis_rotation(axis: int, degrees: float) -> torch.Tensor:
     :func:`~kornia_ilum.synth.environments.lighting_rotation`. ``degrees`` is not checked here
     (:func:`camera_rotation` checks its angles).
 
+    Args:
+        axis: the axis of rotation, 0 (X), 1 (Y) or 2 (Z).
+        degrees: the angle in degrees, counter-clockwise when looking down the axis towards the origin.
+
+    Returns:
+        the rotation matrix ``(3, 3)``, float64, on the CPU.
+
     Raises:
         ValueCheckError: ``axis`` is not 0, 1 or 2.
 
@@ -73,6 +80,22 @@ def axis_rotation(axis: int, degrees: float) -> torch.Tensor:
 
 def camera_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float = 0.0) -> torch.Tensor:
     r"""The camera rotation ``R = R_y(yaw) R_x(pitch) R_z(roll)`` of :func:`render_background`, float64.
+
+    Args:
+        yaw_deg: camera yaw in degrees (about +Y; positive turns left).
+        pitch_deg: camera pitch in degrees (about +X; positive looks up).
+        roll_deg: camera roll in degrees (about the optical axis; positive turns the camera counter-clockwise).
+
+    Returns:
+        the rotation matrix ``(3, 3)``, float64, on the CPU: a ray ``r`` of the unrotated camera looks along
+        ``R r``.
+
+    Raises:
+        TypeCheckError: an angle is not a number.
+        ValueCheckError: an angle is not finite.
+
+    Convention:
+        Frame of docs/conventions.rst ("Frames"); the rotation convention is in the module docstring.
 
     Examples:
         >>> forward = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)
@@ -102,6 +125,11 @@ def sample_latlong(latlong: torch.Tensor, directions: torch.Tensor) -> torch.Ten
 
     Returns:
         the values ``(C, ...)`` (``(B, C, ...)`` for a batch) in the dtype and on the device of ``latlong``.
+
+    Shape:
+        - latlong: :math:`(C, H, 2H)` or :math:`(B, C, H, 2H)`
+        - directions: :math:`(*, 3)`, or :math:`(B, *, 3)` / :math:`(1, *, 3)` with a batch
+        - Output: :math:`(C, *)` or :math:`(B, C, *)`
 
     Convention:
         Lat-long grid of docs/conventions.rst; interpolation as in
@@ -148,6 +176,18 @@ def latlong_grid(directions: torch.Tensor, rows: int) -> torch.Tensor:
     Returns:
         ``(..., 2)`` normalised ``grid_sample`` coordinates (``align_corners=True``) into the map padded by one
         pixel on every side.
+
+    Shape:
+        - directions: :math:`(*, 3)`
+        - Output: :math:`(*, 2)`
+
+    Convention:
+        Lat-long grid of docs/conventions.rst ("Lat-long").
+
+    Examples:
+        >>> grid = latlong_grid(torch.tensor([[0.0, 0.0, -1.0]]), 4)  # forward: the centre of the map
+        >>> grid.dtype, tuple(grid.shape), [round(v, 4) for v in grid[0].tolist()]
+        (torch.float64, (1, 2), [0.0, 0.0])
     """
     check_tensor(directions, "directions", ["*", "3"])
     check_positive_int(rows, "rows")
@@ -160,6 +200,29 @@ def lookup_latlong(latlong: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
     r"""Bilinear lookup of lat-long maps ``(B, C, H, 2H)`` at a :func:`latlong_grid` ``(B | 1, h, w, 2)``.
 
     Returns ``(B, C, h, w)``; no value checks (:func:`sample_latlong` is the checked entry point).
+
+    Args:
+        latlong: lat-long maps ``(B, C, H, 2H)``.
+        grid: the :func:`latlong_grid` of the directions, ``(B, h, w, 2)`` or ``(1, h, w, 2)`` (one grid for
+            all maps); cast to the dtype of ``latlong``.
+
+    Returns:
+        the values ``(B, C, h, w)`` in the dtype and on the device of ``latlong``.
+
+    Shape:
+        - latlong: :math:`(B, C, H, 2H)`
+        - grid: :math:`(B, h, w, 2)` or :math:`(1, h, w, 2)`
+        - Output: :math:`(B, C, h, w)`
+
+    Convention:
+        Lat-long grid of docs/conventions.rst ("Lat-long"); point sampling, as :func:`sample_latlong`.
+
+    Examples:
+        >>> env = torch.zeros(1, 1, 2, 4)
+        >>> env[..., 1:3] = 1.0  # the two centre columns: forward
+        >>> grid = latlong_grid(torch.tensor([[[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]]]), 2)  # (1, 1, 2, 2)
+        >>> lookup_latlong(env, grid).flatten().round(decimals=4)
+        tensor([1., 0.])
     """
     return resample_bilinear(latlong, ("latlong", latlong.shape[-2]), grid.to(latlong.dtype), None)
 
@@ -195,6 +258,14 @@ def camera_rays(
 
     Returns:
         ``(n h, n w, 3)`` unit directions; the focal length is ``(w / 2) / tan(fov / 2)`` pixels.
+
+    Shape:
+        - rotation: :math:`(3, 3)`
+        - Output: :math:`(n h, n w, 3)`
+
+    Convention:
+        Camera of docs/conventions.rst ("Frames"), rotated as in the module docstring: row 0 is the top of the
+        image, and the unrotated centre ray looks along -Z.
 
     Examples:
         >>> rays = camera_rays((1, 3), 90.0, torch.eye(3, dtype=torch.float64))
@@ -245,6 +316,12 @@ def render_background(
     Returns:
         ``(3, h, w)`` ``torch.uint8`` sRGB image on the device of ``latlong``.
 
+    Raises:
+        ShapeError: ``latlong`` is not ``(3, H, 2H)``.
+        ValueCheckError: negative lighting, ``fov_deg`` outside ``(0, 180)``, non-positive ``exposure``.
+        NonFiniteError: NaN or Inf in ``latlong``.
+        TypeCheckError: ``size`` is not a pair of ints, an angle is not a number.
+
     Shape:
         - latlong: :math:`(3, H, 2H)`
         - Output: :math:`(3, h, w)`
@@ -252,12 +329,6 @@ def render_background(
     Convention:
         Camera (looks along -Z, +X right, +Y up) and lat-long grid of docs/conventions.rst; the rotation
         convention is in the module docstring: with ``yaw_deg=90`` the centre pixel sees -X.
-
-    Raises:
-        ShapeError: ``latlong`` is not ``(3, H, 2H)``.
-        ValueCheckError: negative lighting, ``fov_deg`` outside ``(0, 180)``, non-positive ``exposure``.
-        NonFiniteError: NaN or Inf in ``latlong``.
-        TypeCheckError: ``size`` is not a pair of ints, an angle is not a number.
 
     Examples:
         >>> sky = torch.ones(3, 16, 32)

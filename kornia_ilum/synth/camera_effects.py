@@ -115,6 +115,14 @@ def lens_blur(image: torch.Tensor, sigma: torch.Tensor | float) -> torch.Tensor:
         plane (faster than grouped convolutions on one core); others through one grouped convolution per
         axis (the same values up to float rounding).
 
+    Shape:
+        - image: :math:`(B, C, H, W)`
+        - sigma: a number or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float, linear values (HDR allowed).
+
     Examples:
         >>> x = torch.zeros(2, 1, 9, 9); x[:, :, 4, 4] = 1.0
         >>> y = lens_blur(x, torch.tensor([0.0, 1.0]))
@@ -187,6 +195,20 @@ def vignette(image: torch.Tensor, strength: torch.Tensor | float) -> torch.Tenso
         image: ``(B, C, H, W)`` float images (linear).
         strength: in ``[0, 1]``, a number or ``(B,)``; 0 leaves an image unchanged.
 
+    Returns:
+        the darkened images ``(B, C, H, W)``, in the dtype and on the device of ``image``.
+
+    Raises:
+        ValueCheckError: ``strength`` outside ``[0, 1]`` or not finite.
+
+    Shape:
+        - image: :math:`(B, C, H, W)`
+        - strength: a number or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float, linear values (HDR allowed).
+
     Examples:
         >>> y = vignette(torch.ones(1, 1, 4, 4), 0.5)
         >>> round(y[0, 0, 0, 0].item(), 4), round(y[0, 0, 1, 1].item(), 4)  # a corner pixel, an inner pixel
@@ -205,6 +227,13 @@ def read_noise_for_shot(shot: torch.Tensor | float) -> torch.Tensor:
     r"""The read-noise standard deviation that goes with a shot-noise gain on phone sensors (Brooks et al. 2019).
 
     ``log(read^2) = 2.18 log(shot) + 1.2``; ``shot = 0`` gives 0.
+
+    Args:
+        shot: the shot-noise gain (the variance per unit of linear signal), a number or a tensor of any shape,
+            non-negative.
+
+    Returns:
+        the read-noise standard deviation, float64, in the shape of ``shot`` (a 0-d tensor for a number).
 
     Examples:
         >>> round(read_noise_for_shot(1e-3).item(), 5)
@@ -236,6 +265,15 @@ def sensor_noise(
 
     Returns:
         ``(B, C, H, W)``; ``shot = read = 0`` returns the input's values.
+
+    Shape:
+        - linear: :math:`(B, C, H, W)`
+        - shot, read: numbers or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float, linear values in the units of the
+        exposed image, before any tone mapping.
 
     Examples:
         >>> x = torch.full((2, 3, 64, 64), 0.25)
@@ -272,6 +310,15 @@ def tone_curve(image: torch.Tensor, contrast: torch.Tensor | float, gamma: torch
 
     Returns:
         ``(B, C, H, W)`` in ``[0, 1]``; monotone, 0 and 1 stay fixed, ``contrast=0, gamma=1`` is the identity.
+
+    Shape:
+        - image: :math:`(B, C, H, W)`
+        - contrast, gamma: numbers or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float, sRGB-encoded values in
+        :math:`[0, 1]` (LDR), not linear ones.
 
     Examples:
         >>> x = torch.tensor([0.0, 0.25, 0.5, 1.0]).reshape(1, 1, 1, 4)
@@ -324,6 +371,15 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
 
     Returns:
         ``(B, C, H, W)`` ``torch.uint8``.
+
+    Shape:
+        - linear: :math:`(B, C, H, W)`
+        - contrast, gamma: numbers or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`, ``torch.uint8``
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float linear values in, 8-bit sRGB codes
+        (with the tone curve) out.
 
     Examples:
         >>> x = torch.tensor([0.0, 0.2140, 1.0, 7.0]).reshape(1, 1, 1, 4)
@@ -415,6 +471,14 @@ def jpeg_compress(image: torch.Tensor, quality: torch.Tensor | int | float) -> t
 
     Returns:
         the decoded images, of the dtype of ``image`` (floats: codes / 255).
+
+    Shape:
+        - image: :math:`(B, 3, H, W)`
+        - quality: a number or :math:`(B,)`
+        - Output: :math:`(B, 3, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): RGB, sRGB-encoded (8-bit codes or floats in :math:`[0, 1]`).
 
     Examples:
         >>> x = (torch.rand(1, 3, 16, 16, generator=torch.Generator().manual_seed(0)) * 255).to(torch.uint8)

@@ -92,6 +92,9 @@ def add_synth_environments_parser(subparsers: argparse._SubParsersAction) -> arg
 
     The ``environments`` parser's defaults hold ``func=run_synth_environments``.
 
+    Args:
+        subparsers: the subparsers action of the top-level parser (``parser.add_subparsers(...)``).
+
     Returns:
         the ``environments`` parser.
 
@@ -133,9 +136,22 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     ``args`` needs ``folder``, ``n``, ``seed``, ``out``, ``height``; ``sheet`` (default 48) and
     ``no_augment`` (default False) are optional.
 
+    Args:
+        args: the arguments parsed by the parser of :func:`add_synth_environments_parser`.
+
+    Returns:
+        the exit status, 0.
+
     Raises:
         HDRIOError: ``folder`` does not exist or holds no map.
         IlumError: matplotlib (needed for the figures; in the ``docs`` extra) is not installed.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
+        >>> _ = add_synth_environments_parser(parser.add_subparsers(dest="command"))
+        >>> args = parser.parse_args(["synth", "environments", "-n", "2", "--out", "envs"])
+        >>> args.func is run_synth_environments  # what `kornia-ilum synth environments` calls
+        True
     """
     # lazy: the statistics import the environments, a heavy import that only this sub-command needs
     from kornia_ilum.synth.stats import (
@@ -217,6 +233,15 @@ examples:
 def parse_seeds(text: str) -> list[int]:
     """Subject seeds from ``"0-9"``, ``"3,5,8"`` or a mix (``"0-4,10"``); ranges include both ends.
 
+    Args:
+        text: comma-separated seeds and inclusive ranges ``LO-HI``.
+
+    Returns:
+        the seeds in the order given, each once.
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is not of that form, or names no seed.
+
     Examples:
         >>> parse_seeds("0-3,7")
         [0, 1, 2, 3, 7]
@@ -257,6 +282,13 @@ def split_seeds(seeds: Sequence[int], split: str | None) -> list[int]:
     """The seeds whose :func:`~kornia_ilum.synth.lightstage.subject_split` is ``split`` (all for ``None`` or
     ``"all"``), in order.
 
+    Args:
+        seeds: subject seeds.
+        split: ``"train"``, ``"eval"``, ``"all"`` or ``None`` (all).
+
+    Returns:
+        the seeds of ``split``, in the order of ``seeds``.
+
     Examples:
         >>> split_seeds(range(6), "eval"), split_seeds([0, 1], "all")
         ([1, 3], [0, 1])
@@ -271,6 +303,14 @@ def split_seeds(seeds: Sequence[int], split: str | None) -> list[int]:
 
 def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``synth subjects`` to ``subparsers`` (reusing a ``synth`` command that is already there).
+
+    The ``subjects`` parser's defaults hold ``func=run_synth_subjects``.
+
+    Args:
+        subparsers: the subparsers action of the top-level parser (``parser.add_subparsers(...)``).
+
+    Returns:
+        the ``subjects`` parser.
 
     Examples:
         >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
@@ -345,10 +385,24 @@ def _subject_source(name: str | None, assets: str | None):
 def run_synth_subjects(args: argparse.Namespace) -> int:
     """Run ``synth subjects`` from parsed arguments (module docstring); returns 0.
 
+    Args:
+        args: the arguments parsed by the parser of :func:`add_synth_subjects_parser`.
+
+    Returns:
+        the exit status, 0.
+
     Raises:
         ImportError: Mitsuba (the ``lightstage`` extra) is not installed.
         IlumError: matplotlib is not installed and a sheet is asked for; ``--source makehuman`` without its
             assets (exit status 1).
+        ValueCheckError: an explicit ``--split`` leaves no seed of ``--seeds``.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
+        >>> _ = add_synth_subjects_parser(parser.add_subparsers(dest="command"))
+        >>> args = parser.parse_args(["synth", "subjects", "--seeds", "0-3", "--split", "eval"])
+        >>> args.func is run_synth_subjects, args.split_given, split_seeds(args.seeds, args.split)
+        (True, True, [1, 3])
     """
     # lazy: the light-stage package is a heavy import that only this sub-command needs
     from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache, cache_summary
@@ -404,6 +458,14 @@ examples:
 def add_synth_check_skin_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add ``synth check-skin`` to ``subparsers`` (reusing a ``synth`` command that is already there).
 
+    The ``check-skin`` parser's defaults hold ``func=run_synth_check_skin``.
+
+    Args:
+        subparsers: the subparsers action of the top-level parser (``parser.add_subparsers(...)``).
+
+    Returns:
+        the ``check-skin`` parser.
+
     Examples:
         >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
         >>> cmd = add_synth_check_skin_parser(parser.add_subparsers(dest="command"))
@@ -434,9 +496,22 @@ def add_synth_check_skin_parser(subparsers: argparse._SubParsersAction) -> argpa
 def run_synth_check_skin(args: argparse.Namespace) -> int:
     """Run ``synth check-skin`` from parsed arguments; returns 0 when every subject-view passes, else 1.
 
+    Args:
+        args: the arguments parsed by the parser of :func:`add_synth_check_skin_parser`.
+
+    Returns:
+        the exit status: 0 when every subject-view passes, else 1.
+
     Raises:
         ValueCheckError: a cache of an older light stage (no albedo and skin buffers), or one without a subject
             of the split.
+
+    Examples:
+        >>> parser = argparse.ArgumentParser(prog="kornia-ilum")
+        >>> _ = add_synth_check_skin_parser(parser.add_subparsers(dest="command"))
+        >>> args = parser.parse_args(["synth", "check-skin", "--cache", "a", "--cache", "b", "--split", "all"])
+        >>> args.func is run_synth_check_skin, args.cache, args.split
+        (True, ['a', 'b'], 'all')
     """
     import dataclasses  # lazy: only this sub-command writes JSON rows
     import json  # lazy: as above

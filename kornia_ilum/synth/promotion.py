@@ -127,6 +127,12 @@ class PromotionResult:
         clipped: ``(B, S, S)`` bool, the directions whose mirror pixel had a clipped channel (the unknowns).
         residual: ``(B, 3, S, S)`` the solved ``U >= 0`` (0 off the clipped directions).
         solved: ``(B,)`` bool, whether a solve ran (False when nothing was clipped).
+
+    Examples:
+        >>> out = PromotionResult(torch.ones(1, 3, 8, 8), torch.zeros(1, 8, 8, dtype=torch.bool),
+        ...                       torch.zeros(1, 3, 8, 8), torch.tensor([False]))  # nothing was clipped
+        >>> out.solved.tolist(), int(out.clipped.sum()), tuple(out.lighting.shape)
+        ([False], 0, (1, 3, 8, 8))
     """
 
     lighting: torch.Tensor
@@ -514,6 +520,13 @@ def promote_spheres(
         the inputs' float dtype (float32 for ``uint8``) and on their device; everything is computed in
         float64 (a half-precision result can overflow where a sun is brighter than 65504).
 
+    Raises:
+        TypeCheckError: an input is no tensor, not uint8/float, or dtypes differ; a parameter is no number.
+        ShapeError: wrong or mismatched shapes, or ``S`` not in :data:`~kornia_ilum.render.SPHERE_SIZES`.
+        ValueCheckError: values outside ``[0, 1]``, devices differ, or a bad ``lam``/``gamma``/
+            ``clip_threshold``/``method``/``balance``.
+        NonFiniteError: NaN or Inf in an input.
+
     Shape:
         - mirror_ldr, diffuse_ldr, matte_ldr: :math:`(B, 3, S, S)`
         - lighting, residual: :math:`(B, 3, S, S)`; clipped: :math:`(B, S, S)`; solved: :math:`(B,)`
@@ -523,13 +536,6 @@ def promote_spheres(
         GGX 0.3, mirror 0.827) seen orthographically along -Z in the mirror-ball grid, which is also the
         lighting's grid (mirror pixel ``(i, j)`` reflects lighting direction ``(i, j)``); lighting in the
         units of the linear photograph.
-
-    Raises:
-        TypeCheckError: an input is no tensor, not uint8/float, or dtypes differ; a parameter is no number.
-        ShapeError: wrong or mismatched shapes, or ``S`` not in :data:`~kornia_ilum.render.SPHERE_SIZES`.
-        ValueCheckError: values outside ``[0, 1]``, devices differ, or a bad ``lam``/``gamma``/
-            ``clip_threshold``/``method``/``balance``.
-        NonFiniteError: NaN or Inf in an input.
 
     Examples:
         >>> from kornia_ilum.color import gamma_encode, quantize

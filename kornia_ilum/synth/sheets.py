@@ -30,8 +30,17 @@ __all__ = ["require_matplotlib", "save_figure", "tone_map_tile", "write_contact_
 def require_matplotlib(command: str) -> None:
     """Raise :class:`~kornia_ilum.core.errors.IlumError` naming ``command`` when matplotlib is not installed.
 
+    Args:
+        command: the command that needs matplotlib, named in the error (``"synth environments"``).
+
+    Returns:
+        ``None``; it raises when matplotlib is missing.
+
     Raises:
         IlumError: matplotlib cannot be imported.
+
+    Examples:
+        >>> require_matplotlib("synth environments")  # matplotlib is installed: nothing happens
     """
     try:
         import matplotlib  # noqa: F401  # lazy: an optional dependency, only probed here
@@ -53,6 +62,13 @@ def tone_map_tile(mirror_ball: torch.Tensor) -> torch.Tensor:
 
     Returns:
         ``(3, 32, 4 x 32 + 3 x 2)`` sRGB image (2-pixel white gaps), float in ``[0, 1]``.
+
+    Shape:
+        - mirror_ball: :math:`(3, 32, 32)`
+        - Output: :math:`(3, 32, 134)`
+
+    Convention:
+        Mirror-ball lighting and reference spheres of docs/conventions.rst, linear in; sRGB-encoded out.
 
     Examples:
         >>> tone_map_tile(torch.ones(3, 32, 32)).shape
@@ -87,6 +103,24 @@ def write_contact_sheet(
 
     With ``palette`` the PNG is stored with a 256-colour adaptive palette (Pillow, which matplotlib
     requires), dithered: about 410 KB for 48 tiles instead of 550 KB in true colour.
+
+    Args:
+        envs: the environments (:class:`~kornia_ilum.synth.environments.Environment`), one tile each.
+        path: the PNG to write (missing parent folders are created).
+        columns: tiles per row.
+        dpi: the PNG's dots per inch.
+        palette: store a 256-colour palette PNG (:func:`save_figure`).
+
+    Returns:
+        ``None``; the sheet is written to ``path``.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     write_contact_sheet([], Path(d) / "empty.png", dpi=20)  # no environment: only the title
+        ...     (Path(d) / "empty.png").read_bytes()[1:4]
+        b'PNG'
+        >>> write_contact_sheet(envs, "envs/contact_sheet.png")  # one tile per environment  # doctest: +SKIP
     """
     tiles = [tone_map_tile(env.mirror_ball) for env in envs]
     title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
@@ -118,6 +152,18 @@ def write_grid(
         fontsize: the captions' font size, in points.
         dpi: the PNG's dots per inch.
         palette: store a 256-colour palette PNG (:func:`save_figure`).
+
+    Returns:
+        ``None``; the grid is written to ``path``.
+
+    Examples:
+        >>> import tempfile
+        >>> tiles = [torch.zeros(3, 4, 4), torch.ones(3, 4, 4)]
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     write_grid(tiles, ["black", "white"], "two tiles", Path(d) / "sub" / "grid.png", columns=2,
+        ...                cell=(1.0, 1.0), fontsize=6, dpi=20, palette=False)
+        ...     (Path(d) / "sub" / "grid.png").is_file()
+        True
     """
     import matplotlib  # lazy: an optional dependency, loaded only to draw
 
@@ -139,7 +185,28 @@ def write_grid(
 
 def save_figure(fig, path: str | Path, dpi: int, palette: bool) -> None:
     """Save and close a matplotlib figure; with ``palette`` as a 256-colour adaptive-palette PNG (Pillow's
-    median cut, with Floyd-Steinberg dithering so that smooth shading does not band)."""
+    median cut, with Floyd-Steinberg dithering so that smooth shading does not band).
+
+    Args:
+        fig: the matplotlib figure; it is closed.
+        path: the PNG to write (missing parent folders are created).
+        dpi: the PNG's dots per inch.
+        palette: store a 256-colour palette PNG instead of true colour.
+
+    Returns:
+        ``None``; the figure is written to ``path``.
+
+    Examples:
+        >>> import tempfile
+        >>> import matplotlib.pyplot as plt
+        >>> from PIL import Image
+        >>> fig = plt.figure(figsize=(1, 1))
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     save_figure(fig, Path(d) / "fig.png", dpi=20, palette=True)
+        ...     with Image.open(Path(d) / "fig.png") as png:
+        ...         png.mode, png.size
+        ('P', (20, 20))
+    """
     import matplotlib.pyplot as plt  # lazy: an optional dependency, loaded only to draw
 
     path = Path(path)

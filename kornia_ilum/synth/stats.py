@@ -102,6 +102,18 @@ def cct_mccamy(rgb: torch.Tensor) -> float:
 
     Returns ``nan`` for black.
 
+    Args:
+        rgb: a linear sRGB colour ``(3,)``, non-negative (any device and float dtype).
+
+    Returns:
+        the correlated colour temperature in kelvin, or ``nan`` for black.
+
+    Shape:
+        - rgb: :math:`(3,)`
+
+    Convention:
+        Linear sRGB (Rec. 709 primaries, D65), the colours of docs/conventions.rst ("Images").
+
     Examples:
         >>> round(cct_mccamy(torch.tensor([1.0, 1.0, 1.0])))  # sRGB white, D65 (6504 K)
         6503
@@ -128,17 +140,17 @@ def lighting_stats(lighting: torch.Tensor, layout: str = "mirror_ball") -> dict[
         ``{"dynamic_range_stops", "peak_to_mean", "cct_kelvin", "top1_energy"}`` as floats (``nan`` for a
         black map).
 
+    Raises:
+        ShapeError: wrong shape for ``layout``.
+        ValueCheckError: negative lighting or an unknown layout.
+        NonFiniteError: NaN or Inf.
+
     Shape:
         - lighting: :math:`(3, S, S)` or :math:`(3, H, 2H)`
 
     Convention:
         Layouts of docs/conventions.rst and exact solid angles; luminance and colour in linear sRGB (Rec. 709,
         D65).
-
-    Raises:
-        ShapeError: wrong shape for ``layout``.
-        ValueCheckError: negative lighting or an unknown layout.
-        NonFiniteError: NaN or Inf.
 
     Examples:
         >>> s = lighting_stats(torch.ones(3, 32, 32))
@@ -187,6 +199,12 @@ def environment_group(env: Environment) -> str:
     ``"portrait:..."``: flash, studio, window, street, whatever their label), ``"procedural outdoor"`` /
     ``"procedural indoor"`` for the others (by label).
 
+    Args:
+        env: the environment.
+
+    Returns:
+        one of :data:`GROUP_ORDER`.
+
     Examples:
         >>> from kornia_ilum.synth.environments import Environment
         >>> env = Environment(torch.ones(3, 4, 8), torch.ones(3, 32, 32), "indoor", "indoor:room")
@@ -205,6 +223,13 @@ def environment_group(env: Environment) -> str:
 def source_group(env: Environment) -> str:
     """One group per procedural kind, its ``source`` (``"sky: clear"``, ``"portrait: flash"``, ...); the real
     maps as :func:`environment_group` (``"real"``, ``"real, augmented"``): a finer grouping for tables.
+
+    Args:
+        env: the environment.
+
+    Returns:
+        the group's name: the environment's ``source`` with a space after its first colon, or a real map's
+        group.
 
     Examples:
         >>> from kornia_ilum.synth.environments import Environment
@@ -225,6 +250,19 @@ def stats_rows(
     """One row per environment: ``{"source", "label", "group", <the four statistics>}``.
 
     Computed on the mirror balls (``layout="mirror_ball"``, the estimators' target) or the lat-long maps.
+
+    Args:
+        envs: the environments.
+        group_of: the grouping (:func:`environment_group`, :func:`source_group` or any function of an
+            environment).
+        layout: ``"mirror_ball"`` or ``"latlong"``: which of the environment's maps to measure.
+
+    Returns:
+        one dict per environment, in order: its ``source``, ``label``, ``group`` and the four statistics of
+        :func:`lighting_stats`.
+
+    Raises:
+        ShapeError, ValueCheckError, NonFiniteError: as :func:`lighting_stats`.
 
     Examples:
         >>> from kornia_ilum.synth.environments import Environment
@@ -250,6 +288,13 @@ def summarize(rows: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per group (:data:`GROUP_ORDER` first): ``n`` and, per statistic, ``(p10, median, p90)``.
 
     Percentiles interpolate linearly (:func:`torch.quantile`), ``nan`` values are left out.
+
+    Args:
+        rows: rows of :func:`stats_rows` (each with a ``group`` and any of the statistics of :data:`STATS`).
+
+    Returns:
+        ``{group: {"n": count, statistic: (p10, median, p90), ...}}``, the groups in :data:`GROUP_ORDER` and
+        then in order of first appearance; a statistic with no value in a group is left out.
 
     Examples:
         >>> rows = [{"group": "a", "peak_to_mean": v} for v in (1.0, 2.0, 3.0)]
@@ -285,6 +330,12 @@ def _fmt(key: str, v: float) -> str:
 def format_table(summary: Mapping[str, Mapping[str, Any]]) -> str:
     """The summary as a reStructuredText simple table: per group, ``median [p10, p90]`` of each statistic.
 
+    Args:
+        summary: the output of :func:`summarize`.
+
+    Returns:
+        the table, one line per group (``-`` for a missing statistic), without a final line break.
+
     Examples:
         >>> print(format_table({"real": {"n": 3, "peak_to_mean": (1.2, 2.0, 2.8)}}).splitlines()[1])
         group  n  dynamic range (stops)  peak / mean   CCT (K)  energy in top 1 %
@@ -310,7 +361,23 @@ def format_table(summary: Mapping[str, Mapping[str, Any]]) -> str:
 
 
 def write_csv(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> None:
-    """Write the rows of :func:`stats_rows` as CSV (one line per environment)."""
+    """Write the rows of :func:`stats_rows` as CSV (one line per environment).
+
+    Args:
+        rows: rows of :func:`stats_rows`; other keys are ignored.
+        path: the CSV file (missing parent folders are created).
+
+    Returns:
+        ``None``; the file has a header line ``source,label,group,<the statistics>``.
+
+    Examples:
+        >>> import tempfile
+        >>> row = {"source": "sky:clear", "label": "outdoor", "group": "procedural outdoor", "peak_to_mean": 2.5}
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     write_csv([row], Path(d) / "stats.csv")
+        ...     (Path(d) / "stats.csv").read_text().splitlines()[1]
+        'sky:clear,outdoor,procedural outdoor,,2.5,,'
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fields = ["source", "label", "group", *STATS]
@@ -326,6 +393,24 @@ def plot_histograms(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
     Per group the fraction of its environments in each bin (bins shared, evenly spaced on the axis);
     peak / mean and CCT on log axes, CCT clipped to 1500 to 30000 K (McCamy's formula gives nominal values
     far beyond for strongly hued light).
+
+    Args:
+        rows: rows of :func:`stats_rows`.
+        path: the PNG to write (missing parent folders are created).
+        dpi: the PNG's dots per inch.
+
+    Returns:
+        ``None``; the figure is written to ``path``.
+
+    Examples:
+        >>> import tempfile
+        >>> rows = [{"group": g, "dynamic_range_stops": 8.0 + k, "peak_to_mean": 50.0 * (k + 1),
+        ...          "cct_kelvin": 5000.0 + 1000 * k, "top1_energy": 0.3 + 0.2 * k}
+        ...         for k, g in enumerate(["real", "procedural outdoor"])]
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     plot_histograms(rows, Path(d) / "stats.png", dpi=20)
+        ...     (Path(d) / "stats.png").is_file()
+        True
     """
     import matplotlib  # lazy: matplotlib is optional, and heavy
 

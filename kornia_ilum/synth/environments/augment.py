@@ -107,6 +107,20 @@ def white_balance_gains(kelvin: float, tint: float = 0.0) -> torch.Tensor:
     (:func:`~kornia_ilum.synth.environments.sky.cct_to_rgb`), green multiplied by ``2^(-tint)`` (``tint`` in
     stops, positive = magenta), then divided by its luminance so that ``Y(g) = 1``.
 
+    Args:
+        kelvin: the new colour temperature in K, within ``[1000, 40000]`` (the range of
+            :func:`~kornia_ilum.synth.environments.sky.cct_to_rgb`).
+        tint: green-magenta shift in stops (positive = magenta), finite.
+
+    Returns:
+        the gains ``(3,)``, float64, RGB, with a luminance (Rec. 709 ``Y``) of 1.
+
+    Raises:
+        ValueCheckError: ``kelvin`` outside its range, ``tint`` not a finite number.
+
+    Convention:
+        Linear sRGB, as the lighting of docs/conventions.rst ("Images"): multiply a linear map by the gains.
+
     Examples:
         >>> white_balance_gains(6500.0).round(decimals=6)  # the reference white: no change
         tensor([1., 1., 1.], dtype=torch.float64)
@@ -128,6 +142,16 @@ def white_balance_gains(kelvin: float, tint: float = 0.0) -> torch.Tensor:
 def lighting_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0) -> torch.Tensor:
     r"""``R = R_x(pitch) R_y(yaw)`` ``(3, 3)`` float64: yaw about +Y first, then pitch about +X.
 
+    Args:
+        yaw_deg: rotation about +Y in degrees (positive moves a light from ahead to the left).
+        pitch_deg: rotation about +X in degrees (positive moves a light from ahead upwards).
+
+    Returns:
+        the rotation ``(3, 3)``, float64, on the CPU: a light seen along ``d`` appears along ``R d``.
+
+    Convention:
+        docs/conventions.rst, "Rotation" (right-handed, degrees).
+
     Examples:
         >>> forward = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)
         >>> lighting_rotation(yaw_deg=90.0).round(decimals=6) @ forward  # light from ahead now from the left
@@ -144,8 +168,17 @@ def weighted_quantile(
     The smallest value whose cumulative weight reaches ``q`` times the total (``values`` and ``weights``
     flat, same length; one sort for several ``q``).
 
+    Args:
+        values: the values ``(N,)``.
+        weights: their non-negative weights ``(N,)``, not all 0.
+        q: a quantile in ``[0, 1]`` or a sequence of them.
+
     Returns:
         a scalar tensor for a float ``q``, else one value per ``q``.
+
+    Shape:
+        - values, weights: :math:`(N,)`
+        - Output: :math:`()` for a float ``q``, else :math:`(len(q),)`
 
     Examples:
         >>> weighted_quantile(torch.tensor([3.0, 1.0, 2.0]), torch.tensor([1.0, 1.0, 2.0]), 0.5)

@@ -30,6 +30,11 @@ class Environment:
         label: ``"indoor"`` or ``"outdoor"``.
         source: where it came from, e.g. ``"real:city.exr"``, ``"sky:clear"``, ``"indoor:room"``.
         params: the sampled parameters (JSON-serialisable), enough to reproduce and to describe it.
+
+    Examples:
+        >>> env = Environment(torch.ones(3, 8, 16), torch.ones(3, 32, 32), "outdoor", "constant")
+        >>> env.label, tuple(env.latlong.shape), env.params
+        ('outdoor', (3, 8, 16), {})
     """
 
     latlong: torch.Tensor
@@ -41,7 +46,21 @@ class Environment:
 
 @runtime_checkable
 class EnvironmentSource(Protocol):
-    """Anything that draws environments: ``sample(generator)`` must depend only on the generator's state."""
+    """Anything that draws environments: ``sample(generator)`` must depend only on the generator's state.
+
+    Attributes:
+        label: ``"indoor"`` or ``"outdoor"``, the label of the environments it draws.
+
+    Examples:
+        >>> class Uniform:  # a constant white environment, whatever the generator
+        ...     label = "indoor"
+        ...     def sample(self, generator):
+        ...         return Environment(torch.ones(3, 8, 16), torch.ones(3, 32, 32), "indoor", "uniform")
+        >>> isinstance(Uniform(), EnvironmentSource)  # a structural protocol: no base class needed
+        True
+        >>> Uniform().sample(torch.Generator().manual_seed(0)).source
+        'uniform'
+    """
 
     label: Label
 

@@ -207,6 +207,16 @@ def key_direction(params: dict[str, Any]) -> torch.Tensor:
     """The direction ``(3,)`` (float64, unit) of the key light of a parameter set of
     :meth:`PortraitLightSource.sample_params`: the centre of the flash, softbox, lamp, window or street lamp.
 
+    Args:
+        params: the parameters of one portrait light (:meth:`PortraitLightSource.sample_params`), before any
+            augmentation.
+
+    Returns:
+        the unit direction ``(3,)``, float64, from the subject toward the key light.
+
+    Convention:
+        Camera frame of docs/conventions.rst ("Frames"): a direction light arrives from, +Z toward the camera.
+
     Examples:
         >>> params = PortraitLightSource(("flash",)).sample_params(torch.Generator().manual_seed(0))
         >>> bool(key_direction(params)[2] > 0.99)  # toward the camera

@@ -116,6 +116,12 @@ def splat_directions(latlong: torch.Tensor, directions: torch.Tensor, energy: to
     Raises:
         ShapeError: mismatched shapes.
 
+    Shape:
+        - latlong: :math:`(C, H, 2H)`
+        - directions: :math:`(N, 3)`
+        - energy: :math:`(N, C)`
+        - Output: :math:`(C, H, 2H)` (``latlong`` itself)
+
     Convention:
         Lat-long grid and frame of docs/conventions.rst; accumulated in float64, added in ``latlong``'s dtype.
 
@@ -182,6 +188,14 @@ def rectangle_cells(
     Raises:
         ValueCheckError: ``nu`` or ``nv`` below 1.
 
+    Shape:
+        - corner, edge_u, edge_v: :math:`(3,)`
+        - Output: :math:`(nu\,nv, 3)` and :math:`(nu\,nv,)`
+
+    Convention:
+        Frame of docs/conventions.rst ("Frames"): the centres are points (not normalised); seen from the
+        origin (the viewer), their directions are where the cells' light arrives from.
+
     Examples:
         >>> # a 2 x 2 square 1 unit ahead, centred: 4 asin(1 / 2) = 2 pi / 3 steradians
         >>> _, om = rectangle_cells([-1.0, -1.0, -1.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], 5, 3)
@@ -227,6 +241,15 @@ def splat_rectangle(
 
     Returns:
         ``latlong``.
+
+    Shape:
+        - latlong: :math:`(C, H, 2H)`
+        - radiance: :math:`(C,)`
+        - Output: :math:`(C, H, 2H)` (``latlong`` itself)
+
+    Convention:
+        Lat-long grid and frame of docs/conventions.rst; the rectangle's position is relative to the viewer at
+        the origin.
 
     Examples:
         >>> env = torch.zeros(3, 32, 64)

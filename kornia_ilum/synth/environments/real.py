@@ -135,6 +135,12 @@ def hdri_split(name: str) -> str:
     ``"eval"`` when the first 8 bytes of ``blake2b(f"kornia_ilum.hdri:{name}")`` (little-endian) are 0 modulo
     4. Only the file name counts (a path's folders are dropped), so a map keeps its split in any folder.
 
+    Args:
+        name: the map's file name, or a path to it.
+
+    Returns:
+        ``"train"`` or ``"eval"`` (:data:`HDRI_SPLITS`).
+
     Raises:
         TypeCheckError: ``name`` is not a string or path.
 
@@ -158,6 +164,12 @@ def _map_names(folder: Path) -> tuple[str, ...]:
 def folder_splits(folder: str | os.PathLike[str]) -> dict[str, str]:
     """``{name: split}`` (:func:`hdri_split`) for the maps of a folder, sorted by name.
 
+    Args:
+        folder: a folder of lat-long maps (the files with an extension of :data:`HDR_EXTENSIONS`).
+
+    Returns:
+        the split of each map, by file name, in name order.
+
     Raises:
         HDRIOError: the folder does not exist.
 
@@ -179,6 +191,12 @@ def guess_label(name: str) -> Label:
     Names in :data:`DEFAULT_LABELS` (the shared maps) get their label. Any other name is ``"indoor"`` when
     its lower-cased file name contains one of :data:`INDOOR_KEYWORDS` (Poly Haven names indoor maps this
     way, e.g. ``hotel_room``, ``photo_studio``), and ``"outdoor"`` otherwise.
+
+    Args:
+        name: the map's file name (with its extension, without folders).
+
+    Returns:
+        ``"indoor"`` or ``"outdoor"``.
 
     Note:
         Unknown names without an indoor keyword are labelled ``"outdoor"``, which may be wrong: pass

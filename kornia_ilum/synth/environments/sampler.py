@@ -79,6 +79,12 @@ def default_weights(sources: Sequence[EnvironmentSource]) -> list[float]:
     0.5875 of the draws are indoor. When the shares add up to 1 or more, they are the weights (normalised by
     the sampler) and the other sources get none.
 
+    Args:
+        sources: the environment sources, each with a ``label`` and optionally a ``default_share``.
+
+    Returns:
+        one weight per source, in order (not normalised when the fixed shares exceed 1).
+
     Raises:
         ValueCheckError: a ``default_share`` that is not a number in ``[0, 1]``.
 
@@ -114,6 +120,17 @@ def default_weights(sources: Sequence[EnvironmentSource]) -> list[float]:
 
 def generator_for(seed: int, index: int) -> torch.Generator:
     """A CPU generator seeded with the first 8 bytes of ``blake2b(f"kornia_ilum.synth:{seed}:{index}")``.
+
+    Args:
+        seed: the seed of a set of environments (any int).
+        index: the environment's index in the set, non-negative.
+
+    Returns:
+        a new CPU :class:`torch.Generator`, the same state for the same ``(seed, index)`` on every machine.
+
+    Raises:
+        TypeCheckError: ``seed`` or ``index`` is not an int.
+        ValueCheckError: ``index`` is negative.
 
     Examples:
         >>> a, b = generator_for(0, 5), generator_for(0, 5)

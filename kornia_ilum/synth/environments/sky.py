@@ -293,6 +293,10 @@ def preetham_zenith(
     Returns:
         ``(Y_z, x_z, y_z)``, each of the broadcast shape.
 
+    Convention:
+        Luminance in kcd/m^2, chromaticity in CIE 1931 ``(x, y)``; ``theta_s`` is measured from +Y, the zenith
+        of the frame of docs/conventions.rst.
+
     Examples:
         >>> t, theta_s = torch.tensor(2.0, dtype=torch.float64), torch.tensor(math.pi / 6)
         >>> y_z, x_z, y_zc = preetham_zenith(t, theta_s)
@@ -511,6 +515,14 @@ def splat_disk(
     Returns:
         ``latlong``.
 
+    Shape:
+        - latlong: :math:`(3, H, 2H)`
+        - irradiance: :math:`(3,)`
+        - Output: :math:`(3, H, 2H)` (``latlong`` itself)
+
+    Convention:
+        Lat-long grid and frame of docs/conventions.rst; ``direction`` is where the light arrives from.
+
     Examples:
         >>> env = torch.zeros(3, 8, 16)
         >>> _ = splat_disk(env, [0.0, 0.3, -1.0], math.radians(0.265), torch.tensor([1.0, 2.0, 3.0]))
@@ -579,6 +591,13 @@ class OutdoorScene:
         lamps: street lamps, ``(position (3,) relative to the eye, intensity (3,) kcd)``, lighting the ground.
         occluders: horizon silhouettes (dicts of :meth:`SkySource.sample_params`).
         horizon_blur_deg: width of the ground-to-horizon fade.
+
+    Examples:
+        >>> scene = OutdoorScene(sky=lambda d: torch.ones(d.shape[0], 3), ground_albedo=torch.zeros(3))
+        >>> round(scene.sky_irradiance[0].item(), 1)  # a uniform sky of radiance 1: pi on a horizontal plane
+        3.1
+        >>> scene.radiance(torch.tensor([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]))[:, 0].tolist()  # sky, black ground
+        [1.0, 0.0]
     """
 
     sky: Callable[[torch.Tensor], torch.Tensor]
@@ -657,7 +676,24 @@ class OutdoorScene:
 
 
 def outdoor_scene(params: dict[str, Any]) -> OutdoorScene:
-    """Build the :class:`OutdoorScene` that a parameter set of :meth:`SkySource.sample_params` describes."""
+    """Build the :class:`OutdoorScene` that a parameter set of :meth:`SkySource.sample_params` describes.
+
+    Args:
+        params: a parameter set of :meth:`SkySource.sample_params` (any condition).
+
+    Returns:
+        the scene: the radiance of sky, ground and occluders, and the disks (sun or moon, street lamps) to
+        splat, in klux and kcd/m^2.
+
+    Convention:
+        Camera frame of docs/conventions.rst ("Frames"), linear sRGB; directions are where light arrives from.
+
+    Examples:
+        >>> params = SkySource(("clear",)).sample_params(torch.Generator().manual_seed(0))
+        >>> scene = outdoor_scene(params)
+        >>> scene.radiance(torch.tensor([[0.0, 1.0, 0.0]])).shape, bool(scene.sun_direction[1] > 0)
+        (torch.Size([1, 3]), True)
+    """
     cond = params["condition"]
     albedo = torch.tensor(params["ground"]["albedo"], dtype=torch.float32)
     common = {"occluders": params["occluders"], "horizon_blur_deg": params["horizon_blur_deg"]}

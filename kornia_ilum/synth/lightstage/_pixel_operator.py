@@ -25,7 +25,27 @@ FIELD_DTYPES = (torch.float32, torch.float64)
 
 
 def check_gbuffer(gbuffer: GBuffer, name: str = "gbuffer") -> int:
-    """Validate a :class:`GBuffer` (types, shapes, finite values, ``focal_px > 0``); return its side."""
+    """Validate a :class:`GBuffer` (types, shapes, finite values, ``focal_px > 0``); return its side.
+
+    Args:
+        gbuffer: the buffers to check.
+        name: the name used in error messages.
+
+    Returns:
+        the image side ``size`` (every buffer is ``(C, size, size)``).
+
+    Raises:
+        TypeCheckError: ``gbuffer`` is not a :class:`GBuffer`, or ``focal_px`` is not a number.
+        ShapeError: a buffer has the wrong shape.
+        NonFiniteError: a buffer holds NaN or Inf.
+        ValueCheckError: ``focal_px`` is not positive.
+
+    Examples:
+        >>> g = GBuffer(torch.zeros(3, 2, 2), torch.zeros(3, 2, 2), torch.zeros(1, 2, 2), torch.zeros(1, 2, 2),
+        ...             torch.zeros(1, 2, 2), focal_px=3.0)
+        >>> check_gbuffer(g)
+        2
+    """
     if not isinstance(gbuffer, GBuffer):
         raise TypeCheckError(f"{name} must be a GBuffer, got {type(gbuffer).__name__}")
     size = gbuffer.size
@@ -41,7 +61,35 @@ def check_gbuffer(gbuffer: GBuffer, name: str = "gbuffer") -> int:
 
 
 def check_field(field: torch.Tensor, gbuffer: GBuffer, name: str) -> int:
-    """Validate a ``(3, P, N)`` float32/float64 field against ``gbuffer``; return the image side."""
+    """Validate a ``(3, P, N)`` float32/float64 field against ``gbuffer``; return the image side.
+
+    Args:
+        field: a reflectance field ``(3, P, N)``: ``P = size * size`` pixels (row-major), ``N`` lights.
+        gbuffer: the buffers of the same render (checked with :func:`check_gbuffer`).
+        name: the field's name in error messages.
+
+    Returns:
+        the image side ``size``.
+
+    Raises:
+        TypeCheckError: ``field`` is not a float32 or float64 tensor.
+        ShapeError: ``field`` is not ``(3, size * size, N)``.
+        NonFiniteError: ``field`` holds NaN or Inf (when the checks are active).
+        ValueCheckError: ``field`` and ``gbuffer`` are on different devices.
+
+    Shape:
+        - field: :math:`(3, P, N)`, :math:`P = size^2`
+
+    Convention:
+        The reflectance-field layout of :class:`~kornia_ilum.synth.lightstage.ReflectanceField`: pixels in
+        row-major order, lights in the row-major order of the mirror-ball grid (docs/conventions.rst).
+
+    Examples:
+        >>> g = GBuffer(torch.zeros(3, 2, 2), torch.zeros(3, 2, 2), torch.zeros(1, 2, 2), torch.zeros(1, 2, 2),
+        ...             torch.zeros(1, 2, 2), focal_px=3.0)
+        >>> check_field(torch.zeros(3, 4, 5), g, "field")
+        2
+    """
     size = check_gbuffer(gbuffer)
     if not isinstance(field, torch.Tensor):
         raise TypeCheckError(f"{name} must be a torch.Tensor of shape (3, P, N), got {type(field).__name__}")
@@ -112,6 +160,12 @@ class PixelOperator:
         pixels: ``(S,)`` int64 flat row-major indices of the pixels the operator acts on.
         matrices: for each of the 3 channels, the matrices applied in turn.
         size: the image side (``P = size * size``).
+
+    Examples:
+        >>> double = csr(torch.tensor([0, 1]), torch.tensor([0, 1]), torch.tensor([2.0, 2.0]), 2)
+        >>> op = PixelOperator(torch.tensor([0, 3]), [[double]] * 3, size=2)  # doubles two pixels of four
+        >>> op.apply(torch.ones(3, 4, 1))[0, :, 0].tolist()
+        [2.0, 1.0, 1.0, 2.0]
     """
 
     pixels: torch.Tensor

@@ -211,6 +211,13 @@ class Workers:
 def field_path(seed: int, view_index: int) -> str:
     """The file of one (subject seed, view) relative to the cache folder.
 
+    Args:
+        seed: the subject seed.
+        view_index: the view's index among the subject's views.
+
+    Returns:
+        the relative path, with ``/`` separators.
+
     Examples:
         >>> field_path(7, 1)
         'fields/s000007_v01.safetensors'
@@ -289,8 +296,22 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
             in the page cache. safetensors' own reader always copies, so the tensor is a copy-on-write
             :class:`numpy.memmap` of the file's data (the format is a JSON header and raw little-endian bytes).
 
+    Returns:
+        the field, dense or compact; its ``field`` is bfloat16 (as stored), its ``alpha``, ``albedo`` and
+        ``skin`` float32 (``albedo`` and ``skin`` ``None`` in files written without them).
+
     Raises:
         HDRIOError: the file is missing, unreadable or not a field of this format (the message names it).
+
+    Examples:
+        >>> import tempfile
+        >>> rf = ReflectanceField(torch.zeros(3, 4, 4, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = write_field(f"{d}/a.safetensors", rf)
+        ...     back = read_field(f"{d}/a.safetensors", dense=False)
+        >>> back.subject_seed, back.field.dtype, back.camera.size
+        (7, torch.bfloat16, 2)
     """
     path = Path(path)
     try:
@@ -355,8 +376,21 @@ def read_manifest(out_dir: str | os.PathLike) -> dict[str, Any]:
     Entries are keyed by ``(subject_seed, view_index)``; where two files list the same key, the most recently
     written entry wins. A folder without manifests gives no entries.
 
+    Args:
+        out_dir: the cache folder.
+
     Returns:
         ``{"format": ..., "entries": [...]}``, entries sorted by ``(subject_seed, view_index)``.
+
+    Raises:
+        HDRIOError: a manifest file is unreadable or not JSON.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     manifest = read_manifest(d)
+        >>> manifest["format"] == MANIFEST_FORMAT, manifest["entries"]
+        (True, [])
     """
     out_dir = Path(out_dir)
     entries: dict[tuple[int, int], dict[str, Any]] = {}
@@ -370,6 +404,17 @@ def read_manifest(out_dir: str | os.PathLike) -> dict[str, Any]:
 
 def shard(items: Sequence[Any], worker_index: int, worker_count: int) -> list[Any]:
     r"""The items of worker ``worker_index`` of ``worker_count``: every ``worker_count``-th, round robin.
+
+    Args:
+        items: the items to share out (subject seeds).
+        worker_index: this worker's index, in ``[0, worker_count)``.
+        worker_count: the number of workers, positive.
+
+    Returns:
+        the items ``worker_index``, ``worker_index + worker_count``, ... in order.
+
+    Raises:
+        ValueCheckError: ``worker_count`` is not positive, or ``worker_index`` not in ``[0, worker_count)``.
 
     Examples:
         >>> shard(list(range(7)), 1, 3)
@@ -672,7 +717,21 @@ def _run_processes(jobs: list[dict[str, Any]], bar: _ViewProgress) -> None:
 
 
 def cache_summary(manifest: dict[str, Any]) -> str:
-    """One paragraph about a cache: entries, subjects, eval share, disk bytes, render seconds, peak memory."""
+    """One paragraph about a cache: entries, subjects, eval share, disk bytes, render seconds, peak memory.
+
+    Args:
+        manifest: a manifest of :func:`read_manifest` (or :func:`build_cache`); ``manifest["run"]``, when
+            there, adds what the last run rendered.
+
+    Returns:
+        the text: a first line for the cache, a second (when it has entries) for the median subject-view.
+
+    Examples:
+        >>> manifest = {"entries": [{"subject_seed": 3, "view_index": 0, "split": "eval", "bytes": 2_000_000,
+        ...                          "render_seconds": 1.0}]}
+        >>> cache_summary(manifest).splitlines()[0]
+        '1 subject-views of 1 subjects (1 eval subjects), 2.0 MB on disk'
+    """
     entries = manifest["entries"]
     subjects = {e["subject_seed"] for e in entries}
     evals = {e["subject_seed"] for e in entries if e.get("split") == "eval"}

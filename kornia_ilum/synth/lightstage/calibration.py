@@ -65,6 +65,21 @@ _FACE_OUTLINE = ("brow_right_top", "brow_left_top", "eye_right_outer", "eye_left
 def uniform_response(field: ReflectanceField, radiance: float = 1.0) -> torch.Tensor:
     r"""The subject relit by a uniform white environment of ``radiance``: ``(3, size, size)`` linear.
 
+    Args:
+        field: a reflectance field, dense or compact.
+        radiance: the environment's radiance, the same in every direction and channel; finite, non-negative.
+
+    Returns:
+        the relit image ``(3, size, size)`` float32, linear, premultiplied by the field's alpha (0 outside
+        the subject).
+
+    Raises:
+        ValueCheckError: ``radiance`` is negative or not finite.
+
+    Convention:
+        Units of docs/conventions.rst ("Units of lighting"): an unoccluded white Lambertian surface reads
+        ``radiance``.
+
     Examples:
         >>> from kornia_ilum.synth.lightstage.scene import Camera
         >>> rf = ReflectanceField(torch.full((3, 4, 16), 0.25, dtype=torch.bfloat16), torch.ones(1, 2, 2),
@@ -84,6 +99,22 @@ def face_mask(landmarks: torch.Tensor, size: int) -> torch.Tensor:
     r"""``(size, size)`` bool: the pixels inside the convex hull of the face's outline landmarks (brows, outer eye
     corners, cheeks, jaw, chin), given in pixels ``(x, y)`` in the order of
     :data:`~kornia_ilum.synth.lightstage.subjects.LANDMARK_NAMES`.
+
+    Args:
+        landmarks: ``(L, 2)`` (or ``(L, 3)``, the third column ignored) pixel coordinates ``(x, y)`` of the
+            face landmarks, ``L = len(LANDMARK_NAMES)``; continuous coordinates, pixel ``(i, j)`` has its
+            centre at ``(j + 0.5, i + 0.5)``.
+        size: the image side in pixels.
+
+    Returns:
+        the mask ``(size, size)``, bool: True for the pixels whose centre is inside the hull.
+
+    Shape:
+        - landmarks: :math:`(L, 2)` or :math:`(L, 3)`
+        - Output: :math:`(size, size)`
+
+    Convention:
+        Image pixels, row 0 at the top, ``x`` to the right (the box convention of :mod:`kornia_ilum.detection`).
 
     Examples:
         >>> from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
@@ -120,6 +151,14 @@ class SkinCheck:
         energy: the median of ``reading / (albedo + SKIN_SPECULAR_ALBEDO)`` per pixel, per channel.
         low, high: the measured range of facial skin of the tone.
         rtol, occlusion: the energy test's bounds, ``1 - occlusion <= energy <= 1 + rtol``.
+
+    Examples:
+        >>> grey = (0.5, 0.5, 0.5)
+        >>> check = SkinCheck(1, 0, 3, pixels=100, albedo=(0.476,) * 3, measured=grey, total=grey,
+        ...                   energy=(1.0, 1.0, 1.0), low=(0.34, 0.21, 0.14), high=(0.53, 0.31, 0.25), rtol=0.1,
+        ...                   occlusion=0.15)
+        >>> check.energy_ok, check.skin_ok, check.ok  # energy conserved, but grey is not tone 3's skin
+        (True, False, False)
     """
 
     subject_seed: int
@@ -166,9 +205,28 @@ def check_skin(field: ReflectanceField, skin_tone: int, rtol: float = 0.1, occlu
             in blue reads up to 8 % more seen from the side; noise; interreflection).
         occlusion: how much less (the face's own occlusion of the environment).
 
+    Returns:
+        the check's readings and verdicts (:attr:`SkinCheck.ok`).
+
     Raises:
         ValueCheckError: the field has no ``albedo`` / ``skin`` (a cache of an older light stage) or no
             landmarks, or its face shows no skin pixel.
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> from kornia_ilum.synth.lightstage.scene import Camera
+        >>> lights = mirror_ball_valid(4).flatten()  # the 12 valid lights of a 4 x 4 basis
+        >>> field = (lights * 0.5 / lights.sum()).to(torch.bfloat16).expand(3, 16, 16).clone()  # reads 0.5
+        >>> lm = torch.full((len(LANDMARK_NAMES), 2), 2.0)
+        >>> corners = {"brow_right_top": (0, 0), "brow_left_top": (4, 0), "jaw_left": (4, 4), "jaw_right": (0, 4)}
+        >>> for name, xy in corners.items():  # a face outline around the whole 4 x 4 image
+        ...     lm[LANDMARK_NAMES.index(name)] = torch.tensor(xy, dtype=torch.float32)
+        >>> rf = ReflectanceField(field, torch.ones(1, 4, 4), torch.tensor([0.0, 0.0, 4.0, 4.0]),
+        ...                       Camera(30.0, 1.0, 0.0, 0.0, size=4), 7, {"landmarks": lm.tolist()},
+        ...                       albedo=torch.full((3, 4, 4), 0.5 - SKIN_SPECULAR_ALBEDO), skin=torch.ones(1, 4, 4))
+        >>> check = check_skin(rf, skin_tone=3)
+        >>> check.pixels, check.energy_ok, check.skin_ok  # a grey face: energy conserved, but no skin colour
+        (16, True, False)
     """
     gbuffer = field.gbuffer  # a fresh render has its G-buffer; a cached view, the two buffers the cache keeps
     albedo_map = field.albedo if gbuffer is None else gbuffer.albedo
@@ -201,6 +259,28 @@ def check_cache(cache: str | os.PathLike[str], split: str | None = "eval", rtol:
 
     Each subject's tone comes from the cache manifest (``skin_tone``); subjects without one (mannequins) are
     skipped.
+
+    Args:
+        cache: a light-stage cache folder (:func:`~kornia_ilum.synth.lightstage.build_cache`).
+        split: ``"train"``, ``"eval"`` or ``None`` (every subject).
+        rtol: as in :func:`check_skin`.
+        occlusion: as in :func:`check_skin`.
+
+    Returns:
+        one :class:`SkinCheck` per subject-view with a skin tone, in the cache's order.
+
+    Raises:
+        ValueCheckError: the cache has no field of ``split``, or fields of an older light stage (no albedo and
+            skin buffers).
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:  # an empty folder: no field to check
+        ...     check_cache(d)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: no reflectance field in '...' for split 'eval'
+        >>> results = check_cache("lightstage/")  # a cache built by kornia-ilum synth subjects  # doctest: +SKIP
     """
     tones = {(e["subject_seed"], e["view_index"]): e.get("skin_tone") for e in read_manifest(cache)["entries"]}
     out = []
@@ -223,7 +303,19 @@ PART_ALBEDO_RANGES: dict[str, tuple[float, float]] = {
 
 @dataclass
 class PartCheck:
-    """The albedo check of one part of a subject (:func:`check_parts`): its mean albedo and allowed range."""
+    """The albedo check of one part of a subject (:func:`check_parts`): its mean albedo and allowed range.
+
+    Attributes:
+        name: the part's name.
+        albedo: its mean diffuse albedo over its opaque texels, linear RGB.
+        low, high: the allowed range (:data:`PART_ALBEDO_RANGES`), for every channel.
+
+    Examples:
+        >>> PartCheck("hair", (0.02, 0.015, 0.01), *PART_ALBEDO_RANGES["hair"]).ok
+        True
+        >>> PartCheck("teeth", (0.95, 0.95, 0.9), *PART_ALBEDO_RANGES["teeth"]).ok  # brighter than snow
+        False
+    """
 
     name: str
     albedo: tuple[float, float, float]
@@ -249,6 +341,13 @@ def _mean_albedo(material: Any) -> tuple[float, float, float]:
 
 def check_parts(subject: Any) -> list[PartCheck]:
     r"""The albedo check of each part of ``subject`` named in :data:`PART_ALBEDO_RANGES` (module docstring).
+
+    Args:
+        subject: a subject (:class:`~kornia_ilum.synth.lightstage.Subject`, or anything with ``parts`` that
+            have a ``name`` and a ``material``).
+
+    Returns:
+        one :class:`PartCheck` per checked part, in the order of ``subject.parts``.
 
     Examples:
         >>> from kornia_ilum.synth.lightstage.subjects import MannequinSource

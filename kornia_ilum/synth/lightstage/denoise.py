@@ -85,7 +85,32 @@ def denoise_operator(
     demodulate: bool = True,
     eps: float = 1e-3,
 ) -> PixelOperator:
-    r"""Build the operator of :func:`denoise_field` once, to apply to many fields (same arguments)."""
+    r"""Build the operator of :func:`denoise_field` once, to apply to many fields (same arguments).
+
+    Args:
+        gbuffer: the render's :class:`~kornia_ilum.synth.lightstage.gbuffer.GBuffer`.
+        radius: window radius in taps (0: an operator that changes nothing).
+        sigma_spatial: spatial standard deviation, in taps.
+        sigma_albedo: albedo difference at one standard deviation.
+        sigma_normal: normal difference at one standard deviation.
+        sigma_depth: relative depth difference at one standard deviation.
+        iterations: a-trous iterations.
+        demodulate: divide by the albedo before filtering and multiply after.
+        eps: the lower clamp of the demodulation factor.
+
+    Returns:
+        A :class:`~kornia_ilum.synth.lightstage._pixel_operator.PixelOperator` over the covered pixels
+        (``alpha > 0``), one matrix per iteration and channel, in float64; ``op.apply(field)`` is
+        :func:`denoise_field`.
+
+    Examples:
+        >>> g = GBuffer(torch.full((3, 4, 4), 0.5), torch.zeros(3, 4, 4), torch.ones(1, 4, 4),
+        ...             torch.ones(1, 4, 4), torch.zeros(1, 4, 4), focal_px=800.0)
+        >>> op = denoise_operator(g, radius=1)
+        >>> field = torch.rand(3, 16, 5, generator=torch.Generator().manual_seed(0))
+        >>> torch.equal(op.apply(field), denoise_field(field, g, radius=1))
+        True
+    """
     _check_params(
         radius,
         iterations,
@@ -171,6 +196,10 @@ def denoise_field(
 
     Shape:
         - field: :math:`(3, P, N)`, output :math:`(3, P, N)`, with :math:`P = H W` from ``gbuffer.size``.
+
+    Convention:
+        Camera frame of docs/conventions.rst for the G-buffer's normals (+Z toward the camera); ``depth`` in
+        metres. The filter is linear in the field (its weights come from the G-buffer only).
 
     Examples:
         >>> normal = torch.zeros(3, 8, 8)

@@ -74,8 +74,15 @@ _CORNEA_MIRROR_PROBABILITY = 0.3  # how often a camera path picks the cornea's m
 def import_mitsuba() -> Any:
     """The ``mitsuba`` module, or an :class:`ImportError` that names the optional extra to install.
 
+    Returns:
+        the ``mitsuba`` module (no variant is set here: :func:`select_mitsuba_variant` does it).
+
     Raises:
         ImportError: Mitsuba 3 is not installed.
+
+    Examples:
+        >>> import_mitsuba().__name__
+        'mitsuba'
     """
     try:
         import mitsuba as mi  # lazy: keeps import kornia_ilum.synth.lightstage free of Mitsuba
@@ -163,6 +170,14 @@ def _rgb(value: tuple[float, float, float], name: str) -> dict[str, Any]:
 def fresnel_ior(f0: float) -> float:
     """The IOR whose normal-incidence Fresnel reflectance is ``f0``.
 
+    Inverts ``f0 = ((eta - 1) / (eta + 1))^2``: ``eta = (1 + sqrt(f0)) / (1 - sqrt(f0))``.
+
+    Args:
+        f0: the reflectance at normal incidence, in ``[0, 1)``.
+
+    Returns:
+        the relative index of refraction ``eta >= 1``.
+
     Examples:
         >>> round(fresnel_ior(0.04), 3)
         1.5
@@ -175,6 +190,17 @@ def material_bsdf(material: Material) -> dict[str, Any]:
 
     ``roughness`` is the GGX ``alpha``; Mitsuba's ``principled`` takes ``sqrt(alpha)``. See the module
     docstring for the models.
+
+    Args:
+        material: a :class:`~kornia_ilum.synth.lightstage.subjects.Material` (or anything with its attributes:
+            ``kind``, ``albedo``, and optionally ``roughness``, ``specular`` and the textures).
+
+    Returns:
+        the BSDF as a dict for ``mitsuba.load_dict``: a ``twosided`` BSDF, or a ``blendbsdf`` for the cornea.
+        With textures, it holds Mitsuba bitmaps (a variant must be set: :func:`select_mitsuba_variant`).
+
+    Raises:
+        ValueCheckError: an unknown ``kind``, or an albedo, roughness or specular outside ``[0, 1]``.
 
     Examples:
         >>> from types import SimpleNamespace
@@ -242,6 +268,16 @@ def bitmap_texture(data: np.ndarray) -> dict[str, Any]:
 
     Args:
         data: ``(H, W)`` or ``(H, W, C)`` texel values.
+
+    Returns:
+        the texture as a dict for ``mitsuba.load_dict`` (``raw``: the values are used as they are, linear).
+
+    Examples:
+        >>> import numpy as np
+        >>> _ = select_mitsuba_variant("scalar_rgb")  # Mitsuba's bitmaps need a variant
+        >>> tex = bitmap_texture(np.zeros((2, 4, 3)))
+        >>> tex["type"], tex["bitmap"].size(), tex["bitmap"].channel_count()
+        ('bitmap', [4, 2], 3)
     """
     mi = import_mitsuba()
     arr = np.ascontiguousarray(data if data.ndim == 3 else data[..., None], dtype=np.float32)
@@ -253,6 +289,13 @@ def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
 
     Mitsuba's ``principled`` is linear in ``specular`` (its GGX lobe's Fresnel scales with it and the diffuse
     base does not), so ``material_bsdf - diffuse_twin_bsdf`` is the specular part.
+
+    Args:
+        material: a subject :class:`Material`, as for :func:`material_bsdf`.
+
+    Returns:
+        the BSDF dict of :func:`material_bsdf` with the principled lobe's ``specular`` set to 0 (other BSDFs
+        unchanged).
 
     Examples:
         >>> from types import SimpleNamespace
@@ -271,6 +314,30 @@ def mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, no
 
     ``uvs`` (OBJ convention, ``v`` up) are stored as ``(u, 1 - v)``: image row 0 at ``v = 1``. Without
     ``normals``, Mitsuba computes smooth (area-weighted) vertex normals.
+
+    Args:
+        mi: the ``mitsuba`` module, with a variant set (:func:`select_mitsuba_variant`).
+        name: the mesh's name.
+        vertices: ``(V, 3)`` vertex positions in metres.
+        faces: ``(F, 3)`` vertex indices of the triangles.
+        normals: ``(V, 3)`` shading normals, or ``None``.
+        bsdf: the BSDF dict (:func:`material_bsdf`).
+        uvs: ``(V, 2)`` texture coordinates, or ``None``.
+
+    Returns:
+        the ``mitsuba.Mesh``.
+
+    Convention:
+        Metres, in the subject's frame (docs/conventions.rst, "Frames"); nothing is transformed here.
+
+    Examples:
+        >>> import numpy as np
+        >>> mi = import_mitsuba()
+        >>> _ = select_mitsuba_variant("scalar_rgb")
+        >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> mesh = mitsuba_mesh(mi, "tri", tri, np.array([[0, 1, 2]]), None, {"type": "diffuse"})
+        >>> mesh.vertex_count(), mesh.face_count(), round(mesh.surface_area(), 3)
+        (3, 1, 0.5)
     """
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
@@ -292,8 +359,25 @@ def mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, no
 def check_subject(subject: Any) -> None:
     """Check a subject's ``parts`` (meshes) and ``face_landmarks`` before any rendering.
 
+    Args:
+        subject: a subject (:class:`~kornia_ilum.synth.lightstage.Subject`, or anything with ``parts`` that
+            have ``vertices``, ``faces`` and optionally ``normals``, and ``face_landmarks`` ``(K, 3)``).
+
+    Returns:
+        ``None``; it raises on a malformed subject.
+
     Raises:
         ShapeError, TypeCheckError, ValueCheckError: a malformed part (vertices, faces, normals) or landmarks.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> part = SimpleNamespace(name="tri", vertices=tri, faces=np.array([[0, 1, 2]]))
+        >>> check_subject(SimpleNamespace(parts=[part], face_landmarks=tri))  # a valid subject: no error
+        >>> check_subject(SimpleNamespace(parts=[part], face_landmarks=np.zeros((0, 3))))
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ShapeError: subject.face_landmarks must be finite with shape (K, 3), K > 0, got (0, 3)
     """
     parts = getattr(subject, "parts", None)
     if not isinstance(parts, (list, tuple)) or not parts:

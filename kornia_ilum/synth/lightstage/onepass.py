@@ -121,6 +121,14 @@ class OnePassResult:
         shade_spp: camera samples per pixel that traced the lights ``T``.
         demodulate: whether the shading was re-modulated by the ``C`` samples' coverage and albedo.
         traced: traced hits per covered pixel (the light stage's cost, in samples per pixel).
+
+    Examples:
+        >>> g = GBuffer(torch.zeros(3, 2, 2), torch.zeros(3, 2, 2), torch.zeros(1, 2, 2), torch.ones(1, 2, 2),
+        ...             torch.zeros(1, 2, 2), focal_px=3.0)
+        >>> part = torch.zeros(3, 4, 12)  # 4 pixels, the 12 valid lights of a 4 x 4 basis
+        >>> result = OnePassResult(part, part.clone(), torch.arange(4), torch.arange(12), g, {}, spp=4)
+        >>> (result.diffuse + result.specular).shape, result.shade_spp, result.demodulate
+        (torch.Size([3, 4, 12]), 0, False)
     """
 
     diffuse: torch.Tensor
@@ -431,6 +439,18 @@ def render_olat_onepass(
     Raises:
         TypeCheckError: ``settings`` is not :class:`~kornia_ilum.synth.lightstage.settings.OnePass`.
         ValueCheckError: the active Mitsuba variant is not vectorised.
+
+    Convention:
+        Camera frame of docs/conventions.rst ("Frames"); lights in the row-major order of the ``S x S``
+        mirror-ball grid ("Mirror ball"), each a unit radiance over its pixel's solid angle.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.settings import Reference
+        >>> render_olat_onepass(None, Camera(30.0, 1.0, 0.0, 0.0, size=8), np.eye(4), Reference())
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.TypeCheckError: settings must be OnePass settings, got Reference
+        >>> result = render_olat_onepass(subject, camera, transform, OnePass(lighting_size=8))  # doctest: +SKIP
     """
     import drjit as dr  # lazy: Dr.Jit comes with Mitsuba, an optional extra
 

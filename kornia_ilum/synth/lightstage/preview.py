@@ -67,6 +67,15 @@ def preview_bsdf(material, textured: bool = True) -> dict:
     ``roughness_texture``; where it does not, the albedo texture is added here), wrapped in a ``mask`` of the
     ``opacity_texture`` when there is one. ``textured=False`` (a part without ``uvs``) gives the plain BSDF.
 
+    Args:
+        material: a subject :class:`~.subjects.Material` (or anything with its attributes).
+        textured: whether the part has texture coordinates, so that its textures can be used.
+
+    Returns:
+        the BSDF as a dict for ``mitsuba.load_dict``: a ``mask`` around the BSDF of
+        :func:`~kornia_ilum.synth.lightstage.materials.material_bsdf` when there is an opacity texture, else
+        that BSDF.
+
     Examples:
         >>> from types import SimpleNamespace
         >>> mat = SimpleNamespace(kind="diffuse", albedo=(0.5, 0.5, 0.5),
@@ -164,6 +173,20 @@ def render_preview(
     Textured materials show their textures (:func:`preview_bsdf`). With ``camera`` (a light-stage
     :class:`~.scene.Camera`, e.g. of :func:`~.scene.sample_views`) the subject is framed exactly as the light
     stage frames it, and ``size``, ``yaw_deg``, ``fov_deg`` and ``distance`` are ignored.
+
+    Args:
+        subject: the subject (:class:`~kornia_ilum.synth.lightstage.Subject`).
+        size: the image side in pixels.
+        yaw_deg: the camera's turn around the head in degrees (positive moves the camera toward +X).
+        fov_deg: the camera's field of view in degrees.
+        spp: samples per pixel.
+        distance: camera distance (metres) from the face.
+        variant: the Mitsuba variant (:func:`~kornia_ilum.synth.lightstage.materials.select_mitsuba_variant`;
+            ``None``: the default).
+        camera: a light-stage camera, which overrides the four framing arguments.
+
+    Returns:
+        ``(size, size, 3)`` float32 linear RGB (``(camera.size, camera.size, 3)`` with ``camera``), exposure 1.
 
     Examples:
         >>> from kornia_ilum.synth.lightstage import make_subject
@@ -279,6 +302,21 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
     Returns:
         a dict: ``"image"`` ``(3, H, W)`` uint8, ``"lighting"`` the ``(3, 32, 32)`` mirror ball in image
         units (times the exposure), ``"gain"`` a float, ``"face_box"`` the ``(4,)`` landmark box.
+
+    Convention:
+        Lighting in the camera frame and the units of docs/conventions.rst ("Units of lighting"): times the
+        gain, ``"lighting"`` is the ground truth of ``"image"``.
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> from kornia_ilum.synth.environments import Environment
+        >>> from kornia_ilum.synth.lightstage import ReflectanceField
+        >>> rf = ReflectanceField(torch.full((3, 16, 16), 0.05, dtype=torch.bfloat16), torch.ones(1, 4, 4),
+        ...                       torch.tensor([1.0, 1.0, 3.0, 3.0]), Camera(30.0, 1.0, 0.0, 0.0, size=4), 7)
+        >>> white = Environment(torch.ones(3, 8, 16), mirror_ball_valid(4).float().expand(3, 4, 4), "indoor", "white")
+        >>> out = compose_portrait(rf, white)  # the face reads 12 x 0.05 = 0.6, exposed to 0.18
+        >>> out["image"].shape, out["image"].dtype, round(out["gain"], 2), out["image"][0, 0, 0].item()
+        (torch.Size([3, 4, 4]), torch.uint8, 0.3, 118)
     """
     lighting = _lighting_for(env, field.lighting_size)
     image, alpha = relight_portraits(field, lighting)
@@ -342,6 +380,20 @@ def training_sheet(
 
     Returns:
         the number of portraits drawn.
+
+    Raises:
+        ValueCheckError: the cache has no field.
+        ImportError: matplotlib (needed to draw the sheet) is not installed.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:  # an empty folder: no field
+        ...     training_sheet(d, f"{d}/sheet.png")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: the cache ... has no field
+        >>> training_sheet("lightstage/", "sheet.png", count=16)  # a cache of kornia-ilum synth  # doctest: +SKIP
+        16
     """
     entries = read_manifest(cache_dir)["entries"]
     chosen = [e for e in entries if split is None or e.get("split") == split] or entries

@@ -314,6 +314,10 @@ def render_olat_reference(
         count, the wall time (``render_seconds``, of which ``setup_seconds`` before the first light), and the
         subject's ``split`` and ``skin_tone`` when it has them.
 
+    Raises:
+        ImportError: Mitsuba is not installed.
+        ShapeError, TypeCheckError, ValueCheckError: a malformed subject, camera or setting.
+
     Shape:
         - field: :math:`(3, P, N)` bfloat16, :math:`P = size^2`, :math:`N = S^2`
         - alpha: :math:`(1, size, size)` float32
@@ -321,10 +325,6 @@ def render_olat_reference(
     Convention:
         Light directions in the camera frame of docs/conventions.rst ("Frames"); radiance units (module
         docstring).
-
-    Raises:
-        ImportError: Mitsuba is not installed.
-        ShapeError, TypeCheckError, ValueCheckError: a malformed subject, camera or setting.
 
     Examples:
         >>> from types import SimpleNamespace
@@ -394,6 +394,14 @@ def render_lighting(
     Returns:
         ``(image, alpha)``: ``(3, size, size)`` float32 linear RGB (premultiplied, background 0) and the
         ``(1, size, size)`` matte.
+
+    Shape:
+        - lighting: :math:`(3, S, S)`
+        - Output: :math:`(3, size, size)` and :math:`(1, size, size)`
+
+    Convention:
+        Mirror-ball lighting in the camera frame of docs/conventions.rst ("Mirror ball", "Frames"); the image
+        in the units of the lighting ("Units of lighting").
 
     Examples:
         >>> from types import SimpleNamespace

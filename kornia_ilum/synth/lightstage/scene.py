@@ -106,6 +106,21 @@ def subject_pivot(subject: Any) -> np.ndarray:
 
     The landmark box's centre raised by :data:`PIVOT_RAISE` of its height; both renderers and the previews
     turn the subject about it (:func:`camera_transform`).
+
+    Args:
+        subject: a subject, or anything with ``face_landmarks`` ``(K, 3)`` in metres.
+
+    Returns:
+        the pivot ``(3,)``, float64, in the subject's coordinates (metres).
+
+    Convention:
+        The subject's frame (docs/conventions.rst, "Frames": +Y up), so the pivot is raised along +Y.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> box = SimpleNamespace(face_landmarks=[[-0.1, -0.1, 0.0], [0.1, 0.1, 0.05]])  # 0.2 m high
+        >>> [round(v, 3) for v in subject_pivot(box).tolist()]  # raised by 0.19 x 0.2 m
+        [0.0, 0.038, 0.025]
     """
     return _landmark_pivot(np.asarray(subject.face_landmarks, dtype=np.float64))
 
@@ -157,6 +172,15 @@ def project_points(points: np.ndarray | torch.Tensor, camera: Camera, transform:
     Raises:
         ValueCheckError: a point is not in front of the camera.
 
+    Shape:
+        - points: :math:`(K, 3)`
+        - transform: :math:`(4, 4)`
+        - Output: :math:`(K, 2)`
+
+    Convention:
+        Camera frame of docs/conventions.rst ("Frames"): a pinhole at the origin looking along -Z, +X to the
+        right of the image, +Y up (so image ``y`` grows downwards).
+
     Examples:
         >>> cam = Camera(90.0, 1.0, 0.0, 0.0, size=100)
         >>> xy = project_points(np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0]]), cam, camera_transform(cam, (0, 0, 0)))
@@ -200,6 +224,17 @@ _NOMINAL_LANDMARKS = None  # landmarks of a typical face, for views sampled with
 
 def fov_from_focal(focal_mm: float) -> float:
     r"""The horizontal field of view, degrees, of a full-frame-equivalent focal length (a 36 mm wide frame).
+
+    ``fov = 2 atan(18 / focal_mm)``.
+
+    Args:
+        focal_mm: the focal length in millimetres, positive.
+
+    Returns:
+        the horizontal field of view in degrees, in ``(0, 180)``.
+
+    Raises:
+        ValueCheckError: ``focal_mm`` is not a positive number.
 
     Examples:
         >>> round(fov_from_focal(24.0), 1), round(fov_from_focal(85.0), 1)

@@ -39,7 +39,25 @@ _EPS = np.float32(1e-9)
 
 
 def smin(a: Array, b: Array, k: float) -> Array:
-    """Polynomial smooth minimum (union) of two distances, blending over a width ``k`` (metres)."""
+    """Polynomial smooth minimum (union) of two distances, blending over a width ``k`` (metres).
+
+    ``h = clip(1/2 + (b - a) / (2 k), 0, 1)``, ``smin = b + (a - b) h - k h (1 - h)``: the plain minimum where
+    ``|a - b| >= k``, at most ``k / 4`` below it in between.
+
+    Args:
+        a: a signed distance (array or number).
+        b: another, broadcastable with ``a``.
+        k: the blend width (metres); ``k <= 0`` gives ``np.minimum(a, b)``.
+
+    Returns:
+        the blended distance, broadcast from ``a`` and ``b``.
+
+    Examples:
+        >>> round(float(smin(np.float32(0.0), np.float32(0.0), 0.1)), 4)  # where both meet: k / 4 below
+        -0.025
+        >>> float(smin(np.float32(0.0), np.float32(1.0), 0.1))  # far apart: the minimum
+        0.0
+    """
     if k <= 0.0:
         return np.minimum(a, b)
     h = np.clip(0.5 + 0.5 * (b - a) / k, 0.0, 1.0)
@@ -47,17 +65,62 @@ def smin(a: Array, b: Array, k: float) -> Array:
 
 
 def smax(a: Array, b: Array, k: float) -> Array:
-    """Polynomial smooth maximum (intersection; ``smax(a, -b)`` subtracts ``b``)."""
+    """Polynomial smooth maximum (intersection; ``smax(a, -b)`` subtracts ``b``).
+
+    Args:
+        a: a signed distance (array or number).
+        b: another, broadcastable with ``a``.
+        k: the blend width (metres); ``k <= 0`` gives ``np.maximum(a, b)``.
+
+    Returns:
+        ``-smin(-a, -b, k)``.
+
+    Examples:
+        >>> round(float(smax(np.float32(0.0), np.float32(0.0), 0.1)), 4)
+        0.025
+    """
     return -smin(-a, -b, k)
 
 
 def sphere(x: Array, y: Array, z: Array, c: Sequence[float], r: float) -> Array:
-    """Exact distance to a sphere of centre ``c`` and radius ``r``."""
+    """Exact distance to a sphere of centre ``c`` and radius ``r``.
+
+    Args:
+        x: the points' x coordinates (metres).
+        y: their y coordinates, broadcastable with ``x``.
+        z: their z coordinates, broadcastable with ``x``.
+        c: the centre ``(x, y, z)``.
+        r: the radius.
+
+    Returns:
+        the signed distance, negative inside, broadcast from ``x``, ``y`` and ``z``.
+
+    Examples:
+        >>> x = np.array([0.0, 0.3], np.float32); o = np.zeros(2, np.float32)
+        >>> [round(float(v), 4) for v in sphere(x, o, o, (0.0, 0.0, 0.0), 0.1)]
+        [-0.1, 0.2]
+    """
     return np.sqrt((x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2) - r
 
 
 def ellipsoid(x: Array, y: Array, z: Array, c: Sequence[float], r: Sequence[float]) -> Array:
-    """Axis-aligned ellipsoid of centre ``c`` and semi-axes ``r`` (Quilez's bound ``k0 (k0 - 1) / k1``)."""
+    """Axis-aligned ellipsoid of centre ``c`` and semi-axes ``r`` (Quilez's bound ``k0 (k0 - 1) / k1``).
+
+    Args:
+        x: the points' x coordinates (metres).
+        y: their y coordinates, broadcastable with ``x``.
+        z: their z coordinates, broadcastable with ``x``.
+        c: the centre ``(x, y, z)``.
+        r: the semi-axes along x, y and z, positive.
+
+    Returns:
+        the signed distance bound, negative inside, zero on the surface.
+
+    Examples:
+        >>> x = np.array([0.2, 0.4], np.float32); o = np.zeros(2, np.float32)
+        >>> [round(float(v), 4) for v in ellipsoid(x, o, o, (0.0, 0.0, 0.0), (0.2, 0.1, 0.1))]  # on the x axis
+        [0.0, 0.2]
+    """
     px, py, pz = (x - c[0]) / r[0], (y - c[1]) / r[1], (z - c[2]) / r[2]
     k0 = np.sqrt(px * px + py * py + pz * pz)
     k1 = np.sqrt((px / r[0]) ** 2 + (py / r[1]) ** 2 + (pz / r[2]) ** 2) + _EPS
@@ -67,7 +130,27 @@ def ellipsoid(x: Array, y: Array, z: Array, c: Sequence[float], r: Sequence[floa
 def capsule(
     x: Array, y: Array, z: Array, a: Sequence[float], b: Sequence[float], ra: float, rb: float | None = None
 ) -> Array:
-    """Segment ``a``-``b`` swept by a sphere whose radius goes linearly from ``ra`` to ``rb`` (a bound)."""
+    """Segment ``a``-``b`` swept by a sphere whose radius goes linearly from ``ra`` to ``rb`` (a bound).
+
+    Args:
+        x: the points' x coordinates (metres).
+        y: their y coordinates, broadcastable with ``x``.
+        z: their z coordinates, broadcastable with ``x``.
+        a: one end of the segment ``(x, y, z)``.
+        b: the other end, different from ``a``.
+        ra: the radius at ``a``.
+        rb: the radius at ``b`` (``None``: ``ra``, a plain capsule).
+
+    Returns:
+        the signed distance (a bound when ``ra != rb``), negative inside.
+
+    Examples:
+        >>> p = [np.float32(0.1), np.float32(0.05), np.float32(0.0)]  # beside the middle of the segment
+        >>> round(float(capsule(*p, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0), 0.05)), 4)
+        0.05
+        >>> round(float(capsule(*p, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0), 0.05, 0.01)), 4)  # radius 0.03 there
+        0.07
+    """
     rb = ra if rb is None else rb
     bx, by, bz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     px, py, pz = x - a[0], y - a[1], z - a[2]

@@ -80,6 +80,12 @@ REFERENCE_MAX_DEPTH = 4
 def is_vectorised(variant: str) -> bool:
     """Whether a Mitsuba variant is vectorised (``llvm_*``, ``cuda_*``): what the one-pass renderer needs.
 
+    Args:
+        variant: a Mitsuba variant name (``"llvm_ad_rgb"``, ``"scalar_rgb"``, ...).
+
+    Returns:
+        True for the LLVM and CUDA variants.
+
     Examples:
         >>> is_vectorised("llvm_ad_rgb"), is_vectorised("scalar_rgb")
         (True, False)
@@ -237,6 +243,13 @@ class Auto:
 
     Raises:
         ValueCheckError: a setting out of its range.
+
+    Examples:
+        >>> auto = Auto(lighting_size=8, spp=4)
+        >>> type(auto.resolve("llvm_ad_rgb")).__name__, type(auto.resolve("scalar_rgb")).__name__
+        ('OnePass', 'Reference')
+        >>> auto.to_dict()
+        {'method': 'auto', 'lighting_size': 8, 'spp': 4, 'seed': 0}
     """
 
     lighting_size: int = 32

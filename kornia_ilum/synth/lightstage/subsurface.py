@@ -152,6 +152,13 @@ def subsurface_operator(
     Returns:
         A :class:`~kornia_ilum.synth.lightstage._pixel_operator.PixelOperator` over the skin pixels, its
         matrices in float64.
+
+    Examples:
+        >>> g = GBuffer(torch.full((3, 4, 4), 0.5), torch.zeros(3, 4, 4), torch.ones(1, 4, 4),
+        ...             torch.ones(1, 4, 4), torch.ones(1, 4, 4), focal_px=800.0)
+        >>> op = subsurface_operator(g)
+        >>> op.pixels.numel(), op.apply(torch.ones(3, 16, 5)).shape  # every pixel is skin here
+        (16, torch.Size([3, 16, 5]))
     """
     radii = _check_params(radii_mm, texturing, eps, max_radius_px)
     size = check_gbuffer(gbuffer)

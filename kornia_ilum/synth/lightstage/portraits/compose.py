@@ -68,6 +68,15 @@ _INNER = [LANDMARK_NAMES.index(n) for n in DETECTOR_BOX["landmarks"]]
 def uniform_draws(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:
     """``n`` float64 draws uniform in ``[lo, hi)`` from ``generator`` (one ``torch.rand`` call).
 
+    Args:
+        n: the number of draws.
+        lo: the lower end of the range.
+        hi: the upper end of the range (``lo`` itself when ``hi == lo``).
+        generator: the source of randomness; it advances by one call of ``n`` numbers.
+
+    Returns:
+        the draws ``(n,)``, float64, on the CPU.
+
     Examples:
         >>> uniform_draws(3, 2.0, 4.0, torch.Generator().manual_seed(0)).shape
         torch.Size([3])
@@ -88,6 +97,10 @@ def detector_boxes(landmarks: torch.Tensor) -> torch.Tensor:
 
     Returns:
         ``(B, 4)`` square boxes ``(x0, y0, x1, y1)`` in continuous pixel coordinates.
+
+    Shape:
+        - landmarks: :math:`(B, K, 2)`
+        - Output: :math:`(B, 4)`
 
     Examples:
         >>> lm = torch.full((1, len(LANDMARK_NAMES), 2), 50.0)
@@ -139,6 +152,10 @@ def face_crop_boxes(
 
     Returns:
         ``(B, 4)`` float64 crop boxes.
+
+    Shape:
+        - face_boxes: :math:`(B, 4)`
+        - Output: :math:`(B, 4)`
 
     Examples:
         >>> face_crop_boxes(torch.tensor([[40.0, 40.0, 80.0, 80.0]]), 128)
@@ -213,8 +230,20 @@ def random_crop_boxes(
     than ``max_overlap`` of the face box is drawn again, up to ``tries`` times, after which the candidate with
     the least overlap is kept.
 
+    Args:
+        face_boxes: ``(B, 4)`` face boxes ``(x0, y0, x1, y1)`` in pixels.
+        size: the image side in pixels.
+        generator: the source of randomness.
+        side: the range of the crop side, as fractions of ``size``.
+        max_overlap: the largest fraction of a face box's area that a crop may cover.
+        tries: draws per crop before the least-overlapping one is kept.
+
     Returns:
         ``(B, 4)`` float64 crop boxes inside the image.
+
+    Shape:
+        - face_boxes: :math:`(B, 4)`
+        - Output: :math:`(B, 4)`
 
     Examples:
         >>> g = torch.Generator().manual_seed(0)
@@ -257,6 +286,10 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
         ``(image, alpha)``: ``(B, 3, H, W)`` float32 linear, premultiplied by ``alpha`` (background 0), and the
         ``(1, 1, H, W)`` matte (the same for every lighting).
 
+    Shape:
+        - lighting: :math:`(B, 3, S, S)`
+        - Output: :math:`(B, 3, H, W)` and :math:`(1, 1, H, W)`
+
     Convention:
         The units of docs/conventions.rst (:mod:`~kornia_ilum.synth.lightstage.field`):
         ``image = sum_n R[:, :, n] L[n]``. One batched product per call: relight many lightings of one field
@@ -283,6 +316,32 @@ def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tens
     """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels.
 
     Unchecked (the callers check): ``lighting`` is ``(B, 3, S, S)`` with the field's ``S``. Returns ``frame``.
+
+    Args:
+        frame: ``(B, 3, H, W)`` contiguous float32 images, ``H = W`` the field's size; changed in place.
+        field: the reflectance field, dense or compact.
+        lighting: ``(B, 3, S, S)`` mirror-ball radiance in the camera frame.
+
+    Returns:
+        ``frame``, with the relit subject added (the background is not attenuated by the matte: see
+        :func:`relight_portraits` for the matte).
+
+    Shape:
+        - frame: :math:`(B, 3, H, W)`
+        - lighting: :math:`(B, 3, S, S)`
+        - Output: :math:`(B, 3, H, W)`
+
+    Convention:
+        Mirror-ball lighting and units of docs/conventions.rst, as in :func:`relight_portraits`.
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> rf = ReflectanceField(torch.ones(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
+        >>> frame = torch.ones(1, 3, 2, 2)
+        >>> out = add_relit(frame, rf, torch.ones(1, 3, 4, 4) * mirror_ball_valid(4))  # 12 valid lights
+        >>> out is frame, frame[0, 0].flatten().tolist()
+        (True, [13.0, 13.0, 13.0, 13.0])
     """
     lights = mirror_ball_to_lights(lighting.float())
     if field.light_index is not None:
@@ -309,6 +368,11 @@ def crop_images(images: torch.Tensor, boxes: torch.Tensor, size: int, mirror: to
 
     Returns:
         ``(B, C, size, size)``; outside the image, 0.
+
+    Shape:
+        - images: :math:`(B, C, H, W)` or :math:`(1, C, H, W)`
+        - boxes: :math:`(B, 4)`
+        - Output: :math:`(B, C, size, size)`
 
     Convention:
         Bilinear, without antialiasing: meant for enlarging or mild shrinking (the light-stage crops of 130 to
@@ -376,6 +440,14 @@ def frame_background(latlong: torch.Tensor, camera: Camera, mirror: torch.Tensor
     Returns:
         ``(B, 3, size, size)`` linear.
 
+    Shape:
+        - latlong: :math:`(B, 3, H, 2H)`
+        - Output: :math:`(B, 3, size, size)`
+
+    Convention:
+        Lat-long grid and camera frame of docs/conventions.rst ("Lat-long", "Frames"); the values keep the
+        units of the maps (point sampling: a picture, not lighting).
+
     Examples:
         >>> frame_background(torch.ones(2, 3, 8, 16), Camera(30.0, 1.0, 0.0, 0.0, size=64)).shape
         torch.Size([2, 3, 64, 64])
@@ -428,6 +500,15 @@ def auto_exposure(
     Returns:
         ``(B,)`` gains (float64).
 
+    Shape:
+        - linear: :math:`(B, 3, H, W)`
+        - key: a float or :math:`(B,)`
+        - Output: :math:`(B,)`
+
+    Convention:
+        Linear images of docs/conventions.rst ("Images"); multiplying an image and its lighting by the same
+        gain keeps the lighting in the image's units ("Units of lighting").
+
     Examples:
         >>> auto_exposure(torch.full((1, 3, 8, 8), 0.5)).tolist()
         [0.36]
@@ -470,6 +551,14 @@ def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 
         pixels are 0. Exactly what the training loss compares (:func:`~kornia_ilum.render.sphere_pyramid`,
         ``gamma="safe"``): spheres of size ``s`` rendered from the energy-keeping lighting of size ``s``.
 
+    Shape:
+        - mirror_ball: :math:`(B, 3, S, S)`
+        - Output: each :math:`(B, 3, size, size)`
+
+    Convention:
+        Mirror-ball lighting and reference spheres of docs/conventions.rst ("Mirror ball", "Reference
+        spheres"), sizes as in its multi-scale rule.
+
     Examples:
         >>> sorted(sphere_targets(torch.ones(1, 3, 32, 32), sizes=(4,)))
         ['diffuse_4', 'matte_silver_4', 'mirror_4']
@@ -502,6 +591,14 @@ def background_pyramid(latlong: torch.Tensor, levels: int = 4) -> tuple[torch.Te
 
     Returns:
         ``levels`` (or fewer) padded maps ``(1, 3, H / 2^k + 2, 2 H / 2^k + 2)``, float32.
+
+    Shape:
+        - latlong: :math:`(3, H, 2H)`
+        - Output: level :math:`k` is :math:`(1, 3, H / 2^k + 2, 2H / 2^k + 2)`
+
+    Convention:
+        Lat-long grid of docs/conventions.rst ("Lat-long"); plain 2 x 2 means of the pixels (a picture, not
+        lighting: not weighted by solid angle).
 
     Examples:
         >>> [tuple(m.shape) for m in background_pyramid(torch.ones(3, 32, 64), levels=3)]
@@ -603,6 +700,16 @@ def frame_backgrounds(
 
     Returns:
         ``(B, 3, size, size)`` linear float32.
+
+    Shape:
+        - pyramids: ``B`` tuples of :func:`background_pyramid` levels
+        - mirror, turn, sigma: :math:`(B,)`
+        - rotation: :math:`(B, 3, 3)`
+        - Output: :math:`(B, 3, size, size)`
+
+    Convention:
+        Lat-long grid and camera frame of docs/conventions.rst ("Lat-long", "Frames"); ``rotation`` acts on
+        the directions light arrives from, as in "Rotation".
 
     Examples:
         >>> maps = [background_pyramid(torch.ones(3, 32, 64))] * 2

@@ -212,8 +212,20 @@ def load_fields(source: str | os.PathLike | Sequence[ReflectanceField], split: s
         split: keep only the subjects of this split (``"train"`` or ``"eval"``,
             :func:`~kornia_ilum.synth.lightstage.subject_split`); ``None``: all.
 
+    Returns:
+        the fields of ``split``, in the cache's order (or the sequence's).
+
     Raises:
         ValueCheckError: no field is left, fields of different lighting sizes, or an unknown split.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.scene import Camera
+        >>> rf = ReflectanceField(torch.zeros(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
+        ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 1,
+        ...                       {"landmarks": [[1.0, 1.0, 0.0]], "split": "eval"})
+        >>> [f.subject_seed for f in load_fields([rf], split="eval")]
+        [1]
+        >>> fields = load_fields("lightstage/", split="train")  # a cache built by kornia-ilum synth  # doctest: +SKIP
     """
     if split not in (None, "train", "eval"):
         raise ValueCheckError(f"split must be 'train', 'eval' or None, got {split!r}")
@@ -314,6 +326,17 @@ def environment_background(
 
     Returns:
         ``(3, H, 2H)`` float32 linear.
+
+    Convention:
+        Lat-long grid and camera frame of docs/conventions.rst; the units of the environment's lighting.
+
+    Examples:
+        >>> sampler = EnvironmentSampler([SkySource(height=16)], augment=None)
+        >>> env = sampler.sample(0)  # a procedural sky of 16 rows
+        >>> environment_background(env, sampler, procedural_height=32).shape  # rendered again at 32 rows
+        torch.Size([3, 32, 64])
+        >>> environment_background(env, sampler, procedural_height=8) is env.latlong  # not above: itself
+        True
     """
     full, m, gains = _background_source(env, sampler, height, procedural_height, room_height)
     if m is None or gains is None:

@@ -85,6 +85,13 @@ FRAME_ALBEDO: dict[str, tuple[float, float, float]] = {
 def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """A unit icosphere ``(vertices (V, 3) float32, faces (F, 3) int32)``, outward-wound; for examples, tests.
 
+    Args:
+        subdivisions: how many times each triangle of the icosahedron is split in four.
+
+    Returns:
+        ``(vertices, faces)``: ``V = 10 * 4^n + 2`` unit vertices and ``F = 20 * 4^n`` triangles,
+        counter-clockwise seen from outside.
+
     Examples:
         >>> v, f = icosphere(1)
         >>> v.shape, f.shape
@@ -117,7 +124,21 @@ def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
 
 
 def merge_meshes(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Concatenate meshes ``(verts, faces[, normals])`` into one (float32 vertices and normals, int32 faces)."""
+    """Concatenate meshes ``(verts, faces[, normals])`` into one (float32 vertices and normals, int32 faces).
+
+    Args:
+        meshes: the meshes, each ``(vertices (V, 3), faces (F, 3))`` or ``(vertices, faces, normals (V, 3))``.
+
+    Returns:
+        ``(vertices, faces, normals)``, the faces re-indexed into the concatenated vertices; ``normals`` is
+        ``None`` unless every mesh has them.
+
+    Examples:
+        >>> v, f = icosphere(0)
+        >>> verts, faces, normals = merge_meshes([(v, f), (v + 3.0, f)])
+        >>> verts.shape, faces.shape, int(faces.max()), normals
+        ((24, 3), (40, 3), 23, None)
+    """
     vs, fs, ns, off = [], [], [], 0
     for m in meshes:
         vs.append(m[0])
@@ -129,14 +150,42 @@ def merge_meshes(meshes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.n
 
 
 def pick(rng: np.random.Generator, options: dict[str, float]) -> str:
-    """One of ``options``' names, drawn with probabilities proportional to their weights."""
+    """One of ``options``' names, drawn with probabilities proportional to their weights.
+
+    Args:
+        rng: the random generator (one draw).
+        options: non-negative weights by name, not all 0.
+
+    Returns:
+        the name drawn.
+
+    Examples:
+        >>> pick(np.random.default_rng(0), {"black": 3.0, "white": 0.0})
+        'black'
+    """
     names = list(options)
     w = np.array([options[n] for n in names], dtype=np.float64)
     return names[int(rng.choice(len(names), p=w / w.sum()))]
 
 
 def fabric_colour(rng: np.random.Generator, saturated_p: float) -> tuple[str, tuple[float, float, float]]:
-    """A random fabric colour: a saturated hue (name ``"hsv"``) or a named neutral."""
+    """A random fabric colour: a saturated hue (name ``"hsv"``) or a named neutral.
+
+    Args:
+        rng: the random generator.
+        saturated_p: the probability of a saturated hue, in ``[0, 1]``.
+
+    Returns:
+        ``(name, albedo)``: ``"hsv"`` and a random saturated colour, or a name of :data:`FABRIC_NEUTRALS` and its
+        albedo; linear RGB in ``[0, 1]``.
+
+    Examples:
+        >>> name, rgb = fabric_colour(np.random.default_rng(0), saturated_p=0.0)
+        >>> name in FABRIC_NEUTRALS, rgb == FABRIC_NEUTRALS[name]
+        (True, True)
+        >>> fabric_colour(np.random.default_rng(0), saturated_p=1.0)[0]
+        'hsv'
+    """
     if rng.random() < saturated_p:
         h, s, v = rng.random(), rng.uniform(0.55, 1.0), rng.uniform(0.35, 0.95)
         srgb = colorsys.hsv_to_rgb(h, s, v)
@@ -170,6 +219,11 @@ class Material:
             and camera rays pass where it is 0 (alpha-tested, ``alpha >= 0.5`` is opaque).
         roughness_texture: optional ``(H, W)`` float32 multiplier of ``roughness`` (oily and dry skin zones).
         subsurface: whether the renderer's subsurface approximation applies to this part's diffuse light.
+
+    Examples:
+        >>> skin = Material("skin", (0.45, 0.3, 0.22), roughness=0.35, subsurface=True)
+        >>> skin.kind, skin.specular, skin.albedo_texture is None
+        ('skin', 0.5, True)
     """
 
     kind: str
@@ -195,6 +249,12 @@ class MeshPart:
             shading; ``None`` lets the renderer compute them.
         uvs: optional ``(V, 2)`` float32 texture coordinates in ``[0, 1]`` (``v`` up, OBJ convention), needed
             by the material's textures.
+
+    Examples:
+        >>> v, f = icosphere(1)
+        >>> ball = MeshPart("ball", 0.1 * v, f, Material("diffuse", (0.8, 0.8, 0.8)))  # 10 cm radius
+        >>> ball.vertices.shape, ball.material.kind, ball.normals
+        ((42, 3), 'diffuse', None)
     """
 
     name: str
@@ -219,6 +279,13 @@ class Subject:
         params: the sampled shape, expression and appearance parameters (JSON-serialisable).
         source: the generator's name (``"mannequin"``, ``"makehuman"``, ...).
         face_albedo: the mean linear albedo of the face's skin, RGB.
+
+    Examples:
+        >>> v, f = icosphere(1)
+        >>> ball = MeshPart("ball", 0.1 * v, f, Material("diffuse", (0.8, 0.8, 0.8)))
+        >>> subject = Subject(1, subject_split(1), [ball], skin_tone=5, face_landmarks=0.1 * v[:len(LANDMARK_NAMES)])
+        >>> subject.split, subject.part("ball").name, subject.source
+        ('eval', 'ball', 'mannequin')
     """
 
     seed: int
@@ -241,8 +308,19 @@ class Subject:
 def seed_digest(seed: int, salt: str) -> int:
     """A seed for one purpose (``salt``) of subject ``seed``: a hash, so purposes draw independent numbers.
 
+    Args:
+        seed: the subject's seed.
+        salt: the purpose (``"subject"``, ``"hair"``, ...).
+
+    Returns:
+        the first 8 bytes of ``blake2b(f"kornia_ilum.lightstage.{salt}:{seed}")``, an int in ``[0, 2^64)``.
+
     Raises:
         TypeCheckError: ``seed`` is not an int.
+
+    Examples:
+        >>> seed_digest(7, "hair") == seed_digest(7, "hair"), seed_digest(7, "hair") == seed_digest(7, "eyes")
+        (True, False)
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise TypeCheckError(f"seed must be an int, got {type(seed).__name__}")
@@ -272,7 +350,21 @@ def subject_split(seed: int) -> str:
 
 @runtime_checkable
 class SubjectSource(Protocol):
-    """Anything that makes subjects from seeds: ``name`` and ``sample(seed) -> Subject``."""
+    """Anything that makes subjects from seeds: ``name`` and ``sample(seed) -> Subject``.
+
+    Attributes:
+        name: the source's name, stored as :attr:`Subject.source` (``"mannequin"``, ``"makehuman"``, ...).
+
+    Examples:
+        >>> class Balls:  # one ball per seed
+        ...     name = "balls"
+        ...     def sample(self, seed):
+        ...         v, f = icosphere(1)
+        ...         ball = MeshPart("skin", 0.1 * v, f, Material("skin", SKIN_ALBEDO[4], subsurface=True))
+        ...         return Subject(seed, subject_split(seed), [ball], 5, 0.1 * v[:20], source=self.name)
+        >>> isinstance(Balls(), SubjectSource), Balls().sample(3).source
+        (True, 'balls')
+    """
 
     name: str
 

@@ -146,8 +146,27 @@ _EXPRESSIONS = (
 def find_makehuman_root(root: str | Path | None = None) -> Path:
     """The MakeHuman data root: ``root``, else ``$KORNIA_ILUM_MAKEHUMAN``, else ``$KORNIA_ILUM_SHARED_DATA/makehuman``.
 
+    Args:
+        root: the data root, or ``None`` to take it from the environment variables.
+
+    Returns:
+        the data root (a folder with ``3dobjs/base.obj``).
+
     Raises:
         MakeHumanAssetsNotFoundError: no folder with ``3dobjs/base.obj`` there.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     try:
+        ...         find_makehuman_root(d)
+        ...     except MakeHumanAssetsNotFoundError:  # also a FileNotFoundError
+        ...         print("no assets")
+        ...     (Path(d) / "3dobjs").mkdir()
+        ...     (Path(d) / "3dobjs" / "base.obj").touch()
+        ...     find_makehuman_root(d) == Path(d)
+        no assets
+        True
     """
     if root is None:
         if os.environ.get("KORNIA_ILUM_MAKEHUMAN"):
@@ -297,6 +316,14 @@ def retint_skin(
 
 def iris_probabilities(tone: int) -> np.ndarray:
     """The probability of each iris map (:data:`_IRIS`) for a subject of Monk skin tone ``tone`` (1-10).
+
+    A mix of the light-eyed and the brown-eyed distributions, the share of light eyes falling with the tone.
+
+    Args:
+        tone: the Monk Skin Tone, 1 (lightest) to 10 (darkest).
+
+    Returns:
+        ``(len(_IRIS),)`` float64 probabilities summing to 1, in the order of ``_IRIS``.
 
     Examples:
         >>> p = iris_probabilities(8)
@@ -534,6 +561,19 @@ class MakeHumanSource:
 
     Args:
         root: the MakeHuman data root (the folder with ``3dobjs/base.obj``).
+
+    Raises:
+        MakeHumanAssetsNotFoundError: ``root`` has no ``3dobjs/base.obj``.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:  # a folder that looks like a data root: nothing is parsed yet
+        ...     (Path(d) / "3dobjs").mkdir()
+        ...     (Path(d) / "3dobjs" / "base.obj").touch()
+        ...     source = MakeHumanSource(d)
+        ...     source.name, source.root == Path(d)
+        ('makehuman', True)
+        >>> subject = MakeHumanSource.from_assets().sample(1)  # with the CC0 assets  # doctest: +SKIP
     """
 
     name = "makehuman"

@@ -68,6 +68,11 @@ def accessory_params(rng: np.random.Generator, *, male: float, years: float) -> 
         and fit; ``facial_hair`` (``"none"``, ``"stubble"``, ``"moustache"``, ``"goatee"`` or ``"beard"``) with
         ``beard_thickness_mm``, ``beard_density`` and ``stubble_shadow``; ``hat`` (``"none"`` or ``"beanie"``)
         with its colour and the height of its front edge over the brows.
+
+    Examples:
+        >>> p = accessory_params(np.random.default_rng(0), male=0.0, years=30.0)
+        >>> p["facial_hair"], p["glasses_style"] in ("full", "half", "rimless"), p["hat"] in ("none", "beanie")
+        ('none', True, True)
     """
     u = lambda lo, hi: round(float(rng.uniform(lo, hi)), 5)  # noqa: E731
     frame = pick(rng, GLASSES_FRAMES)
@@ -193,6 +198,15 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
 
     Returns:
         The two parts, or ``[]`` when ``p["glasses"]`` is false.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere
+        >>> p = dict(accessory_params(np.random.default_rng(0), male=0.0, years=30.0), glasses=True)
+        >>> head = 0.1 * icosphere(2)[0]  # a ball for a head
+        >>> eyes = [np.array([-0.032, 0.0, 0.07]), np.array([0.032, 0.0, 0.07])]
+        >>> ears = [np.array([-0.075, -0.01, -0.01]), np.array([0.075, -0.01, -0.01])]
+        >>> [(part.name, part.material.kind) for part in glasses_parts(p, eyes, ears, head)]
+        [('glasses', 'glossy'), ('lenses', 'cornea')]
     """
     if not p["glasses"]:
         return []
@@ -267,6 +281,16 @@ def beard_weight(style: str, v: np.ndarray, lm: dict[str, np.ndarray]) -> np.nda
 
     Returns:
         ``(N,)`` float64.
+
+    Examples:
+        >>> lm = {"mouth_right": (-0.025, -0.06, 0.09), "mouth_left": (0.025, -0.06, 0.09), "chin": (0.0, -0.11, 0.08),
+        ...       "upper_lip": (0.0, -0.05, 0.1), "lower_lip": (0.0, -0.07, 0.1), "subnasale": (0.0, -0.04, 0.1),
+        ...       "ear_right": (-0.075, -0.01, -0.01), "ear_left": (0.075, -0.01, -0.01),
+        ...       "brow_right_top": (-0.03, 0.03, 0.09), "brow_left_top": (0.03, 0.03, 0.09)}
+        >>> lm = {k: np.array(v) for k, v in lm.items()}  # a face's landmarks, metres, the eyes at y = 0
+        >>> pts = np.array([[0.0, -0.045, 0.1], [0.0, 0.05, 0.1], [0.0, -0.09, 0.09]])  # upper lip, brow, chin
+        >>> beard_weight("moustache", pts, lm).tolist(), beard_weight("goatee", pts, lm).tolist()
+        ([1.0, 0.0, 0.0], [1.0, 0.0, 1.0])
     """
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     ax = np.abs(x)
@@ -305,6 +329,21 @@ def uv_weight_map(uv: np.ndarray, faces: np.ndarray, weight: np.ndarray, size: i
 
     Each face is filled with its vertices' mean weight (in 16 levels), then blurred by a texel and a half,
     so that the weight has no steps at the faces' edges.
+
+    Args:
+        uv: ``(V, 2)`` texture coordinates of the vertices (``v`` up).
+        faces: ``(F, 3)`` vertex indices of the triangles.
+        weight: ``(V,)`` per-vertex weights in ``[0, 1]``.
+        size: the map's side in texels.
+
+    Returns:
+        the map ``(size, size)``, float32 in ``[0, 1]``, row 0 at ``v = 1``.
+
+    Examples:
+        >>> uv = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])  # the lower-left half of the atlas
+        >>> m = uv_weight_map(uv, np.array([[0, 1, 2]]), np.ones(3), 16)
+        >>> m.shape, round(float(m[12, 2]), 2), round(float(m[0, 15]), 2)  # inside, and the far corner
+        ((16, 16), 1.0, 0.0)
     """
     import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
@@ -355,6 +394,17 @@ def beard_parts(
 
     Returns:
         Parts ``"beard0"``..., alpha-tested ``"hair"`` material, outermost last.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere
+        >>> v, f = icosphere(1)
+        >>> uv = (0.5 + 0.5 * v[:, :2]).astype(np.float32)  # any atlas will do here
+        >>> skin = MeshPart("skin", 0.1 * v, f, Material("skin", (0.5, 0.4, 0.3)), v, uv)
+        >>> p = dict(accessory_params(np.random.default_rng(0), male=1.0, years=30.0), facial_hair="beard")
+        >>> parts = beard_parts(p, skin, np.ones(len(v)), np.ones((4, 4), np.float32), np.array([0.02, 0.015, 0.01]),
+        ...                     np.random.default_rng(0), size=64)
+        >>> [part.name for part in parts], parts[0].material.kind, parts[0].material.opacity_texture.shape
+        (['beard0', 'beard1', 'beard2'], 'hair', (64, 64))
     """
     if p["facial_hair"] == "none":
         return []
@@ -417,7 +467,29 @@ def _bins(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def inside_beanie(points: np.ndarray, envelope: np.ndarray, p: dict, lm: dict[str, np.ndarray]) -> np.ndarray:
-    """Which ``points`` lie under the beanie of envelope ``envelope`` (above its edge plane, inside it)."""
+    """Which ``points`` lie under the beanie of envelope ``envelope`` (above its edge plane, inside it).
+
+    Args:
+        points: ``(N, 3)`` points (metres, the landmarks' frame).
+        envelope: the hat's radius table of :func:`beanie_part`.
+        p: :func:`accessory_params`.
+        lm: the landmarks by name.
+
+    Returns:
+        ``(N,)`` bool.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere
+        >>> lm = {"mouth_right": (-0.025, -0.06, 0.09), "mouth_left": (0.025, -0.06, 0.09), "chin": (0.0, -0.11, 0.08),
+        ...       "upper_lip": (0.0, -0.05, 0.1), "lower_lip": (0.0, -0.07, 0.1), "subnasale": (0.0, -0.04, 0.1),
+        ...       "ear_right": (-0.075, -0.01, -0.01), "ear_left": (0.075, -0.01, -0.01),
+        ...       "brow_right_top": (-0.03, 0.03, 0.09), "brow_left_top": (0.03, 0.03, 0.09)}
+        >>> lm = {k: np.array(v) for k, v in lm.items()}  # a face's landmarks, metres, the eyes at y = 0
+        >>> p = {"hat": "beanie", "hat_front_mm": 25.0, "hat_albedo": [0.5, 0.1, 0.1]}
+        >>> _, envelope = beanie_part(p, lm, 0.1 * icosphere(2)[0], np.zeros((0, 3)))
+        >>> inside_beanie(np.array([[0.0, 0.08, 0.0], [0.0, -0.08, 0.0], [0.0, 0.3, 0.0]]), envelope, p, lm).tolist()
+        [True, False, False]
+    """
     centre, normal, off = _beanie_frame(p, lm)
     d = points - centre
     return (points @ normal > off) & (np.linalg.norm(d, axis=1) < envelope[_bins(d)])
@@ -437,6 +509,20 @@ def beanie_part(
     Returns:
         ``(part, envelope)``: the envelope is the ``(48, 96)`` table of the hat's radius around its centre
         (polar angle x azimuth) that :func:`inside_beanie` reads.
+
+    Examples:
+        >>> from kornia_ilum.synth.lightstage.subjects.base import icosphere
+        >>> lm = {"mouth_right": (-0.025, -0.06, 0.09), "mouth_left": (0.025, -0.06, 0.09), "chin": (0.0, -0.11, 0.08),
+        ...       "upper_lip": (0.0, -0.05, 0.1), "lower_lip": (0.0, -0.07, 0.1), "subnasale": (0.0, -0.04, 0.1),
+        ...       "ear_right": (-0.075, -0.01, -0.01), "ear_left": (0.075, -0.01, -0.01),
+        ...       "brow_right_top": (-0.03, 0.03, 0.09), "brow_left_top": (0.03, 0.03, 0.09)}
+        >>> lm = {k: np.array(v) for k, v in lm.items()}  # a face's landmarks, metres, the eyes at y = 0
+        >>> p = {"hat": "beanie", "hat_front_mm": 25.0, "hat_albedo": [0.5, 0.1, 0.1]}
+        >>> part, envelope = beanie_part(p, lm, 0.1 * icosphere(2)[0], np.zeros((0, 3)))  # a ball for a head
+        >>> part.name, part.material.kind, envelope.shape
+        ('hat', 'diffuse', (48, 96))
+        >>> beanie_part(dict(p, hat="none"), lm, None, None) is None
+        True
     """
     if p["hat"] != "beanie":
         return None

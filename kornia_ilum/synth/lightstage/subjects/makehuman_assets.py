@@ -48,7 +48,17 @@ __all__ = [
 
 
 class MakeHumanAssetsNotFoundError(IlumError, FileNotFoundError):
-    """The MakeHuman data root is missing (point ``$KORNIA_ILUM_MAKEHUMAN`` or ``$KORNIA_ILUM_SHARED_DATA`` at it)."""
+    """The MakeHuman data root is missing (point ``$KORNIA_ILUM_MAKEHUMAN`` or ``$KORNIA_ILUM_SHARED_DATA`` at it).
+
+    Both an :class:`~kornia_ilum.core.errors.IlumError` and a :class:`FileNotFoundError`.
+
+    Examples:
+        >>> try:
+        ...     raise MakeHumanAssetsNotFoundError("no MakeHuman assets in /nowhere")
+        ... except FileNotFoundError as exc:
+        ...     isinstance(exc, IlumError), str(exc)
+        (True, 'no MakeHuman assets in /nowhere')
+    """
 
 
 @dataclass
@@ -64,6 +74,13 @@ class ObjMesh:
         groups: the group names.
         quad_v: ``(Q, 4)`` int64 vertex indices of the quads (the faces with 4 corners), for the base mesh.
         quad_group: ``(Q,)`` int64 group of each quad.
+
+    Examples:
+        >>> tri = np.array([[0, 1, 2], [0, 2, 3]])
+        >>> mesh = ObjMesh(np.zeros((5, 3)), np.zeros((0, 2)), tri, -np.ones_like(tri), np.array([1, 2]),
+        ...                ["default", "eyes", "body"])
+        >>> mesh.group_vertices("body").tolist()
+        [0, 2, 3]
     """
 
     vertices: np.ndarray
@@ -89,6 +106,15 @@ def read_obj(path: str | Path) -> ObjMesh:
 
     Returns:
         The :class:`ObjMesh` (0-based indices).
+
+    Examples:
+        >>> import tempfile
+        >>> obj = "v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\ng body\\nf 1 2 3 4\\n"  # one quad, no uvs
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = (Path(d) / "quad.obj").write_text(obj)
+        ...     mesh = read_obj(Path(d) / "quad.obj")
+        >>> mesh.tri_v.tolist(), mesh.groups, mesh.quad_v.shape
+        ([[0, 1, 2], [0, 2, 3]], ['default', 'body'], (1, 4))
     """
     verts: list[str] = []
     uvs: list[str] = []
@@ -143,6 +169,14 @@ def read_target(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
     Returns:
         ``(indices, deltas)``: ``(N,)`` int32 and ``(N, 3)`` float32 (decimetres).
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = (Path(d) / "a.target").write_text("# a comment\\n3 0.5 0 0\\n7 0 -0.25 0\\n")
+        ...     indices, deltas = read_target(Path(d) / "a.target")
+        >>> indices.tolist(), deltas.tolist()
+        ([3, 7], [[0.5, 0.0, 0.0], [0.0, -0.25, 0.0]])
     """
     with open(path, encoding="utf-8", errors="replace") as fh:
         body = "".join(line for line in fh if line.strip() and not line.lstrip().startswith("#"))
@@ -165,6 +199,14 @@ class Proxy:
         material: the ``material`` path relative to ``folder`` (``""`` when absent).
         delete_verts: base-mesh vertices the proxy hides (``delete_verts``), sorted.
         header: the other header keys, raw.
+
+    Examples:
+        >>> mesh = ObjMesh(np.zeros((1, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64),
+        ...                np.zeros(0, np.int64), ["default"])
+        >>> proxy = Proxy("dot", Path("."), mesh, refs=np.array([[0, 1, 2]]), weights=np.array([[0.5, 0.5, 0.0]]),
+        ...               offsets=np.zeros((1, 3)), scales={})  # one vertex halfway between base vertices 0 and 1
+        >>> proxy.material, proxy.delete_verts.tolist()
+        ('', [])
     """
 
     name: str
@@ -194,6 +236,19 @@ def read_mhclo(path: str | Path) -> Proxy:
 
     Returns:
         The :class:`Proxy`.
+
+    Raises:
+        ValueError: the number of bound vertices differs from the ``obj_file``'s.
+
+    Examples:
+        >>> import tempfile
+        >>> mhclo = "name dot\\nobj_file dot.obj\\nx_scale 0 1 2.0\\nverts 0\\n0 1 2 0.5 0.5 0.0 0.1 0.0 0.0\\n"
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = (Path(d) / "dot.obj").write_text("v 0 0 0\\n")
+        ...     _ = (Path(d) / "dot.mhclo").write_text(mhclo)
+        ...     proxy = read_mhclo(Path(d) / "dot.mhclo")
+        >>> proxy.name, proxy.refs.tolist(), proxy.weights.tolist(), proxy.scales
+        ('dot', [[0, 1, 2]], [[0.5, 0.5, 0.0]], {'x': (0, 1, 2.0)})
     """
     path = Path(path)
     header: dict[str, str] = {}
@@ -258,6 +313,15 @@ def bind_proxy(proxy: Proxy, base_vertices: np.ndarray) -> np.ndarray:
 
     Returns:
         ``(N, 3)`` float64 proxy vertices.
+
+    Examples:
+        >>> mesh = ObjMesh(np.zeros((1, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64),
+        ...                np.zeros(0, np.int64), ["default"])
+        >>> proxy = Proxy("dot", Path("."), mesh, refs=np.array([[0, 1, 2]]), weights=np.array([[0.5, 0.5, 0.0]]),
+        ...               offsets=np.array([[0.1, 0.0, 0.0]]), scales={"x": (0, 1, 2.0)})
+        >>> base = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]])
+        >>> bind_proxy(proxy, base).tolist()  # halfway, plus 0.1 scaled by |4 - 0| / 2
+        [[2.2, 0.0, 0.0]]
     """
     v = np.asarray(base_vertices, dtype=np.float64)
     p = np.einsum("nk,nkc->nc", proxy.weights, v[proxy.refs])
@@ -269,7 +333,21 @@ def bind_proxy(proxy: Proxy, base_vertices: np.ndarray) -> np.ndarray:
 
 
 def read_mhmat(path: str | Path) -> dict[str, str]:
-    """Read a ``.mhmat``: ``key value`` lines (``//`` and ``#`` comments skipped), first occurrence wins."""
+    """Read a ``.mhmat``: ``key value`` lines (``//`` and ``#`` comments skipped), first occurrence wins.
+
+    Args:
+        path: the ``.mhmat`` file.
+
+    Returns:
+        ``{key: value}``, the values as raw text (``""`` for a key without one).
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = (Path(d) / "skin.mhmat").write_text("// skin\\nname young\\ndiffuseTexture skin.png\\nname old\\n")
+        ...     read_mhmat(Path(d) / "skin.mhmat")
+        {'name': 'young', 'diffuseTexture': 'skin.png'}
+    """
     out: dict[str, str] = {}
     with open(path, encoding="utf-8", errors="replace") as fh:
         for raw in fh:
@@ -282,7 +360,18 @@ def read_mhmat(path: str | Path) -> dict[str, str]:
 
 
 def srgb_to_linear_np(x: np.ndarray) -> np.ndarray:
-    """The sRGB decoding curve (IEC 61966-2-1) on a float array in ``[0, 1]``."""
+    """The sRGB decoding curve (IEC 61966-2-1) on a float array in ``[0, 1]``.
+
+    Args:
+        x: sRGB-encoded values in ``[0, 1]``, any shape.
+
+    Returns:
+        the linear values, float32, in the shape of ``x``.
+
+    Examples:
+        >>> [round(float(v), 4) for v in srgb_to_linear_np(np.array([0.0, 0.5, 1.0]))]
+        [0.0, 0.214, 1.0]
+    """
     x = np.asarray(x, dtype=np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
@@ -296,6 +385,15 @@ def load_texture(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
     Returns:
         ``(rgb, alpha)``: ``(H, W, 3)`` float32 linear RGB (sRGB-decoded) and ``(H, W)`` float32 alpha in
         ``[0, 1]``, or ``None`` when the image has none.
+
+    Examples:
+        >>> import tempfile
+        >>> from PIL import Image
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     Image.new("RGBA", (4, 2), (255, 128, 0, 255)).save(Path(d) / "t.png")
+        ...     rgb, alpha = load_texture(Path(d) / "t.png")
+        >>> rgb.shape, [round(float(c), 3) for c in rgb[0, 0]], float(alpha.min())
+        ((2, 4, 3), [1.0, 0.216, 0.0], 1.0)
     """
     from PIL import Image  # lazy: Pillow is an optional dependency (the dev extra)
 
@@ -314,14 +412,36 @@ ETHNICITIES = ("african", "asian", "caucasian")
 
 
 def years_to_age(years: float) -> float:
-    """MakeHuman's age slider for an age in years: 1 y = 0, 25 y = 0.5, 90 y = 1 (linear in between)."""
+    """MakeHuman's age slider for an age in years: 1 y = 0, 25 y = 0.5, 90 y = 1 (linear in between).
+
+    Args:
+        years: the age in years.
+
+    Returns:
+        the slider value in ``[0, 1]`` (clipped outside 1 to 90 years).
+
+    Examples:
+        >>> years_to_age(1.0), years_to_age(25.0), years_to_age(90.0), round(years_to_age(40.0), 4)
+        (0.0, 0.5, 1.0, 0.6154)
+    """
     if years < 25.0:
         return max(0.0, (years - 1.0) / 48.0)
     return min(1.0, 0.5 + (years - 25.0) / 130.0)
 
 
 def age_to_macro(age: float) -> dict[str, float]:
-    """The child/young/old weights of the age slider (README formula)."""
+    """The child/young/old weights of the age slider (README formula).
+
+    Args:
+        age: the age slider in ``[0, 1]`` (:func:`years_to_age`).
+
+    Returns:
+        ``{"child": w, "young": w, "old": w}``, the weights of the macro targets of each age.
+
+    Examples:
+        >>> {k: round(v, 3) for k, v in age_to_macro(0.75).items()}
+        {'child': 0.0, 'young': 0.5, 'old': 0.5}
+    """
     if age < 0.5:
         young = max(0.0, (age - 0.1875) * 3.2)
         return {"child": min(1.0, 5.333 * age) - young, "young": young, "old": 0.0}
@@ -381,6 +501,22 @@ def read_modifier_pairs(path: str | Path, groups: tuple[str, ...]) -> list[tuple
     """The detail sliders of ``modeling_modifiers.json`` in ``groups``: ``(group, target, min, max)``.
 
     ``min``/``max`` are ``None`` for one-sided sliders (``{target}.target`` with a weight in ``[0, 1]``).
+
+    Args:
+        path: ``modeling_modifiers.json`` of the MakeHuman data.
+        groups: the modifier groups to keep (``"nose"``, ``"mouth"``, ...).
+
+    Returns:
+        ``(group, target, min, max)`` for each modifier with a ``target`` in those groups, in the file's order.
+
+    Examples:
+        >>> import json, tempfile
+        >>> spec = [{"group": "nose", "modifiers": [{"target": "nose-width", "min": "decr", "max": "incr"}]},
+        ...         {"group": "ears", "modifiers": [{"target": "ears-size"}]}]
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     _ = (Path(d) / "modifiers.json").write_text(json.dumps(spec))
+        ...     read_modifier_pairs(Path(d) / "modifiers.json", ("nose",))
+        [('nose', 'nose-width', 'decr', 'incr')]
     """
     with open(path, encoding="utf-8") as fh:
         spec = json.load(fh)
@@ -395,7 +531,20 @@ def read_modifier_pairs(path: str | Path, groups: tuple[str, ...]) -> list[tuple
 
 
 def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Area-weighted smooth unit vertex normals of a triangle mesh (``(0, 0, 1)`` where they vanish)."""
+    """Area-weighted smooth unit vertex normals of a triangle mesh (``(0, 0, 1)`` where they vanish).
+
+    Args:
+        v: ``(V, 3)`` vertex positions.
+        tri: ``(F, 3)`` vertex indices of the triangles, counter-clockwise seen from outside.
+
+    Returns:
+        ``(V, 3)`` unit normals (``(0, 0, 1)`` for vertices of no or degenerate triangles).
+
+    Examples:
+        >>> v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 5.0, 5.0]])
+        >>> vertex_normals(v, np.array([[0, 1, 2]])).tolist()  # a triangle facing +Z; vertex 3 is in none
+        [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
+    """
     fn = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
     n = np.zeros_like(v)
     for k in range(3):
@@ -408,7 +557,19 @@ def vertex_normals(v: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 
 def raster_uv_mask(uv_tris: np.ndarray, size: int) -> np.ndarray:
-    """``(size, size)`` bool mask of the UV triangles (``(F, 3, 2)``, v up) drawn into image rows (v down)."""
+    """``(size, size)`` bool mask of the UV triangles (``(F, 3, 2)``, v up) drawn into image rows (v down).
+
+    Args:
+        uv_tris: ``(F, 3, 2)`` texture coordinates of each triangle's corners, ``v`` up.
+        size: the mask's side in texels.
+
+    Returns:
+        the mask ``(size, size)``, bool, row 0 at ``v = 1``.
+
+    Examples:
+        >>> raster_uv_mask(np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]]), 4).astype(int).tolist()
+        [[1, 0, 0, 0], [1, 1, 0, 0], [1, 1, 1, 0], [1, 1, 1, 1]]
+    """
     import cv2  # lazy: OpenCV is slow to import, and few steps need it
 
     img = np.zeros((size, size), np.uint8)

@@ -62,6 +62,12 @@ _MIN_ALBEDO = 0.005
 def lab_to_linear_rgb(lab: tuple[float, float, float]) -> tuple[float, float, float]:
     """Linear sRGB (D65) of a CIELAB colour, unclipped (Kornia's ``lab_to_rgb``, then the sRGB decoding).
 
+    Args:
+        lab: ``(L*, a*, b*)``, D65 white, CIE 1931 2 deg observer.
+
+    Returns:
+        ``(r, g, b)`` linear sRGB, not clipped to ``[0, 1]`` (negative or above 1 out of the gamut).
+
     Examples:
         >>> [round(c, 3) for c in lab_to_linear_rgb((100.0, 0.0, 0.0))]
         [1.0, 1.0, 1.0]
@@ -88,6 +94,15 @@ def measured_skin_range(tone: int) -> tuple[tuple[float, float, float], tuple[fl
     The colours ``(L*, a*, b*)`` within :data:`SKIN_LAB_TOLERANCE` of the tone's :data:`MEASURED_SKIN_LAB`,
     converted to linear RGB: the per-channel minimum and maximum over the box's corners (the conversion is
     monotonic along each axis per channel, so the corners bound it).
+
+    Args:
+        tone: the Monk Skin Tone, an int from 1 (lightest) to 10 (darkest).
+
+    Returns:
+        ``(low, high)``, each ``(r, g, b)`` linear sRGB; ``low`` is clipped at 0.
+
+    Raises:
+        ValueError: ``tone`` is not an int from 1 to 10.
 
     Examples:
         >>> low, high = measured_skin_range(1)
