@@ -96,7 +96,10 @@ def video_clip(field: Any, maps: Sequence[Path], frames: tuple[int, int] = (60, 
         "Images", "Mirror ball" and "Units of lighting").
 
     Examples:
-        It needs a light-stage cache with an eval subject and two held-out maps:
+        >>> round(360 / 128, 2)  # the map turns by one of its 128 columns a frame, in degrees
+        2.81
+
+        The clip needs a light-stage cache with an eval subject and two held-out maps:
 
         >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
         >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
@@ -241,7 +244,10 @@ def video_rows(frames: Sequence[np.ndarray], truth: torch.Tensor, cut: int, sett
         ``flicker_x_truth``, ``lag``, ``lag_own_crops``, ``cuts``, ``detected``, ``estimated``).
 
     Examples:
-        It needs a light-stage cache with an eval subject and two held-out maps:
+        >>> list(VIDEO_SETTINGS)  # the per-frame baseline first
+        ['per frame', 'tracker defaults', 'tracker defaults, runtime auto']
+
+        The rows need a light-stage cache with an eval subject and two held-out maps:
 
         >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
         >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
@@ -286,7 +292,10 @@ def video_skips(field: Any, maps: Sequence[Path], estimator: str = "ours", quick
         the rows of :func:`video_rows`.
 
     Examples:
-        It needs a light-stage cache with an eval subject and two held-out maps:
+        >>> list(VIDEO_SETTINGS)[:2]  # what quick=True measures
+        ['per frame', 'tracker defaults']
+
+        The rows need a light-stage cache with an eval subject and two held-out maps:
 
         >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
         >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP
@@ -347,7 +356,10 @@ def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: 
         ``l_rec_like_max``, of :func:`lrec_like`; ``lights_kept``; ``maps``).
 
     Examples:
-        It needs a light-stage cache with an eval subject and two held-out maps:
+        >>> [name for name, _, _ in RELIGHT_SETTINGS][:2]  # the baseline first
+        ['dense', 'eps 0.005, blocks 4']
+
+        The rows need a light-stage cache with an eval subject and two held-out maps:
 
         >>> field = eval_fields(["lightstage/"])[0]  # doctest: +SKIP
         >>> maps = held_out_maps(["hdri/"])  # doctest: +SKIP

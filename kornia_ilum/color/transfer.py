@@ -4,8 +4,8 @@ The sRGB pair is Kornia's (:func:`kornia.color.linear_rgb_to_rgb` and
 :func:`kornia.color.rgb_to_linear_rgb`, which use the exact IEC 61966-2-1 piecewise curve). The
 wrappers here only add kornia_ilum's argument checks (named arguments, NaN/Inf) so that every
 public entry point fails the same way. While :func:`torch.onnx.export` traces them they compute the same curve
-with a blend by the mask in place of ``where``: ONNX Runtime's ``Where`` costs about twenty times a ``Mul``
-(docs/bench.rst; the exported estimators convert every crop twice).
+with a blend by the mask in place of ``where``: ONNX Runtime's ``Where`` costs far more than a ``Mul``
+(docs/bench.rst has the measurement; the exported estimators convert every crop twice).
 """
 
 from __future__ import annotations
@@ -288,9 +288,9 @@ def encode_srgb8(linear: torch.Tensor, *, inplace: bool = False) -> torch.Tensor
 
     Convention:
         The codes are read from a table of 65536 cells evenly spaced in ``sqrt(x)`` (:func:`srgb8_table`):
-        one lookup per value instead of the sRGB curve's power and the rounding, so it is several times
-        faster than :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section
-        images; the numbers are in the docs' colour page). A value within a cell that straddles a code
+        one lookup per value instead of the sRGB curve's power and the rounding, so it is faster than
+        :func:`linear_to_srgb` and :func:`quantize` (``benchmarks/bench_ops.py``, section images; the numbers
+        are in the docs' colour page). A value within a cell that straddles a code
         boundary may land on the neighbouring code: 0.1 % of the values of random images, never more than
         one code off.
 

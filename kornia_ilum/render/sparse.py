@@ -263,7 +263,7 @@ def _relight_kept(prepared: SparseField, lights: torch.Tensor, order: torch.Tens
     weights = lights.gather(1, top[..., None].expand(b, k, c))  # (B, k, C)
     weights = (weights - means.gather(2, prepared.clusters[top][:, None].expand(b, c, k)).transpose(1, 2))
     chan = torch.arange(c, device=lights.device) * (n if cf > 1 else 0)
-    # padding points at the zero row, with weight 0 (embedding_bag's padding_idx is several times slower)
+    # padding points at the zero row, with weight 0 (embedding_bag's padding_idx takes a slower path)
     index = torch.where(used[:, None], top[:, None] + chan[None, :, None], cf * n)  # (B, C, k)
     return out.add_(torch.nn.functional.embedding_bag(
         index.reshape(b * c, k), prepared.rows, mode="sum",

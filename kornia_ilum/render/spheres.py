@@ -86,7 +86,7 @@ SAFE_GAMMA_KNEE = 1e-6
 
 _SUPERSAMPLES = 8  # sub-samples per lighting pixel and axis (64 per pixel)
 #: The quadrature's sub-samples per lighting pixel and axis for pictures (:meth:`LightingEstimate.preview`), not
-#: metrics: :func:`render_spheres` with it builds a 64 px sphere's fields about twenty times faster.
+#: metrics: 16 times fewer sub-samples, so :func:`render_spheres` builds its fields faster (docs/bench.rst).
 PREVIEW_SUPERSAMPLES = 2
 #: How far (relative to the brightest value of each sphere) a render with :data:`PREVIEW_SUPERSAMPLES` may be
 #: from the default's (tested).
@@ -653,8 +653,8 @@ def render_spheres(
         brdfs: the spheres to render, names from :data:`BRDFS`.
         supersamples: sub-samples per lighting pixel and axis of the fields' quadrature: 8 (the default) for
             the metrics and losses; :data:`PREVIEW_SUPERSAMPLES` (2, 16 times fewer) for pictures: its fields
-            build in about a twentieth of the time (they are most of a process's first preview, docs/bench.rst),
-            and its renders are within :data:`PREVIEW_RTOL` of the default's (``tests/render/test_spheres.py``).
+            build faster (they are most of a process's first preview; docs/bench.rst has the times), and its
+            renders are within :data:`PREVIEW_RTOL` of the default's (``tests/render/test_spheres.py``).
 
     Returns:
         ``{name: render}`` with linear renders ``(B, 3, size, size)`` in the dtype and device of

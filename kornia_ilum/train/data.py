@@ -119,6 +119,10 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
         ValueCheckError: as :func:`training_dataset`.
 
     Examples:
+        >>> from kornia_ilum.estimators.probe import PROBE_SAMPLES
+        >>> PROBE_SAMPLES  # the portraits it writes
+        320
+
         It relights subjects of a light-stage cache (``kornia-ilum export --probe DIR --cache CACHE`` calls it):
 
         >>> meta = write_training_probe("probe/", ["lightstage/"], ["hdri/"])  # doctest: +SKIP

@@ -222,9 +222,23 @@ class Proxy:
 
 
 def _parse_delete_verts(tokens: list[str]) -> list[int]:
+    """The vertex indices of a ``delete_verts`` line: single ``i`` and inclusive ranges ``i - j`` (MakeHuman writes
+    both; also ``i-j`` without spaces).
+
+    Examples:
+        >>> _parse_delete_verts(["3", "7", "-", "9", "12-13"])
+        [3, 7, 8, 9, 12, 13]
+    """
+    words = " ".join(tokens).replace("-", " - ").split()
     out: list[int] = []
-    for t in tokens:  # "i" or "i - j" ranges (MakeHuman writes both)
-        out.append(int(t))
+    i = 0
+    while i < len(words):
+        if i + 2 < len(words) and words[i + 1] == "-":
+            out.extend(range(int(words[i]), int(words[i + 2]) + 1))
+            i += 3
+        else:
+            out.append(int(words[i]))
+            i += 1
     return out
 
 

@@ -32,6 +32,7 @@ import torch
 from kornia.color import lab_to_rgb
 
 from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.core.errors import ValueCheckError
 
 __all__ = [
     "MEASURED_SKIN_LAB",
@@ -102,7 +103,7 @@ def measured_skin_range(tone: int) -> tuple[tuple[float, float, float], tuple[fl
         ``(low, high)``, each ``(r, g, b)`` linear sRGB; ``low`` is clipped at 0.
 
     Raises:
-        ValueError: ``tone`` is not an int from 1 to 10.
+        ValueCheckError: ``tone`` is not an int from 1 to 10 (a :class:`ValueError`).
 
     Examples:
         >>> low, high = measured_skin_range(1)
@@ -110,7 +111,7 @@ def measured_skin_range(tone: int) -> tuple[tuple[float, float, float], tuple[fl
         True
     """
     if not (isinstance(tone, int) and 1 <= tone <= len(MEASURED_SKIN_LAB)):
-        raise ValueError(f"tone must be an MST tone 1..{len(MEASURED_SKIN_LAB)}, got {tone!r}")
+        raise ValueCheckError(f"tone must be an MST tone 1..{len(MEASURED_SKIN_LAB)}, got {tone!r}")
     centre = MEASURED_SKIN_LAB[tone - 1]
     corners = [
         lab_to_linear_rgb(tuple(c + s * t for c, s, t in zip(centre, signs, SKIN_LAB_TOLERANCE, strict=True)))
