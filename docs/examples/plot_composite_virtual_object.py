@@ -48,7 +48,7 @@ rgb, alpha = render[:3], render[3:].clamp(0, 1)
 # %%
 # Composite in linear values, in the photo's units
 # ------------------------------------------------
-# The object goes beside the astronaut's face, over the flag's corner: ``over`` in linear values, then the
+# The object rests on the helmet at the lower right: ``over`` in linear values, then the
 # sRGB curve of the photo.
 
 linear = srgb_to_linear(photo)
