@@ -10,6 +10,11 @@ sample: each sample pays for a whole read of its field and for a procedural envi
 ``--repeats`` runs of ``--chunks`` chunks (after a warm-up chunk); 256 x 256 portraits, ``torch`` limited to
 ``--threads`` threads (1: the issue's "one core").
 
+``--relight-eps EPS`` (with ``--cache`` and ``--max-fields``) also times the training draws relit sparsely
+(``PortraitConfig(relight_eps=EPS)``, from the fields' sidecars, written first where missing:
+:func:`kornia_ilum.synth.lightstage.write_sparse`), interleaved with the exact ones in the same run, and prints
+how far their 8-bit images are from the exact ones.
+
 ``--loader-workers N`` also times what a training loop sees: its own loader
 (:func:`kornia_ilum.train.data.batch_loader`, a :class:`~torch.utils.data.DataLoader` of the training portraits
 with ``N`` worker processes of one torch thread each) and batches of 32, over 64 batches after 8.
@@ -29,12 +34,14 @@ import argparse
 import dataclasses
 import statistics
 import time
+from pathlib import Path
 
 import cv2
 import torch
 from bench_ops import median_ms as _median_ms  # the benchmarks' one timer (run from benchmarks/)
 
 from kornia_ilum.color import encode_srgb8
+from kornia_ilum.core.errors import HDRIOError
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth import camera_effects as fx
 from kornia_ilum.synth.camera_effects import CameraEffects
@@ -46,6 +53,7 @@ from kornia_ilum.synth.lightstage import (
     ReflectanceField,
     read_manifest,
 )
+from kornia_ilum.synth.lightstage import read_sparse, write_sparse
 from kornia_ilum.synth.lightstage.portraits import (
     PortraitConfig,
     background_pyramid,
@@ -174,7 +182,12 @@ def main() -> int:
     parser.add_argument("--max-fields", type=int, default=None,
                         help="use only the first N fields of the cache, read once before timing: the rate with the "
                         "fields in the page cache (a 60-subject cache is 20 GB, about the machine's RAM)")
+    parser.add_argument("--relight-eps", type=float, default=0.0,
+                        help="also time the training draws relit sparsely at this eps, in the same run (needs --cache "
+                        "and --max-fields; writes the fields' sparse sidecars beside them first)")
     args = parser.parse_args()
+    if args.relight_eps and not (args.cache and args.max_fields):
+        parser.error("--relight-eps needs --cache and --max-fields")
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(args.threads)  # the lens blur, sqrt and JPEG run in OpenCV: one core means its threads too
 
@@ -203,8 +216,21 @@ def main() -> int:
                                                               background_sharp_probability=1.0,
                                                               procedural_background_height=128), seed=0)
     training = PortraitDataset(batched.fields, dataclasses.replace(config, **TRAINING_PORTRAITS), seed=0)
-    (fast, off, bare, old, trained), per_chunk = interleaved_rates([batched, no_fx, plain, low, training],
-                                                                   args.chunks, args.repeats)
+    timed = [batched, no_fx, plain, low, training]
+    if args.relight_eps:
+        for f in batched.fields:  # the sidecars of the fields used, written once (write_sparse_cache: all of them)
+            path = Path(f.meta["path"])
+            try:
+                read_sparse(path)
+            except HDRIOError:
+                write_sparse(path)
+        sparse = PortraitDataset(batched.fields, dataclasses.replace(config, **TRAINING_PORTRAITS,
+                                                                      relight_eps=args.relight_eps), seed=0)
+        for f in batched.fields:  # the sidecars' pages in the page cache too
+            float(read_sparse(f.meta["path"]).rows.view(torch.int16).amax())
+        timed.append(sparse)
+    rates, per_chunk = interleaved_rates(timed, args.chunks, args.repeats)
+    fast, off, bare, old, trained = rates[:5]
     single = PortraitDataset(batched.fields, dataclasses.replace(config, fields_per_chunk=1, lightings_per_field=1,
                                                                  env_pool=1, env_refresh=1), seed=0)
     slow, _ = rate(single, args.chunks * 8, args.repeats)
@@ -220,6 +246,14 @@ def main() -> int:
           f"({1000 / trained:.2f} ms each)")
     print(f"speed-up x{fast / slow:.1f}; target >= 200 samples/s on one core: defaults {'PASS' if fast >= 200 else 'FAIL'}, "
           f"training {'PASS' if trained >= 200 else 'FAIL'}")
+    if args.relight_eps:
+        exact, approx = training.chunk(0, 10**6), timed[-1].chunk(0, 10**6)
+        codes = torch.stack([(a["image"].float() - b["image"].float()).abs().mean()
+                             for a, b in zip(exact, approx, strict=True)])
+        print(f"as training draws them, relit sparsely (relight_eps {args.relight_eps:g}, the fields' sidecars): "
+              f"{rates[5]:7.1f} samples/s ({1000 / rates[5]:.2f} ms each), x{rates[5] / trained:.2f} the exact draws; "
+              f"images differ by {float(codes.mean()):.2f} 8-bit codes on average (max over a chunk's samples "
+              f"{float(codes.max()):.2f})")
     effect_costs(args.repeats)
     if args.loader_workers:
         batches = batch_loader(training, 32, workers=args.loader_workers)  # the training loop's own loader

@@ -176,10 +176,12 @@ class TestSubjects:
             "s000000_v00.safetensors", "s000000_v01.safetensors", "s000001_v00.safetensors",
             "s000001_v01.safetensors"]
         stamp = (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns
-        args = self.parser().parse_args([*argv[:-4], "--sheet", "0", "--out", str(tmp_path)])
-        assert args.func(args) == 0  # resumed: nothing left to render
+        args = self.parser().parse_args([*argv[:-4], "--sheet", "0", "--out", str(tmp_path), "--sparse"])
+        assert args.func(args) == 0  # resumed: nothing left to render, the sparse sidecars written
         assert (tmp_path / "fields" / "s000000_v00.safetensors").stat().st_mtime_ns == stamp
-        assert "this run rendered 0" in capsys.readouterr().out
+        out = capsys.readouterr().out
+        assert "this run rendered 0" in out and "wrote 4 sparse-relighting sidecar(s)" in out
+        assert len(list((tmp_path / "fields").glob("*.sparse.safetensors"))) == 4
 
     def test_default_source_falls_back_to_mannequins(self, tmp_path, capsys, monkeypatch):
         from kornia_ilum.synth.cli import _subject_source

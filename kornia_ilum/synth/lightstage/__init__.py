@@ -18,6 +18,7 @@ from kornia_ilum.synth.lightstage.portraits import PortraitDataset, load_fields,
 from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
 from kornia_ilum.synth.lightstage.scene import Camera, sample_views
 from kornia_ilum.synth.lightstage.settings import Auto, OnePass, Reference
+from kornia_ilum.synth.lightstage.sparse import read_sparse, write_sparse, write_sparse_cache
 from kornia_ilum.synth.lightstage.subjects import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -51,6 +52,7 @@ __all__ = [
     "make_subject",
     "read_field",
     "read_manifest",
+    "read_sparse",
     "relight_portraits",
     "render_lighting",
     "render_olat_reference",
@@ -60,4 +62,6 @@ __all__ = [
     "subject_params",
     "subject_split",
     "write_field",
+    "write_sparse",
+    "write_sparse_cache",
 ]

@@ -74,6 +74,7 @@ __all__ = [
     "build_cache",
     "cache_summary",
     "field_path",
+    "map_bfloat16",
     "read_field",
     "read_manifest",
     "shard",
@@ -322,7 +323,7 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
             names = [k for k in fh.keys() if not (mmap and k == "field")]  # noqa: SIM118 - no iterator
             tensors = {k: fh.get_tensor(k) for k in names}
         if mmap:
-            tensors["field"] = _mapped_bfloat16(path, "field")
+            tensors["field"] = map_bfloat16(path, "field")
     except HDRIOError:
         raise
     except Exception as exc:  # safetensors raises its own error types, OSError for a missing file
@@ -344,8 +345,30 @@ def read_field(path: str | os.PathLike, *, dense: bool = True, mmap: bool = Fals
     return field.to_dense() if dense else field
 
 
-def _mapped_bfloat16(path: Path, name: str) -> torch.Tensor:
-    """Tensor ``name`` of a safetensors file, mapped (copy-on-write) rather than read; bfloat16 only."""
+def map_bfloat16(path: str | os.PathLike, name: str) -> torch.Tensor:
+    """Tensor ``name`` of a safetensors file, mapped (copy-on-write) rather than read; bfloat16 only.
+
+    Args:
+        path: the safetensors file.
+        name: the tensor's name in it.
+
+    Returns:
+        the tensor, backed by a :class:`numpy.memmap` of the file: nothing is read until it is used.
+
+    Raises:
+        HDRIOError: the tensor is not bfloat16.
+        KeyError: no tensor of that name.
+
+    Examples:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     safetensors.torch.save_file({"x": torch.ones(2, 3, dtype=torch.bfloat16)}, f"{d}/a.safetensors")
+        ...     x = map_bfloat16(f"{d}/a.safetensors", "x")
+        ...     shape, total = tuple(x.shape), float(x.sum())
+        ...     del x
+        >>> shape, total
+        ((2, 3), 6.0)
+    """
     with open(path, "rb") as fh:
         length = int.from_bytes(fh.read(8), "little")
         info = json.loads(fh.read(length))[name]

@@ -23,7 +23,7 @@ from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection.crop import CROP_SCALE, square_crop_boxes
 from kornia_ilum.geometry import mirror_ball_to_lights
-from kornia_ilum.render import SPHERE_SIZES, relight, sphere_pyramid
+from kornia_ilum.render import SPHERE_SIZES, SparseField, relight, relight_sparse, sphere_pyramid
 from kornia_ilum.synth.background import LUMINANCE, camera_rays, latlong_grid, lookup_latlong
 from kornia_ilum.synth.camera_effects import lens_blur
 from kornia_ilum.synth.lightstage.field import ReflectanceField
@@ -312,7 +312,8 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
     return image, field.alpha.float().reshape(1, 1, field.size, field.size)
 
 
-def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor) -> torch.Tensor:
+def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor,
+              sparse: SparseField | None = None, eps: float = 0.0) -> torch.Tensor:
     """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels.
 
     Unchecked (the callers check): ``lighting`` is ``(B, 3, S, S)`` with the field's ``S``. Returns ``frame``.
@@ -321,6 +322,9 @@ def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tens
         frame: ``(B, 3, H, W)`` contiguous float32 images, ``H = W`` the field's size; changed in place.
         field: the reflectance field, dense or compact.
         lighting: ``(B, 3, S, S)`` mirror-ball radiance in the camera frame.
+        sparse: the field's sparse sidecar (:func:`~kornia_ilum.synth.lightstage.read_sparse`); with ``eps > 0``
+            it relights sparsely (:func:`~kornia_ilum.render.relight_sparse`), otherwise densely.
+        eps: the threshold of :func:`~kornia_ilum.render.relight_sparse`.
 
     Returns:
         ``frame``, with the relit subject added (the background is not attenuated by the matte: see
@@ -346,7 +350,10 @@ def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tens
     lights = mirror_ball_to_lights(lighting.float())
     if field.light_index is not None:
         lights = lights[:, field.light_index]
-    image = relight(field.field, lights, (1, field.field.shape[1]))[:, :, 0]  # (B, 3, P')
+    if sparse is not None and eps > 0:
+        image = relight_sparse(sparse, lights, eps)  # (B, 3, P')
+    else:
+        image = relight(field.field, lights, (1, field.field.shape[1]))[:, :, 0]  # (B, 3, P')
     flat = frame.view(frame.shape[0], 3, -1)
     if field.pixel_index is None:
         flat.add_(image)
