@@ -29,8 +29,7 @@ from pathlib import Path
 import torch
 
 from kornia_ilum.bench import median_seconds
-from kornia_ilum.bench.skips import lrec_like, top_share
-from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
+from kornia_ilum.bench.skips import lrec_like, top_share, turned_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import light_clusters, prepare_sparse, relight_product, relight_sparse, sparse_kept
 from kornia_ilum.synth.lightstage.portraits import load_fields
@@ -65,11 +64,7 @@ def main(argv: list[str] | None = None) -> None:
             continue
         latlong = read_hdr(path).float()[None]
         latlong = latlong / latlong.mean()
-        turns = [torch.roll(latlong, int(k * latlong.shape[-1] / args.batch), dims=-1) for k in range(args.batch)]
-        ball = latlong_to_mirror_ball(torch.cat(turns), field.lighting_size)
-        lights = mirror_ball_to_lights(ball)
-        if index is not None:
-            lights = lights[:, index]
+        lights = turned_lights(latlong, field, args.batch)
         top = top_share(lights)
         dense_lights = lights.to(field.field.dtype)
         reference = relight_product(field.field, dense_lights).float()

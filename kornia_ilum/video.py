@@ -39,7 +39,7 @@ from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeChe
 from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
 
-__all__ = ["IMAGE_SUFFIXES", "LightingTracker", "VideoFrame", "estimate_video", "read_frames"]
+__all__ = ["IMAGE_SUFFIXES", "LightingTracker", "VideoFrame", "estimate_video", "frame_tensor", "read_frames"]
 
 #: The image files of an image sequence.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
@@ -218,7 +218,7 @@ class LightingTracker:
             ShapeError, TypeCheckError, ValueCheckError: the frame is not one of the two forms above.
             NoFaceError: no face found yet and ``fallback`` is ``None``.
         """
-        image = _frame_tensor(frame)
+        image = frame_tensor(frame)
         index = self._frame
         self._frame += 1
         detect = self._box is None or self._since >= self.detect_every
@@ -260,7 +260,24 @@ class LightingTracker:
         return VideoFrame(index, lighting, detect, estimated, cut)
 
 
-def _frame_tensor(frame: np.ndarray | torch.Tensor) -> torch.Tensor:
+def frame_tensor(frame: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """A video frame as the ``(3, H, W)`` float sRGB image in ``[0, 1]`` that the tracker works on.
+
+    Args:
+        frame: ``(H, W, 3)`` uint8 RGB, or ``(3, H, W)`` sRGB float in ``[0, 1]``.
+
+    Returns:
+        the image, float32 (a float tensor is checked and returned as it is).
+
+    Raises:
+        ShapeError: a wrong shape or dtype.
+        ValueCheckError: a float frame outside ``[0, 1]`` or not finite.
+        TypeCheckError: neither an array nor a tensor.
+
+    Examples:
+        >>> frame_tensor(np.full((2, 4, 3), 255, np.uint8)).shape
+        torch.Size([3, 2, 4])
+    """
     if isinstance(frame, np.ndarray):
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[-1] != 3:
             raise ShapeError(f"a frame array must be (H, W, 3) uint8 RGB, got {frame.shape} {frame.dtype}")

@@ -4,7 +4,7 @@
 Run: ``python docs/_scripts/check_blender.py --blender-python PYTHON`` where ``PYTHON`` is an interpreter that
 has Blender's ``bpy`` module (``pip install bpy``: a 370 MB wheel, hence not a test dependency; bpy 5.0.1 on
 Python 3.11 was used). Blender's Cycles renders a sphere of albedo 0.8 from Blender's front view (an
-orthographic camera at -Y looking along +Y, +Z up) under the test map of ``tests/geometry/test_tools.py`` as
+orthographic camera at -Y looking along +Y, +Z up) under :func:`kornia_ilum.geometry.orientation_map` as
 the world's Environment Texture, once for each of the four quarter-turn rolls of the map. It prints each
 roll's mean relative difference to :func:`kornia_ilum.render.render_spheres`, and exits 1 unless the roll of
 ``TOOLS["blender"]`` is the one that matches (under 8 %, the bar of the Mitsuba test).
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import torch
 
-from kornia_ilum.geometry import TOOLS, latlong_directions, latlong_to_mirror_ball
+from kornia_ilum.geometry import TOOLS, latlong_to_mirror_ball, orientation_map
 from kornia_ilum.io import read_hdr, write_hdr
 from kornia_ilum.render import render_spheres
 
@@ -71,18 +71,6 @@ bpy.ops.render.render(write_still=True)
 """
 
 
-def test_map(height: int = 32) -> torch.Tensor:
-    """``(1, 3, H, 2H)``: a dim grey sky and three coloured lobes, red from +X, green from +Y, blue from +Z
-    (the camera's side): the map of ``tests/geometry/test_tools.py``."""
-    d = latlong_directions(height, dtype=torch.float64)
-    out = torch.full((3, height, 2 * height), 0.05, dtype=torch.float64)
-    for channel in range(3):
-        axis = torch.zeros(3, dtype=torch.float64)
-        axis[channel] = 1.0
-        out[channel] += 2.0 * (d @ axis).clamp(min=0) ** 2
-    return out[None].float()
-
-
 def relative_error(image: torch.Tensor, reference: torch.Tensor) -> float:
     """Mean absolute difference over the sphere's inner pixels, over the reference's mean there."""
     size = image.shape[-1]
@@ -97,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--blender-python", required=True, help="a Python interpreter with bpy")
     parser.add_argument("--samples", type=int, default=256)
     args = parser.parse_args(argv)
-    latlong = test_map()
+    latlong = orientation_map()
     ours = render_spheres(latlong_to_mirror_ball(latlong, 32), size=32)["diffuse"].float()
     errors = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -42,10 +42,10 @@ from kornia_ilum.io import read_hdr
 from kornia_ilum.render import light_clusters, prepare_sparse, relight_product, relight_sparse, sparse_kept
 from kornia_ilum.synth.environments.real import guess_label, hdri_split
 from kornia_ilum.synth.lightstage.portraits import relight_portraits
-from kornia_ilum.video import LightingTracker
+from kornia_ilum.video import LightingTracker, frame_tensor
 
 __all__ = ["RELIGHT_SETTINGS", "SUNNY", "VIDEO_SETTINGS", "flicker", "held_out_maps", "lag", "lrec_like",
-           "relight_skips", "skip_rows", "top_share", "video_clip", "video_rows", "video_skips"]
+           "relight_skips", "skip_rows", "top_share", "turned_lights", "video_clip", "video_rows", "video_skips"]
 
 
 def held_out_maps(folders: Sequence[str | os.PathLike[str]]) -> list[Path]:
@@ -217,8 +217,7 @@ def _own_crops_energy(tracker: LightingTracker, frames: Sequence[np.ndarray], re
     energy = []
     with torch.inference_mode():
         for frame, result in zip(frames, results, strict=True):
-            image = torch.from_numpy(frame).permute(2, 0, 1).float() / 255.0
-            crop = crop_faces(image, result.lighting.boxes, size=size, check_values=False)
+            crop = crop_faces(frame_tensor(frame), result.lighting.boxes, size=size, check_values=False)
             energy.append(lighting_energy(tracker.estimator(crop, check_values=False).mirror_ball.double()))
     return torch.cat(energy)
 
@@ -351,6 +350,30 @@ def top_share(lights: torch.Tensor) -> float:
     return float(energy[: max(1, len(energy) // 100)].sum() / energy.sum())
 
 
+def turned_lights(latlong: torch.Tensor, field: Any, batch: int) -> torch.Tensor:
+    """``(batch, N, 3)``: a lat-long map turned to ``batch`` evenly spaced yaws, as light lists in the layout of
+    ``field`` (its ``lighting_size`` mirror ball, and its ``light_index`` where the field is compact): the batch
+    that the relighting rows (:func:`relight_skips`, ``benchmarks/bench_relight.py``) relight.
+
+    Args:
+        latlong: ``(1, 3, H, 2H)`` linear lat-long map.
+        field: a :class:`~kornia_ilum.synth.lightstage.ReflectanceField`.
+        batch: how many yaws.
+
+    Returns:
+        the light lists.
+
+    Examples:
+        >>> from types import SimpleNamespace
+        >>> field = SimpleNamespace(lighting_size=8, light_index=None)
+        >>> tuple(turned_lights(torch.ones(1, 3, 8, 16), field, 4).shape)
+        (4, 64, 3)
+    """
+    turns = [latlong.roll(int(k * latlong.shape[-1] / batch), dims=-1) for k in range(batch)]
+    lights = mirror_ball_to_lights(latlong_to_mirror_ball(torch.cat(turns), field.lighting_size))
+    return lights[:, field.light_index] if field.light_index is not None else lights
+
+
 def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: int = 16) -> list[dict[str, Any]]:
     """The sparse-relighting rows (module docstring): times summed and errors averaged over all ``maps``, over
     the sun-dominated ones (:data:`SUNNY`), and over those of them that are outdoor
@@ -385,10 +408,7 @@ def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: 
     groups: dict[str, dict[str, dict[str, Any]]] = {}
     repeats = 3 if quick else 9
     for path in maps[:2] if quick else maps:
-        latlong = _latlong(path)
-        turns = [latlong.roll(int(k * latlong.shape[-1] / batch), dims=-1) for k in range(batch)]
-        lights = mirror_ball_to_lights(latlong_to_mirror_ball(torch.cat(turns), field.lighting_size))
-        lights = lights[:, index] if index is not None else lights
+        lights = turned_lights(_latlong(path), field, batch)
         dense_lights = lights.to(field.field.dtype)
         reference = relight_product(field.field, dense_lights).float()
         names = ["all held-out maps"]

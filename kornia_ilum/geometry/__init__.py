@@ -38,7 +38,7 @@ from kornia_ilum.geometry.resample import (
     resample_bilinear,
     resize_mirror_ball,
 )
-from kornia_ilum.geometry.tools import TOOLS, latlong_for_tool
+from kornia_ilum.geometry.tools import TOOLS, latlong_for_tool, orientation_map
 from kornia_ilum.geometry.transform import (
     FlipLightingHorizontal,
     RotateLighting,
@@ -64,6 +64,7 @@ __all__ = [
     "mirror_ball_to_lights",
     "mirror_ball_uv",
     "mirror_ball_valid",
+    "orientation_map",
     "pixel_to_uv",
     "uv_to_pixel",
     "latlong_to_mirror_ball",

@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import torch
 
-from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.geometry.latlong import latlong_directions
 
-__all__ = ["TOOLS", "latlong_for_tool"]
+__all__ = ["TOOLS", "latlong_for_tool", "orientation_map"]
 
 #: For each tool, where the column at ``u`` of the library's map (``u`` in ``[0, 1)`` across the width) goes
 #: in the tool's map: ``u + TOOLS[tool]``, wrapped.
@@ -81,3 +82,38 @@ def latlong_for_tool(latlong: torch.Tensor, tool: str, *, inverse: bool = False)
         raise ShapeError(f"latlong must be (*, H, 2H), got {tuple(latlong.shape)}")
     shift = round(TOOLS[tool] * width) * (-1 if inverse else 1)
     return torch.roll(latlong, shifts=shift, dims=-1)
+
+
+def orientation_map(height: int = 32) -> torch.Tensor:
+    r"""A lat-long test map for a tool's orientation: a dim grey sky, a red light from +X (the camera's right),
+    a green one from +Y (above) and a blue one from +Z (the camera's side).
+
+    A diffuse sphere lit by it in the tool, through :func:`latlong_for_tool`, must be red on its right, green at
+    its top and blue at its centre, as :func:`~kornia_ilum.render.render_spheres` renders it
+    (``tests/geometry/test_tools.py`` for Mitsuba, ``docs/_scripts/check_blender.py`` for Blender).
+
+    Args:
+        height: the map's height ``H``.
+
+    Returns:
+        the map, float32 linear radiance: 0.05 everywhere plus ``2 max(d . axis, 0)^2`` in each axis' channel.
+
+    Raises:
+        TypeCheckError: ``height`` is not an int.
+        ValueCheckError: ``height`` is not positive.
+
+    Shape:
+        - Output: :math:`(1, 3, H, 2H)`
+
+    Convention:
+        docs/conventions.rst, "Frames" and "Lat-long".
+
+    Examples:
+        >>> test = orientation_map(16)
+        >>> tuple(test.shape), int(test[0, :, 8, 24].argmax())  # three quarters across: +X, red
+        ((1, 3, 16, 32), 0)
+    """
+    check_positive_int(height, "height")
+    d = latlong_directions(height, dtype=torch.float64)
+    lobes = 2.0 * d.clamp(min=0) ** 2  # (H, 2H, 3): channel c lit from axis c
+    return (0.05 + lobes).permute(2, 0, 1)[None].float()

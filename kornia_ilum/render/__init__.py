@@ -9,7 +9,7 @@ from kornia_ilum.render.pyramid import (
     mirror_ball_downsample_matrix,
     mirror_ball_pyramid,
 )
-from kornia_ilum.render.relight import Relight, kept_lights, light_norms, relight, relight_product
+from kornia_ilum.render.relight import Relight, check_eps, kept_lights, light_norms, relight, relight_product
 from kornia_ilum.render.sparse import (
     KEPT_FRACTION,
     SparseField,
@@ -67,6 +67,7 @@ __all__ = [
     "check_sphere_sizes",
     "encode_sphere",
     "gamma_knee",
+    "check_eps",
     "kept_lights",
     "light_clusters",
     "light_norms",

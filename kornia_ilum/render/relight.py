@@ -28,7 +28,7 @@ from torch import nn
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 
-__all__ = ["Relight", "kept_lights", "light_norms", "relight", "relight_product"]
+__all__ = ["Relight", "check_eps", "kept_lights", "light_norms", "relight", "relight_product"]
 
 _HALF = (torch.float16, torch.bfloat16)
 
@@ -68,9 +68,29 @@ def _image_size(num_pixels: int, size: int | tuple[int, int] | None) -> tuple[in
     return hw[0], hw[1]
 
 
-def _check_eps(eps: float) -> float:
+def check_eps(eps: float, name: str = "eps") -> float:
+    """``eps`` as a float, checked: a number in ``[0, 1)``, the fraction of the energy a relighting may leave out.
+
+    Args:
+        eps: the value.
+        name: the argument's name, used in the message.
+
+    Returns:
+        ``float(eps)``.
+
+    Raises:
+        ValueCheckError: not a number in ``[0, 1)`` (a ``bool`` is refused).
+
+    Examples:
+        >>> check_eps(0)
+        0.0
+        >>> check_eps(1.0, "relight_eps")
+        Traceback (most recent call last):
+        ...
+        kornia.core.exceptions.ValueCheckError: relight_eps must be a number in [0, 1), got 1.0
+    """
     if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0.0 <= eps < 1.0:
-        raise ValueCheckError(f"eps must be a number in [0, 1), got {eps!r}")
+        raise ValueCheckError(f"{name} must be a number in [0, 1), got {eps!r}")
     return float(eps)
 
 
@@ -275,7 +295,7 @@ def relight(
     """
     _check_field(field, finite=False)
     _check_lighting(field, lighting)
-    eps = _check_eps(eps)
+    eps = check_eps(eps)
     h, w = _image_size(field.shape[-2], size)
     compute, out_dtype = _dtypes(field, lighting)
     lights = lighting.to(compute)
@@ -320,7 +340,7 @@ class Relight(nn.Module):
     ) -> None:
         super().__init__()
         _check_field(field, finite=True)
-        self.eps = _check_eps(eps)
+        self.eps = check_eps(eps)
         self.size = _image_size(field.shape[-2], size)
         self.shared = field.dim() == 2
         if self.eps == 0.0:

@@ -40,7 +40,7 @@ import torch
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
-from kornia_ilum.render.relight import light_norms, relight_product
+from kornia_ilum.render.relight import check_eps, light_norms, relight_product
 
 __all__ = ["KEPT_FRACTION", "SparseField", "light_clusters", "prepare_sparse", "relight_sparse", "sparse_kept"]
 
@@ -162,8 +162,7 @@ def _check(prepared: SparseField, lighting: torch.Tensor, eps: float) -> torch.T
     channels = field.shape[0] if field.dim() == 3 else None
     check_tensor(lighting, "lighting", ["B", str(field.shape[-1]), str(channels) if channels else "C"],
                  nonnegative=True)
-    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0.0 <= eps < 1.0:
-        raise ValueCheckError(f"eps must be a number in [0, 1), got {eps!r}")
+    check_eps(eps)
     return lighting.float()
 
 

@@ -12,18 +12,8 @@ import pytest
 import torch
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.geometry import TOOLS, latlong_directions, latlong_for_tool, latlong_to_mirror_ball
+from kornia_ilum.geometry import TOOLS, latlong_for_tool, latlong_to_mirror_ball, orientation_map
 from kornia_ilum.render import render_spheres
-
-
-def _test_map(height: int = 32) -> torch.Tensor:
-    """``(1, 3, H, 2H)``: a dim grey sky and three coloured lobes, red from +X, green from +Y, blue from +Z."""
-    d = latlong_directions(height, dtype=torch.float64)
-    lobes = [(torch.tensor([1.0, 0.0, 0.0]), 0), (torch.tensor([0.0, 1.0, 0.0]), 1), (torch.tensor([0.0, 0.0, 1.0]), 2)]
-    out = torch.full((3, height, 2 * height), 0.05, dtype=torch.float64)
-    for axis, channel in lobes:
-        out[channel] += 2.0 * (d @ axis.double()).clamp(min=0) ** 2
-    return out[None].float()
 
 
 def _mitsuba_diffuse(latlong: torch.Tensor, size: int = 32, spp: int = 256) -> torch.Tensor:
@@ -60,7 +50,7 @@ def _error(image: torch.Tensor, reference: torch.Tensor) -> float:
 
 
 def test_mitsuba_renders_the_map_as_the_library_does() -> None:
-    latlong = _test_map()
+    latlong = orientation_map()
     ours = render_spheres(latlong_to_mirror_ball(latlong, 32), size=32)["diffuse"].float()
     theirs = _mitsuba_diffuse(latlong_for_tool(latlong, "mitsuba"))
     as_on_disk = _mitsuba_diffuse(latlong)
@@ -71,7 +61,7 @@ def test_mitsuba_renders_the_map_as_the_library_does() -> None:
 
 
 def test_every_tool_is_a_roll_that_round_trips() -> None:
-    latlong = _test_map(8)
+    latlong = orientation_map(8)
     for tool in TOOLS:
         moved = latlong_for_tool(latlong, tool)
         assert moved.shape == latlong.shape

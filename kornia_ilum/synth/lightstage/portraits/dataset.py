@@ -27,7 +27,7 @@ from kornia_ilum.core.seeding import hashed_generator
 from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.geometry import flip_lighting_horizontal, latlong_directions, latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
-from kornia_ilum.render import SparseField
+from kornia_ilum.render import SparseField, check_eps
 from kornia_ilum.synth.background import latlong_grid, lookup_latlong
 from kornia_ilum.synth.camera_effects import CameraEffects
 from kornia_ilum.synth.environments import (
@@ -193,9 +193,7 @@ class PortraitConfig:
         for name in ("length", "background_height"):
             if getattr(self, name) is not None:
                 check_positive_int(getattr(self, name), name)
-        if isinstance(self.relight_eps, bool) or not isinstance(self.relight_eps, (int, float)) or not (
-                0.0 <= self.relight_eps < 1.0):
-            raise ValueCheckError(f"relight_eps must be a number in [0, 1), got {self.relight_eps!r}")
+        check_eps(self.relight_eps, "relight_eps")
         if self.env_refresh > self.env_pool:
             raise ValueCheckError(f"env_refresh ({self.env_refresh}) must not exceed env_pool ({self.env_pool})")
         _probability(self.flip_probability, "flip_probability")
