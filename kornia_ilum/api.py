@@ -46,7 +46,7 @@ from kornia_ilum.estimators import (
 )
 from kornia_ilum.io import read_ldr
 
-__all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box"]
+__all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box", "pick_faces"]
 
 _FACES = ("largest", "all", "fused")
 _FALLBACKS = (None, "full_image")
@@ -251,9 +251,22 @@ def _resolve_detector(detector: str | FaceDetector, device: torch.device) -> Fac
     )
 
 
-def _pick(detections: torch.Tensor, faces: str) -> torch.Tensor:
-    """``(N, 5)`` detections -> the ``(K, 5)`` kept: the largest, or all of them largest first (so that face 0 is
-    the same face either way)."""
+def pick_faces(detections: torch.Tensor, faces: str) -> torch.Tensor:
+    """The faces an estimate keeps: the largest, or all of them largest first (so that face 0 is the same face
+    either way); :func:`estimate_lighting` and :class:`~kornia_ilum.video.LightingTracker` pick with it.
+
+    Args:
+        detections: ``(N, 5)`` boxes ``x0, y0, x1, y1, score`` of one image.
+        faces: ``"largest"``, or anything else for all of them.
+
+    Returns:
+        ``(K, 5)`` float32 detections: ``K = min(N, 1)`` for ``"largest"``, ``N`` otherwise.
+
+    Examples:
+        >>> found = torch.tensor([[0.0, 0.0, 10.0, 10.0, 0.9], [0.0, 0.0, 20.0, 20.0, 0.8]])
+        >>> pick_faces(found, "largest")[:, 2].tolist(), pick_faces(found, "all")[:, 2].tolist()
+        ([20.0], [20.0, 10.0])
+    """
     found = detections.to(torch.float32)
     boxes = found[:, :4]
     area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
@@ -401,7 +414,7 @@ def estimate_lighting(
     lap("detect")
     for i, found in enumerate(detections):
         if found.shape[0] > 0:
-            picked = _pick(found, "all" if faces == "fused" else faces).to(dev)
+            picked = pick_faces(found, "all" if faces == "fused" else faces).to(dev)
             kept = picked[:, :4]
             scores.append(picked[:, 4])
             crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))

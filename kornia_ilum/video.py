@@ -33,7 +33,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from kornia_ilum.api import cached_detector, cached_estimator, full_image_box
+from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, pick_faces
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
@@ -198,9 +198,7 @@ class LightingTracker:
     def _box_of(self, image: torch.Tensor) -> torch.Tensor | None:
         found = self.detector.detect(image[None], check_values=False)[0]
         if found.shape[0] > 0:
-            boxes = found[:, :4].float()
-            area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-            return square_crop_boxes(boxes[int(torch.argmax(area))][None], scale=self.detector.crop_scale)
+            return square_crop_boxes(pick_faces(found, "largest")[:, :4], scale=self.detector.crop_scale)
         if self.fallback == "full_image":
             return full_image_box(*image.shape[-2:])
         return self._box
