@@ -15,7 +15,7 @@ run on the machine at hand, beside that machine's measured limits.
 ``import kornia_ilum`` never imports this package (it loads the evaluation and the light stage's data code).
 """
 
-from kornia_ilum.bench.machine import cpu_model, machine_limits, median_seconds
+from kornia_ilum.bench.machine import cpu_model, machine_limits, median_seconds, paired_median_seconds
 from kornia_ilum.bench.report import PAPER, format_bench, pareto_front, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, PEAK_OF, run_bench
 from kornia_ilum.bench.skips import skip_rows
@@ -33,6 +33,7 @@ __all__ = [
     "format_bench",
     "machine_limits",
     "median_seconds",
+    "paired_median_seconds",
     "pareto_front",
     "portrait_photo",
     "run_bench",

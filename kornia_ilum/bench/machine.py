@@ -16,14 +16,15 @@ from __future__ import annotations
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import torch
 
+from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.estimators import native_bf16
 
-__all__ = ["cpu_model", "machine_limits", "median_seconds"]
+__all__ = ["cpu_model", "machine_limits", "median_seconds", "paired_median_seconds"]
 
 
 def median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2) -> float:
@@ -51,6 +52,44 @@ def median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2) -> f
         fn()
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
+
+
+def paired_median_seconds(fns: Sequence[Callable[[], object]], repeats: int, rounds: int = 3, warmup: int = 1
+                          ) -> list[float]:
+    """Median wall time of each of ``fns`` in seconds, timed in turns: ``rounds`` rounds, in each of which every
+    function in order gets ``warmup`` untimed calls and then its share of the ``repeats`` timed calls.
+
+    The ratio of two functions' times is what a benchmark reports; timing them in turns, each warm in its own
+    block, puts a slow spell of a shared machine on both instead of on whichever ran during it.
+
+    Args:
+        fns: what is timed, each called without arguments (the results are dropped).
+        repeats: timed calls of each function, split evenly over the rounds (at least one per round).
+        rounds: how many turns each function gets.
+        warmup: untimed calls at the start of each turn.
+
+    Returns:
+        the median of each function's timed calls, in the order of ``fns``.
+
+    Examples:
+        >>> calls = {"a": 0, "b": 0}
+        >>> times = paired_median_seconds([lambda: calls.update(a=calls["a"] + 1),
+        ...                                lambda: calls.update(b=calls["b"] + 1)], repeats=6, rounds=3)
+        >>> calls, len(times), min(times) >= 0  # 3 rounds of 1 warm-up and 2 timed calls each
+        ({'a': 9, 'b': 9}, 2, True)
+    """
+    check_positive_int(repeats, "repeats")
+    check_positive_int(rounds, "rounds")
+    times: list[list[float]] = [[] for _ in fns]
+    for _ in range(rounds):
+        for fn, own in zip(fns, times, strict=True):
+            for _ in range(warmup):
+                fn()
+            for _ in range(max(1, repeats // rounds)):
+                t0 = time.perf_counter()
+                fn()
+                own.append(time.perf_counter() - t0)
+    return [statistics.median(own) for own in times]
 
 
 def cpu_model() -> str:

@@ -12,8 +12,8 @@ from kornia_ilum.render.pyramid import (
 from kornia_ilum.render.relight import Relight, check_eps, kept_lights, light_norms, relight, relight_product
 from kornia_ilum.render.sparse import (
     KEPT_FRACTION,
+    SPARSE_RANK,
     SparseField,
-    light_clusters,
     prepare_sparse,
     relight_sparse,
     sparse_kept,
@@ -54,6 +54,7 @@ __all__ = [
     "SAFE_GAMMA_KNEE",
     "SILVER_ALPHA",
     "SILVER_F0",
+    "SPARSE_RANK",
     "PREVIEW_RTOL",
     "PREVIEW_SUPERSAMPLES",
     "SPHERE_SIZES",
@@ -69,7 +70,6 @@ __all__ = [
     "gamma_knee",
     "check_eps",
     "kept_lights",
-    "light_clusters",
     "light_norms",
     "mirror_ball_downsample_matrix",
     "mirror_ball_pyramid",

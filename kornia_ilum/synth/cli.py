@@ -361,8 +361,8 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
                      help="also light the sheet's portraits with these real HDR maps")
     cmd.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sheet's portraits (0)")
     cmd.add_argument("--sparse", action="store_true",
-                     help="also write each field's sparse-relighting sidecar (light-major rows, clusters of 4 x 4 "
-                     "lights), for training with --data relight_eps=0.01: faster data, within about 1 %% of the "
+                     help="also write each field's sparse-relighting sidecar (light-major rows, the field at rank "
+                     "48), for training with --data relight_eps=0.01: faster data, within about 1 %% of the "
                      "exact images (docs/skipping.rst)")
     cmd.set_defaults(func=run_synth_subjects)
     return cmd

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from kornia_ilum.bench import cpu_model, machine_limits, median_seconds
+from kornia_ilum.bench import cpu_model, machine_limits, median_seconds, paired_median_seconds
 
 
 def test_machine_limits_measure_every_peak_it_can() -> None:
@@ -18,3 +18,11 @@ def test_machine_limits_measure_every_peak_it_can() -> None:
 def test_median_seconds_warms_up_then_times() -> None:
     calls = []
     assert median_seconds(lambda: calls.append(1), repeats=3, warmup=2) >= 0 and len(calls) == 5
+
+
+def test_paired_median_seconds_times_each_in_turns() -> None:
+    order: list[str] = []
+    times = paired_median_seconds([lambda: order.append("a"), lambda: order.append("b")], repeats=4, rounds=2,
+                                  warmup=1)
+    assert len(times) == 2 and min(times) >= 0
+    assert order == ["a"] * 3 + ["b"] * 3 + ["a"] * 3 + ["b"] * 3  # each round: 1 warm-up, then its 2 timed calls

@@ -135,7 +135,7 @@ class PortraitConfig:
         length: samples per worker and pass (``None``: endless).
         relight_eps: ``0`` relights exactly (the dense product); above 0, sparsely
             (:func:`~kornia_ilum.render.relight_sparse`: the lights carrying more than this fraction of an image's
-            energy exactly, the rest as cluster means), from the fields' sidecars
+            energy exactly, the rest through the field at a low rank), from the fields' sidecars
             (:func:`~kornia_ilum.synth.lightstage.write_sparse_cache`): faster, within about 1 % of ``L_rec`` on
             sunny maps (docs/skipping.rst). Needs fields loaded from a cache folder.
 
