@@ -1,12 +1,19 @@
 """Lighting for video on a light-stage clip: frames per second, flicker against the truth's own change, and the
 lag after a cut, per-frame estimation against :class:`kornia_ilum.video.LightingTracker`.
 
-Run: ``python benchmarks/bench_video.py --cache CACHE [--hdri DIR] [--frames 60 30] [--threads 2]``
+Run: ``python benchmarks/bench_video.py --cache CACHE [--hdri DIR] [--maps A B] [--subject SEED] [--view V]
+[--frames 60 30] [--detect-every 10 5] [--runtimes eager onnx auto] [--threads 2]``
 
-The clip (:func:`kornia_ilum.bench.skips.video_clip`): the first eval subject-view of ``CACHE`` under the first
-held-out map of ``--hdri`` turning by 2.8 degrees per frame for ``--frames[0]`` frames, then a cut to the second
-held-out map for ``--frames[1]`` frames, 640 x 480. The truth of each frame is its map's mirror ball times the
-shot's exposure. ``kornia-ilum bench --cache ...`` measures the same in its ``skips`` section.
+The clip (:func:`kornia_ilum.bench.skips.video_clip`): an eval subject-view of ``CACHE`` (the first, or
+``--subject`` and ``--view``) under a map turning by 2.8 degrees per frame for ``--frames[0]`` frames, then a cut
+to a second map for ``--frames[1]`` frames, 640 x 480. The maps are the first two held-out maps of ``--hdri``,
+or the two files of ``--maps`` (training maps make a tuning clip, on which settings may be chosen). The truth
+of each frame is its map's mirror ball times the shot's exposure. ``kornia-ilum bench --cache ...`` measures
+the held-out clip in its ``skips`` section.
+
+The rows: the per-frame baseline, the tracker's defaults, a time constant of 4, the defaults with
+``runtime="auto"``, and then the tracker at each ``--detect-every`` with each of ``--runtimes`` (none unless
+asked).
 
 Columns, per setting:
 
@@ -41,17 +48,32 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cache", required=True)
     parser.add_argument("--hdri", default=str(Path(__file__).resolve().parents[1].parent / "shared/data/hdri"))
+    parser.add_argument("--maps", nargs=2, metavar=("FIRST", "SECOND"), help="the two shots' maps (files)")
+    parser.add_argument("--subject", type=int, help="the eval subject's seed (default: the first)")
+    parser.add_argument("--view", type=int, default=0, help="its view, with --subject")
     parser.add_argument("--frames", type=int, nargs=2, default=[60, 30])
+    parser.add_argument("--detect-every", type=int, nargs="+", default=[])
+    parser.add_argument("--runtimes", nargs="+", default=["eager"])
     parser.add_argument("--estimator", default="ours")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
-    maps = held_out_maps([args.hdri])
-    frames, truth, cut = video_clip(eval_fields([args.cache])[0], maps, tuple(args.frames))
-    print(f"clip: {len(frames)} frames of 640 x 480, cut at frame {cut}; truth flicker {flicker(truth, cut):.4f}")
+    maps = [Path(m) for m in args.maps] if args.maps else held_out_maps([args.hdri])
+    fields = eval_fields([args.cache])
+    if args.subject is not None:
+        fields = [f for f in fields if f.subject_seed == args.subject and f.meta.get("view_index", 0) == args.view]
+        if not fields:
+            parser.error(f"no eval subject-view {args.subject}, view {args.view} in {args.cache}")
+    field = fields[0]
+    frames, truth, cut = video_clip(field, maps, tuple(args.frames))
+    print(f"clip: subject {field.subject_seed} view {field.meta.get('view_index', 0)} under {maps[0].name} then "
+          f"{maps[1].name}; {len(frames)} frames of 640 x 480, cut at frame {cut}; truth flicker "
+          f"{flicker(truth, cut):.4f}")
     settings = {"per frame (detect, estimate, no smoothing)": VIDEO_SETTINGS["per frame"],
                 "tracker defaults": {}, "tracker, time constant 4": {"time_constant": 4.0},
                 "tracker defaults, runtime auto": {"runtime": "auto"}}
+    settings |= {f"tracker, detect_every {n}, runtime {r}": {"detect_every": n, "runtime": r}
+                 for n in args.detect_every for r in args.runtimes}
     print(f"{'setting':44s} {'fps':>7s} {'flicker':>8s} {'x truth':>8s} {'lag':>4s} {'own':>4s} {'cuts':>5s} "
           f"{'detected':>9s} {'estimated':>9s}")
     for row in video_rows(frames, truth, cut, settings, args.estimator):

@@ -237,8 +237,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="the folder that gets frame_00000.exr, frame_00001.exr, ...")
     vid.add_argument("--estimator", default=None, metavar="NAME", help="registered estimator (default: ours)")
     vid.add_argument("--detector", default="opencv", metavar="NAME", help="face detector (default: opencv)")
-    vid.add_argument("--detect-every", type=positive_int, default=10, metavar="N",
-                     help="detect the face every N frames, and after a cut (default: 10)")
+    vid.add_argument("--detect-every", type=positive_int, default=5, metavar="N",
+                     help="detect the face every N frames, and after a cut (default: 5)")
     vid.add_argument("--reuse-below", type=float, default=0.002, metavar="X",
                      help="reuse the last estimate while the crop changed by less than X (default: 0.002)")
     vid.add_argument("--time-constant", type=float, default=2.0, metavar="T",
@@ -248,8 +248,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     vid.add_argument("--fallback", choices=("full_image",), default=None,
                      help="estimate from the centred square while no face was found")
     vid.add_argument("--runtime", choices=RUNTIMES, default="auto",
-                     help="what computes the estimates (default: auto, the fastest that runs here and passes its "
-                     "parity check, exported once per machine into the cache: video is where speed counts; "
+                     help="what computes the estimates (default: auto, the first float runtime that runs here and "
+                     "passes its parity check, ONNX Runtime then bfloat16, exported once per machine into the "
+                     "cache: video is where speed counts; int8 is left out, its estimates move more with the crop; "
                      "eager for PyTorch float32; docs/skipping.rst gives the frame rates)")
     add_synth_environments_parser(sub)
     add_synth_subjects_parser(sub)

@@ -37,9 +37,15 @@ from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, p
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
-from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, with_runtime
 
-__all__ = ["IMAGE_SUFFIXES", "LightingTracker", "VideoFrame", "estimate_video", "frame_tensor", "read_frames"]
+__all__ = ["IMAGE_SUFFIXES", "TRACKER_AUTO_ORDER", "LightingTracker", "VideoFrame", "estimate_video", "frame_tensor",
+           "read_frames"]
+
+#: What the tracker's ``runtime="auto"`` tries, in order: the float runtimes. The int8 runtime is left out: its
+#: estimates move more with the crop, so a box held between detections keeps it more than 10 % from a fresh box's
+#: for up to 19 frames after a cut, against none for the float runtimes (the tuning clips of docs/skipping.rst).
+TRACKER_AUTO_ORDER = ("onnx", "bf16")
 
 #: The image files of an image sequence.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
@@ -143,7 +149,8 @@ class LightingTracker:
         estimator: a registered name (default :data:`~kornia_ilum.estimators.DEFAULT_ESTIMATOR`) or an
             estimator instance.
         detector: a registered detector name or a :class:`~kornia_ilum.detection.FaceDetector`.
-        detect_every: detect the face every this many frames (1: every frame).
+        detect_every: detect the face every this many frames (1: every frame); 5 by default, since 10 left a
+            box held 19 frames after a cut on a tuning clip (docs/skipping.rst).
         reuse_below: reuse the last raw estimate while the crop differs from the last estimated one by less
             than this (mean absolute sRGB difference at 32 x 32; 0: estimate every frame). Consecutive frames
             of a still face under a turning light differ by 0.001 to 0.004 on the benchmark's clip.
@@ -153,7 +160,8 @@ class LightingTracker:
         fallback: ``"full_image"`` to estimate from the frame's centred square while no face is found;
             ``None`` raises :class:`~kornia_ilum.core.errors.NoFaceError` until a face was seen (after that,
             a frame without a face keeps the last box).
-        runtime: the runtime of a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`).
+        runtime: the runtime of a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`); ``"auto"`` here
+            tries only :data:`TRACKER_AUTO_ORDER`.
 
     Raises:
         ValueCheckError: a setting out of range, or an unknown ``fallback``.
@@ -171,7 +179,7 @@ class LightingTracker:
     """
 
     def __init__(self, estimator: str | LightingEstimator | None = None, detector: str | FaceDetector = "opencv",
-                 *, detect_every: int = 10, reuse_below: float = 0.002, time_constant: float = 2.0,
+                 *, detect_every: int = 5, reuse_below: float = 0.002, time_constant: float = 2.0,
                  cut_above: float = 0.03, fallback: str | None = None, runtime: str = "eager") -> None:
         check_positive_int(detect_every, "detect_every")
         for name, value in (("reuse_below", reuse_below), ("time_constant", time_constant),
@@ -184,7 +192,9 @@ class LightingTracker:
         if isinstance(estimator, LightingEstimator):
             self.estimator = estimator.eval()
         else:
-            self.estimator = cached_estimator(estimator or DEFAULT_ESTIMATOR, device, runtime)
+            name = estimator or DEFAULT_ESTIMATOR
+            self.estimator = (with_runtime(cached_estimator(name, device), "auto", order=TRACKER_AUTO_ORDER)
+                              if runtime == "auto" else cached_estimator(name, device, runtime))
         self.detector = cached_detector(detector, device) if isinstance(detector, str) else detector
         self.detect_every, self.reuse_below, self.cut_above = detect_every, float(reuse_below), float(cut_above)
         self.time_constant, self.fallback = float(time_constant), fallback

@@ -15,7 +15,8 @@ import torch
 
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ValueCheckError
 from kornia_ilum.io import read_hdr
-from kornia_ilum.video import LightingTracker, estimate_video, read_frames
+from kornia_ilum.estimators import AUTO_ORDER
+from kornia_ilum.video import TRACKER_AUTO_ORDER, LightingTracker, estimate_video, read_frames
 
 FACE = skimage.data.astronaut()
 
@@ -32,6 +33,14 @@ def test_detects_every_n_frames_and_reuses_repeated_crops() -> None:
     assert [f.index for f in frames] == list(range(7))
     first = frames[0].lighting.mirror_ball
     assert all(torch.equal(f.lighting.mirror_ball, first) for f in frames)  # a still scene stays still
+
+
+def test_auto_takes_a_float_runtime_never_int8() -> None:
+    assert "onnx-int8" in AUTO_ORDER and "onnx-int8" not in TRACKER_AUTO_ORDER
+    assert set(TRACKER_AUTO_ORDER) <= set(AUTO_ORDER)
+    tracker = LightingTracker(estimator="uniform", runtime="auto")
+    assert tracker.estimator.runtime == "onnx"  # ONNX Runtime is a test dependency, and passes its parity check
+    assert LightingTracker(estimator="uniform").detect_every == 5
 
 
 def test_smoothing_in_log_space_with_its_time_constant() -> None:

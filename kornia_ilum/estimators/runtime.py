@@ -40,7 +40,7 @@ import logging
 import os
 import tempfile
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -632,11 +632,11 @@ def runtime_available(runtime: str, device: str | torch.device = "cpu") -> str |
 
 
 def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, threads: int | None = None,
-                 cache: bool = True) -> LightingEstimator:
+                 cache: bool = True, order: Sequence[str] = AUTO_ORDER) -> LightingEstimator:
     r"""The estimator computed by another runtime (one of :data:`RUNTIMES`; the module docstring).
 
-    ``"auto"`` takes the first of :data:`AUTO_ORDER` that :func:`runtime_available` allows here and that passes
-    :func:`runtime_parity`, else the estimator itself; the runtime chosen is the result's ``runtime``
+    ``"auto"`` takes the first of ``order`` (:data:`AUTO_ORDER`) that :func:`runtime_available` allows here and
+    that passes :func:`runtime_parity`, else the estimator itself; the runtime chosen is the result's ``runtime``
     attribute. A runtime asked for by name is not checked here (``kornia-ilum export`` and the tests check it).
 
     Args:
@@ -644,14 +644,15 @@ def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, thread
         runtime: the runtime.
         threads: ONNX Runtime's intra-op threads.
         cache: use the export cache (:func:`onnx_model`).
+        order: the runtimes ``"auto"`` tries, in order (any of :data:`RUNTIMES` but ``"auto"`` and ``"eager"``).
 
     Returns:
         ``estimator`` itself for ``"eager"`` (and for ``"auto"`` where nothing else passes), else a new
         :class:`Bf16Estimator` or :class:`OnnxEstimator` around it.
 
     Raises:
-        ValueCheckError: an unknown runtime (the message lists :data:`RUNTIMES`), or one that cannot run here
-            (the message says why).
+        ValueCheckError: an unknown runtime (the message lists :data:`RUNTIMES`), one that cannot run here
+            (the message says why), or an ``order`` beyond :data:`AUTO_ORDER`.
         ImportError: an ONNX runtime without ONNX Runtime.
 
     Examples:
@@ -659,13 +660,17 @@ def with_runtime(estimator: LightingEstimator, runtime: str = "eager", *, thread
         >>> net = create_estimator("uniform")
         >>> with_runtime(net, "eager") is net
         True
+        >>> with_runtime(net, "auto", order=()) is net  # nothing to try: eager
+        True
     """
     _check_estimator(estimator)
     if runtime not in RUNTIMES:
         raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
     device = next((p.device for p in estimator.parameters()), torch.device("cpu"))
     if runtime == "auto":
-        for candidate in AUTO_ORDER:
+        if not set(order) <= set(AUTO_ORDER):
+            raise ValueCheckError(f"order must hold runtimes of {', '.join(AUTO_ORDER)}, got {tuple(order)}")
+        for candidate in order:
             if runtime_available(candidate, device) is not None:
                 continue
             try:

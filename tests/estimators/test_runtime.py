@@ -116,6 +116,14 @@ def test_runtimes_by_name(monkeypatch) -> None:
         with_runtime(est, "onnx")
 
 
+def test_auto_tries_only_the_order_given() -> None:
+    est = create_estimator("uniform")
+    assert with_runtime(est, "auto", order=("onnx",)).runtime == "onnx"
+    assert with_runtime(est, "auto", order=()) is est
+    with pytest.raises(ValueCheckError, match="order must hold runtimes of"):
+        with_runtime(est, "auto", order=("eager",))
+
+
 def test_auto_keeps_eager_when_every_runtime_fails_parity(monkeypatch) -> None:
     est = create_estimator("uniform")
     monkeypatch.setattr(runtime_module, "runtime_parity", lambda *a: (1.0, 0.0, False))
