@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import torch
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
-from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
+from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.render.relight import check_eps, light_norms, relight_product
 
 __all__ = ["KEPT_FRACTION", "SPARSE_RANK", "SparseField", "prepare_sparse", "relight_sparse", "sparse_kept"]
