@@ -41,9 +41,9 @@ from pathlib import Path
 import torch
 
 from kornia_ilum.bench import paired_median_seconds
-from kornia_ilum.bench.skips import SUNNY, lrec_like, small_latlong, top_share, turned_lights
+from kornia_ilum.bench.skips import lrec_like, relight_groups, small_latlong, top_share, turned_lights
 from kornia_ilum.render import prepare_sparse, relight_product, relight_sparse, sparse_kept
-from kornia_ilum.synth.environments.real import guess_label, hdri_split
+from kornia_ilum.synth.environments.real import folder_splits
 from kornia_ilum.synth.lightstage.portraits import load_fields
 
 
@@ -66,8 +66,8 @@ def main(argv: list[str] | None = None) -> None:
 
     fields = load_fields(args.cache, split=args.subject_split)
     fields = fields[:: max(1, len(fields) // args.subjects)][: args.subjects]
-    maps = sorted((p for folder in args.hdri for p in Path(folder).iterdir() if p.suffix in (".exr", ".hdr")
-                   and args.maps in ("all", hdri_split(p.name))), key=lambda p: p.name)
+    maps = sorted((Path(folder) / name for folder in args.hdri for name, split in folder_splits(folder).items()
+                   if args.maps in ("all", split)), key=lambda p: p.name)
     print(f"{len(fields)} subject-views x {len(maps)} maps ({args.maps}); batch {args.batch}, {args.threads} threads")
     print(f"{'subject':>8s} {'map':28s} {'top 1%':>7s} {'setting':18s} {'ms':>8s} {'x dense':>8s} {'kept':>6s} "
           f"{'L1':>8s} {'L_rec-like':>10s}")
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> None:
         for path in maps:
             lights = turned_lights(small_latlong(path), field, args.batch)
             top = top_share(lights)
-            if args.sunny_outdoor and not (top >= SUNNY and guess_label(path.name) == "outdoor"):
+            if args.sunny_outdoor and "sun-dominated outdoor maps" not in relight_groups(lights, path.name):
                 continue
             dense_lights = lights.to(field.field.dtype)
             reference = relight_product(field.field, dense_lights).float()

@@ -44,14 +44,7 @@ def median_seconds(fn: Callable[[], object], repeats: int, warmup: int = 2) -> f
         >>> len(calls), seconds >= 0
         (5, True)
     """
-    for _ in range(warmup):
-        fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return paired_median_seconds([fn], repeats, rounds=1, warmup=warmup)[0]
 
 
 def paired_median_seconds(fns: Sequence[Callable[[], object]], repeats: int, rounds: int = 3, warmup: int = 1

@@ -40,13 +40,13 @@ from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import prepare_sparse, relight_product, relight_sparse, sparse_kept
-from kornia_ilum.synth.environments.real import guess_label, hdri_split
+from kornia_ilum.synth.environments.real import folder_splits, guess_label
 from kornia_ilum.synth.lightstage.portraits import relight_portraits
 from kornia_ilum.video import LightingTracker, frame_tensor
 
 __all__ = ["RELIGHT_SETTINGS", "SUNNY", "VIDEO_SETTINGS", "flicker", "held_out_maps", "lag", "lrec_like",
-           "relight_skips", "skip_rows", "small_latlong", "top_share", "turned_lights", "video_clip", "video_rows",
-           "video_skips"]
+           "relight_groups", "relight_skips", "skip_rows", "small_latlong", "top_share", "turned_lights",
+           "video_clip", "video_rows", "video_skips"]
 
 
 def held_out_maps(folders: Sequence[str | os.PathLike[str]]) -> list[Path]:
@@ -67,8 +67,8 @@ def held_out_maps(folders: Sequence[str | os.PathLike[str]]) -> list[Path]:
         ...     [p.name for p in held_out_maps([tmp])]
         ['studio.exr']
     """
-    maps = [p for f in folders for p in Path(f).iterdir() if p.suffix.lower() in (".exr", ".hdr")]
-    return sorted((p for p in maps if hdri_split(p.name) == "eval"), key=lambda p: p.name)
+    maps = [Path(f) / name for f in folders for name, split in folder_splits(f).items() if split == "eval"]
+    return sorted(maps, key=lambda p: p.name)
 
 
 def small_latlong(path: str | os.PathLike[str], height: int = 64) -> torch.Tensor:
@@ -373,6 +373,32 @@ def top_share(lights: torch.Tensor) -> float:
     return float(energy[: max(1, len(energy) // 100)].sum() / energy.sum())
 
 
+def relight_groups(lights: torch.Tensor, name: str) -> list[str]:
+    """The groups of maps a relighting row counts a map in, beyond all of them: the sun-dominated maps
+    (:data:`SUNNY`), and those of them that are outdoor (:func:`~kornia_ilum.synth.environments.guess_label`),
+    issue 24's target.
+
+    Args:
+        lights: the map's light lists (:func:`turned_lights`); only the first is read.
+        name: the map's file name.
+
+    Returns:
+        the group names, from none to both.
+
+    Examples:
+        >>> lights = torch.ones(1, 200, 3)
+        >>> relight_groups(lights, "meadow.exr")  # uniform: not sun-dominated
+        []
+        >>> lights[0, 0] = 1000.0
+        >>> relight_groups(lights, "meadow.exr")
+        ['sun-dominated maps (top 1 % >= 0.5)', 'sun-dominated outdoor maps']
+    """
+    if top_share(lights) < SUNNY:
+        return []
+    return [f"sun-dominated maps (top 1 % >= {SUNNY:g})"] + (["sun-dominated outdoor maps"]
+                                                             if guess_label(name) == "outdoor" else [])
+
+
 def turned_lights(latlong: torch.Tensor, field: Any, batch: int) -> torch.Tensor:
     """``(batch, N, 3)``: a lat-long map turned to ``batch`` evenly spaced yaws, as light lists in the layout of
     ``field`` (its ``lighting_size`` mirror ball, and its ``light_index`` where the field is compact): the batch
@@ -432,10 +458,7 @@ def relight_skips(field: Any, maps: Sequence[Path], quick: bool = False, batch: 
         lights = turned_lights(small_latlong(path), field, batch)
         dense_lights = lights.to(field.field.dtype)
         reference = relight_product(field.field, dense_lights).float()
-        names = ["all held-out maps"]
-        if top_share(lights) >= SUNNY:
-            names += [f"sun-dominated maps (top 1 % >= {SUNNY:g})"]
-            names += ["sun-dominated outdoor maps"] if guess_label(path.name) == "outdoor" else []
+        names = ["all held-out maps"] + relight_groups(lights, path.name)
         calls = [(lambda: relight_product(field.field, dense_lights)) if rank is None else
                  (lambda p=prepared[rank], e=eps: relight_sparse(p, lights, e)) for _, rank, eps in RELIGHT_SETTINGS]
         times = paired_median_seconds(calls, repeats)  # in turns: a slow spell hits every setting alike
