@@ -35,6 +35,7 @@ from kornia_ilum.detection import (
     square_crop_boxes,
 )
 from kornia_ilum.estimators import (
+    AUTO_ORDER,
     DEFAULT_ESTIMATOR,
     LightingEstimate,
     RUNTIMES,
@@ -57,16 +58,18 @@ _ACCEPTED = (
 
 
 @functools.lru_cache(maxsize=8)
-def cached_estimator(name: str, device: torch.device, runtime: str = "eager") -> LightingEstimator:
+def cached_estimator(name: str, device: torch.device, runtime: str = "eager",
+                     order: tuple[str, ...] = AUTO_ORDER) -> LightingEstimator:
     """The registered estimator ``name`` that :func:`estimate_lighting` uses: built with ``pretrained=True``
-    once per ``(name, device, runtime)`` in this process (the 8 most recent are kept), in eval mode, computed by
-    ``runtime`` (:func:`~kornia_ilum.estimators.with_runtime`).
+    once per ``(name, device, runtime, order)`` in this process (the 8 most recent are kept), in eval mode,
+    computed by ``runtime`` (:func:`~kornia_ilum.estimators.with_runtime`).
 
     Args:
         name: a registered estimator name (:func:`~kornia_ilum.estimators.list_estimators`).
         device: where the estimator runs; a :class:`torch.device` (part of the cache key, so ``"cpu"`` and
             ``torch.device("cpu")`` are cached apart).
         runtime: one of :data:`~kornia_ilum.estimators.RUNTIMES`.
+        order: the runtimes ``"auto"`` tries, in order (:data:`~kornia_ilum.estimators.AUTO_ORDER`).
 
     Returns:
         the shared estimator: the same object for the same arguments while it is cached, so do not modify it.
@@ -81,7 +84,7 @@ def cached_estimator(name: str, device: torch.device, runtime: str = "eager") ->
         >>> net.info.name, net is cached_estimator("uniform", torch.device("cpu")), net.training
         ('uniform', True, False)
     """
-    return with_runtime(create_estimator(name, pretrained=True).to(device).eval(), runtime)
+    return with_runtime(create_estimator(name, pretrained=True).to(device).eval(), runtime, order=order)
 
 
 @functools.lru_cache(maxsize=8)

@@ -37,7 +37,7 @@ from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, p
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
-from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, with_runtime
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
 
 __all__ = ["IMAGE_SUFFIXES", "TRACKER_AUTO_ORDER", "LightingTracker", "VideoFrame", "estimate_video", "frame_tensor",
            "read_frames"]
@@ -192,9 +192,7 @@ class LightingTracker:
         if isinstance(estimator, LightingEstimator):
             self.estimator = estimator.eval()
         else:
-            name = estimator or DEFAULT_ESTIMATOR
-            self.estimator = (with_runtime(cached_estimator(name, device), "auto", order=TRACKER_AUTO_ORDER)
-                              if runtime == "auto" else cached_estimator(name, device, runtime))
+            self.estimator = cached_estimator(estimator or DEFAULT_ESTIMATOR, device, runtime, TRACKER_AUTO_ORDER)
         self.detector = cached_detector(detector, device) if isinstance(detector, str) else detector
         self.detect_every, self.reuse_below, self.cut_above = detect_every, float(reuse_below), float(cut_above)
         self.time_constant, self.fallback = float(time_constant), fallback
