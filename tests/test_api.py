@@ -538,5 +538,6 @@ def test_all_faces_come_largest_first_so_face_0_is_the_largest() -> None:
     sides = (every.boxes[:, 2] - every.boxes[:, 0]).tolist()
     assert len(every) >= 2 and sides == sorted(sides, reverse=True)
     torch.testing.assert_close(every.boxes[0], largest.boxes[0])
-    torch.testing.assert_close(every.mirror_ball[0], largest.mirror_ball[0])
+    # the same crop, estimated in a batch of two against alone: float32 rounding may differ by a few ulps
+    torch.testing.assert_close(every.mirror_ball[0], largest.mirror_ball[0], rtol=1e-5, atol=1e-4)
 
