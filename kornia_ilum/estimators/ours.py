@@ -32,6 +32,12 @@ per pixel. The estimate holds ``mirror_ball = exp(y)`` and ``log_mirror_ball = s
 both 0 outside the ball, so ``mirror_ball == expm1(log_mirror_ball)`` and the log form is non-negative, finite
 and well-conditioned for losses in log space.
 
+The spread of the strength (``spread_head=True``, our addition): one linear layer from the bottleneck to
+``log b``, the scale of a Laplace distribution of the true lighting's log energy around the estimate's
+(:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), trained by its negative log-likelihood
+(``kornia-ilum train --lambda-nll``, docs/training.rst). It changes nothing else: the mirror ball is the
+decoder's. A weight file that has it turns it on when loaded.
+
 Training (:mod:`kornia_ilum.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
 (:meth:`OursEstimator.decode`) into 3-channel log lighting for the multi-scale losses; they belong to the
 training model, never run at inference and are not in the shipped weights.
@@ -40,7 +46,7 @@ training model, never run at inference and are not in the shipped weights.
 from __future__ import annotations
 
 import contextlib
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 import torch.nn.functional as F
@@ -53,7 +59,15 @@ from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, Lightin
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
 
-__all__ = ["DECODER_DEPTHS", "ENCODER_DEPTHS", "LIGHTING_SIZE", "OursEstimator", "build_encoder"]
+__all__ = [
+    "DECODER_DEPTHS",
+    "ENCODER_DEPTHS",
+    "LIGHTING_SIZE",
+    "LOG_SPREAD_RANGE",
+    "Decoded",
+    "OursEstimator",
+    "build_encoder",
+]
 
 #: Depths of the five encoder convolutions (each followed by blur-pooling).
 ENCODER_DEPTHS: tuple[int, ...] = (16, 32, 64, 128, 256)
@@ -61,6 +75,9 @@ ENCODER_DEPTHS: tuple[int, ...] = (16, 32, 64, 128, 256)
 DECODER_DEPTHS: tuple[int, ...] = (64, 32, 16)
 #: Side of the predicted mirror ball.
 LIGHTING_SIZE = 32
+#: ``log b`` of the spread head is clamped to this range (``b`` from 0.007 to 20 in natural log units: from
+#: a strength known to 0.7 % to one not known at all), in training and inference alike.
+LOG_SPREAD_RANGE: tuple[float, float] = (-5.0, 3.0)
 
 _INPUT_SIZE = 256
 _BOTTLENECK_SIDE = LIGHTING_SIZE >> len(DECODER_DEPTHS)  # 4
@@ -110,6 +127,15 @@ def build_encoder(latent_dim: int = 1024) -> tuple[nn.Sequential, nn.Linear]:
     return nn.Sequential(*layers), nn.Linear(_BOTTLENECK_DEPTH, latent_dim)
 
 
+class Decoded(NamedTuple):
+    """What :meth:`OursEstimator.decode` returns (see there)."""
+
+    log_radiance: Tensor
+    features: list[Tensor]
+    log_scale: Tensor
+    log_spread: Tensor | None
+
+
 class OursEstimator(LightingEstimator):
     r"""LeGendre et al. 2020's lighting network: face crop -> 32 x 32 log-HDR mirror ball.
 
@@ -122,10 +148,14 @@ class OursEstimator(LightingEstimator):
             exactly with the photo's exposure wherever nothing clips; ``False`` is the paper's network as is.
             The choice is saved with the weights (the buffer ``exposure_normalized``) and loading a state dict
             sets it; a file without that buffer is the paper's network (``False``).
+        spread_head: add the spread head (module docstring): the estimate then has ``log_energy_spread``. A
+            state dict that holds the head's weights adds it when loaded; one without them leaves a model's
+            head as it is (a fine-tune that starts from a file which predates the head).
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
-        ``log_mirror_ball`` (``log(1 + L)``) and ``valid``; ``sh`` is ``None``.
+        ``log_mirror_ball`` (``log(1 + L)``) and ``valid``, and ``log_energy_spread`` with the spread head;
+        ``sh`` is ``None``.
 
     Shape:
         - Input: :math:`(B, 3, 256, 256)`, sRGB in ``[0, 1]``
@@ -147,6 +177,8 @@ class OursEstimator(LightingEstimator):
         ((2, 3, 32, 32), True)
         >>> torch.allclose(est.mirror_ball, torch.expm1(est.log_mirror_ball), rtol=1e-5)
         True
+        >>> OursEstimator(spread_head=True)(torch.rand(2, 3, 256, 256)).log_energy_spread.shape
+        torch.Size([2])
     """
 
     info = EstimatorInfo(
@@ -163,7 +195,7 @@ class OursEstimator(LightingEstimator):
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
     )
 
-    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True) -> None:
+    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True, spread_head: bool = False) -> None:
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
@@ -182,6 +214,7 @@ class OursEstimator(LightingEstimator):
         self.decoder = nn.ModuleList(blocks)
         self.upsample = nn.Upsample(scale_factor=2, mode="bilinear", align_corners=False)
         self.head = nn.Conv2d(depth_in, 3, 3, padding=1)
+        self.spread: nn.Linear | None = nn.Linear(latent_dim, 1) if spread_head else None
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
     def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
@@ -189,11 +222,16 @@ class OursEstimator(LightingEstimator):
         if key not in state_dict:  # a weight file of the paper's network, written before the option existed
             state_dict[key] = torch.tensor(0.0)
         self.normalize_exposure = bool(state_dict[key] > 0.5)
+        has_head = f"{prefix}spread.weight" in state_dict
+        if has_head and self.spread is None:  # a file with the spread head: the model gets one
+            self.spread = nn.Linear(self.latent_dim, 1).to(self.head.weight)
+        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
+            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
         super()._load_from_state_dict(state_dict, prefix, *args)
 
-    def decode(self, crops: Tensor) -> tuple[Tensor, list[Tensor], Tensor]:
-        r"""The raw network: natural-log radiance at 32 px, the decoder's feature maps at 4, 8, 16 px, and the
-        log of the exposure factor.
+    def decode(self, crops: Tensor) -> Decoded:
+        r"""The raw network: natural-log radiance at 32 px, the decoder's feature maps at 4, 8, 16 px, the log
+        of the exposure factor and the spread head's ``log b``.
 
         No input checks, no masking: this is the training path (:mod:`kornia_ilum.train`), whose side
         branches read the feature maps (and add ``log_scale`` to their log radiance). Inference goes through
@@ -203,11 +241,13 @@ class OursEstimator(LightingEstimator):
             crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
 
         Returns:
-            ``(log_radiance, features, log_scale)``: :math:`(B, 3, 32, 32)` in the units of ``crops``, the
-            decoder's activations :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`, :math:`(B, 16, 16, 16)` (before
-            each upsampling), and :math:`(B, 1, 1, 1)` float32: ``log(scale)`` of
+            a :class:`Decoded` ``(log_radiance, features, log_scale, log_spread)``: :math:`(B, 3, 32, 32)` in
+            the units of ``crops``, the decoder's activations :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`,
+            :math:`(B, 16, 16, 16)` (before each upsampling), :math:`(B, 1, 1, 1)`: ``log(scale)`` of
             :func:`~kornia_ilum.color.normalize_exposure` (0 without ``normalize_exposure``), already added to
-            ``log_radiance``. Both are float32 (float64 for a float64 model), also under autocast.
+            ``log_radiance``, and :math:`(B,)` ``log b`` clamped to :data:`LOG_SPREAD_RANGE` (``None`` without
+            the spread head). ``log_radiance``, ``log_scale`` and ``log_spread`` are float32 (float64 for a
+            float64 model), also under autocast.
         """
         dtype = self.head.weight.dtype
         work = torch.promote_types(dtype, torch.float32)  # the exposure and its log: never in bfloat16
@@ -227,12 +267,15 @@ class OursEstimator(LightingEstimator):
             features.append(x)
             x = self.upsample(x)
         log_radiance = self.head(x)
+        log_spread = None if self.spread is None else self.spread(latent)[:, 0]
         with _no_autocast(log_radiance.device):
-            return log_radiance.to(work) + log_scale, features, log_scale
+            if log_spread is not None:
+                log_spread = log_spread.to(work).clamp(*LOG_SPREAD_RANGE)
+            return Decoded(log_radiance.to(work) + log_scale, features, log_scale, log_spread)
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
-        log_radiance, _, _ = self.decode(crops)
+        log_radiance, _, _, log_spread = self.decode(crops)
         with _no_autocast(log_radiance.device):
             y = log_radiance.float()
             mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)
@@ -241,4 +284,5 @@ class OursEstimator(LightingEstimator):
             mirror_ball=saturating_cast(mirror_ball, dtype).contiguous(),
             valid=self.valid,
             log_mirror_ball=log_mirror_ball.to(dtype).contiguous(),
+            log_energy_spread=None if log_spread is None else saturating_cast(torch.exp(log_spread), dtype),
         )

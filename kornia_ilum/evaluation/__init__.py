@@ -7,7 +7,10 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
   its SHA-256) and the per-sample scores (:func:`evaluate`).
 - :mod:`~kornia_ilum.evaluation.checks`: the checks kept running for every estimator: the label-free transfer
   check (:func:`transfer_check`), exposure equivariance (:func:`exposure_equivariance`) and crop stability
-  (:func:`crop_stability`), with the lighting's energy and dominant direction they compare.
+  (:func:`crop_stability`), and the calibration of the spread of the log energy (:func:`spread_calibration`),
+  with the lighting's energy and dominant direction they compare.
+- :mod:`~kornia_ilum.evaluation.bootstrap`: intervals over subjects (:func:`subject_interval`,
+  :func:`ratio_interval`) for the per-tone figures.
 - :mod:`~kornia_ilum.evaluation.curve`: the learning curve of a run's snapshots (:func:`learning_curve`,
   :func:`write_curve`, :func:`read_curve`; :func:`equal_budget` reads several at equal budgets).
 - :mod:`~kornia_ilum.evaluation.report`: the tables (:func:`summarize`, :func:`format_markdown`,
@@ -20,6 +23,8 @@ from kornia_ilum.evaluation.checks import (
     BACKGROUNDS,
     CHECKS,
     EXPOSURE_FACTORS,
+    INTERVAL_RATIOS,
+    SPREAD_NOMINAL,
     check_runner,
     composite_background,
     crop_stability,
@@ -31,8 +36,10 @@ from kornia_ilum.evaluation.checks import (
     jitter_boxes,
     lighting_energy,
     run_checks,
+    spread_calibration,
     transfer_check,
 )
+from kornia_ilum.evaluation.bootstrap import ratio_interval, subject_interval, subject_resamples
 from kornia_ilum.evaluation.curve import (
     CURVE_FIELDS,
     equal_budget,
@@ -68,7 +75,9 @@ __all__ = [
     "DEFAULT_SAMPLES",
     "EVAL_SEED",
     "EXPOSURE_FACTORS",
+    "INTERVAL_RATIOS",
     "ORACLES",
+    "SPREAD_NOMINAL",
     "EvalSet",
     "build_eval_set",
     "probe_eval_set",
@@ -97,7 +106,11 @@ __all__ = [
     "oracle_predictions",
     "predict",
     "read_curve",
+    "ratio_interval",
     "run_checks",
+    "spread_calibration",
+    "subject_interval",
+    "subject_resamples",
     "score",
     "snapshot_files",
     "summarize",

@@ -1,4 +1,4 @@
-r"""Checks that ``kornia-ilum evaluate`` keeps running for every estimator: transfer, exposure, crop.
+r"""Checks that ``kornia-ilum evaluate`` keeps running for every estimator: transfer, exposure, crop, spread.
 
 Each works for any estimator: a callable that takes ``(B, 3, 256, 256)`` float sRGB crops in ``[0, 1]`` and
 returns a :class:`~kornia_ilum.estimators.LightingEstimate` (or a tensor) whose ``mirror_ball`` ``(B, 3, 32,
@@ -20,6 +20,12 @@ dominant direction (:func:`dominant_direction`).
   crops of :func:`~kornia_ilum.evaluation.build_eval_set` (``context``): per portrait the standard deviation
   of the log energy, the ratio of the largest to the smallest energy and the mean angle between each crop's
   dominant direction and their mean direction.
+- :func:`spread_calibration`: for estimators that give the spread of their log energy
+  (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), the share of portraits whose true
+  energy lies within one and two spreads, per skin tone, against the share a calibrated spread gives.
+
+The per-tone figures of the transfer and spread checks carry 95 % intervals over subjects
+(:mod:`~kornia_ilum.evaluation.bootstrap`): the portraits of one face are not independent.
 
 :func:`run_checks` runs the chosen ones for one estimator and returns their JSON-ready tables (medians per
 skin tone and over all samples); :func:`check_runner` makes the ``checks`` callable with which
@@ -48,6 +54,7 @@ from kornia_ilum.detection import (
     crop_faces,
     square_crop_boxes,
 )
+from kornia_ilum.evaluation.bootstrap import ratio_interval, subject_interval
 from kornia_ilum.evaluation.evaluate import EvalSet, fit_crops
 from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
 from kornia_ilum.io import read_ldr
@@ -57,6 +64,8 @@ __all__ = [
     "BACKGROUNDS",
     "CHECKS",
     "EXPOSURE_FACTORS",
+    "INTERVAL_RATIOS",
+    "SPREAD_NOMINAL",
     "check_runner",
     "composite_background",
     "crop_stability",
@@ -68,13 +77,19 @@ __all__ = [
     "jitter_boxes",
     "lighting_energy",
     "run_checks",
+    "spread_calibration",
     "transfer_check",
 ]
 
 #: The checks by name, in the order :func:`run_checks` runs them.
-CHECKS: tuple[str, ...] = ("transfer", "exposure", "crop")
+CHECKS: tuple[str, ...] = ("transfer", "exposure", "crop", "spread")
+#: The share of portraits whose true log energy lies within ``+-k b`` of the estimate's, for a calibrated
+#: Laplace spread ``b``: ``1 - e^-k`` (:func:`spread_calibration`).
+SPREAD_NOMINAL: dict[int, float] = {k: 1.0 - math.exp(-k) for k in (1, 2)}
 #: The darkening factors of :func:`exposure_equivariance`.
 EXPOSURE_FACTORS: tuple[float, ...] = (0.5, 0.25)
+#: The ratios of :func:`transfer_check` that get an interval over subjects and a spread across tones.
+INTERVAL_RATIOS: tuple[str, ...] = ("with/true", "black/with")
 #: The backgrounds of :func:`transfer_check`: name to the sRGB value that replaces the background.
 BACKGROUNDS: dict[str, float] = {"black": 0.0, "grey": 0.5}
 
@@ -278,9 +293,13 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
         batch_size: crops per forward pass.
 
     Returns:
-        ``{"energy": {"with", "black", "grey", "true": (N,) float64}, "table": {group: row}}``; the groups are
-        ``"all"`` and each skin tone; a row holds ``count`` and the medians over its samples of the ratios
-        ``with/true``, ``black/true``, ``grey/true``, ``black/with`` and ``grey/with``.
+        ``{"energy": {"with", "black", "grey", "true": (N,) float64}, "table": {group: row}, "tone_spread":
+        {ratio: ...}}``; the groups are ``"all"`` and each skin tone; a row holds ``count``, ``subjects`` and
+        the medians over its samples of the ratios ``with/true``, ``black/true``, ``grey/true``, ``black/with``
+        and ``grey/with``, and for :data:`INTERVAL_RATIOS` their 95 % interval over subjects (``"with/true_ci"``,
+        ...: :func:`~kornia_ilum.evaluation.bootstrap.subject_interval`). ``tone_spread`` holds, for the same
+        ratios, the largest over the smallest per-tone median with its interval
+        (:func:`~kornia_ilum.evaluation.bootstrap.ratio_interval`; tones ``-1``, unknown, left out).
 
     Raises:
         ValueCheckError: the set has no matte.
@@ -330,9 +349,16 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
     ratios = {"with/true": energy["with"] / energy["true"], "black/true": energy["black"] / energy["true"],
               "grey/true": energy["grey"] / energy["true"], "black/with": energy["black"] / energy["with"],
               "grey/with": energy["grey"] / energy["with"]}
-    table = {g: {"count": int(m.sum()), **{k: _median(r[m]) for k, r in ratios.items()}}
-             for g, m in _groups(eval_set.skin_tone).items()}
-    return {"energy": energy, "table": table}
+    groups = _groups(eval_set.skin_tone)
+    subjects = torch.tensor(list(eval_set.subject_seed))
+    table = {g: {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
+                 **{k: _median(r[m]) for k, r in ratios.items()},
+                 **{f"{k}_ci": subject_interval(ratios[k][m], subjects[m]) for k in INTERVAL_RATIOS}}
+             for g, m in groups.items() if m.any()}
+    tones = {g: m for g, m in groups.items() if g != "all" and int(g) > 0 and m.any()}
+    spread = {k: ratio_interval({g: (ratios[k][m], subjects[m]) for g, m in tones.items()})
+              for k in INTERVAL_RATIOS} if tones else {}
+    return {"energy": energy, "table": table, "tone_spread": spread}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -704,6 +730,82 @@ def crop_stability(
 
 
 # ----------------------------------------------------------------------------------------------
+# spread
+
+
+def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: int = 32) -> dict[str, Any]:
+    r"""Whether the estimator's spread of the log energy says how far its strength is off.
+
+    For every sample, ``z = |log E_true - log E_pred| / b`` with ``b`` the estimate's
+    :attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread` (the scale of a Laplace distribution of
+    the true log energy). A calibrated spread puts the truth within ``+-b`` for ``1 - 1/e`` (63.2 %) of the
+    portraits and within ``+-2b`` for ``1 - 1/e^2`` (86.5 %) (:data:`SPREAD_NOMINAL`), in every skin tone:
+    the share measured per tone, with its interval over subjects, against those.
+
+    Args:
+        estimator: the estimator (module docstring).
+        eval_set: the eval set.
+        batch_size: crops per forward pass.
+
+    Returns:
+        ``{"table": {group: row} or None, "reason": str}``: ``None`` (and why) for an estimator without a
+        spread; a row holds ``count``, ``subjects``, the median ``b`` (``spread``), and for ``k`` = 1 and 2 the
+        share ``within_k`` with its 95 % interval over subjects (``within_k_ci``) and the nominal share
+        (``nominal_k``).
+
+    Shape:
+        - eval_set.images: :math:`(N, 3, H, W)`
+
+    Convention:
+        Energies as :func:`lighting_energy`, natural log (docs/conventions.rst, "Units of lighting").
+
+    Examples:
+        A spread of 1 for an estimate off by ``e^0.5`` for half the portraits and ``e^1.5`` for the others:
+
+        >>> from kornia_ilum.estimators import LightingEstimate
+        >>> from kornia_ilum.evaluation import EvalSet
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> valid = mirror_ball_valid(32)
+        >>> def off(crops):
+        ...     scale = torch.tensor([0.5, 1.5]).exp()[:, None, None, None]
+        ...     return LightingEstimate(mirror_ball=torch.ones(2, 3, 32, 32) * valid * scale, valid=valid,
+        ...                             log_energy_spread=torch.ones(2))
+        >>> tiny = EvalSet(torch.zeros(2, 3, 8, 8, dtype=torch.uint8), torch.ones(2, 3, 32, 32) * valid,
+        ...                ["indoor"] * 2, [3, 3], [0, 1], ["room"] * 2)
+        >>> row = spread_calibration(off, tiny, batch_size=2)["table"]["all"]
+        >>> row["within_1"], row["within_2"], round(row["nominal_1"], 3)
+        (0.5, 1.0, 0.632)
+    """
+    check_positive_int(batch_size, "batch_size")
+    energy, spread = [], []
+    with torch.inference_mode():
+        for i in range(0, len(eval_set), batch_size):
+            crops = _floats(eval_set.images[i : i + batch_size])
+            out = estimator(fit_crops(estimator, crops))
+            b = getattr(out, "log_energy_spread", None)
+            if b is None:
+                return {"table": None, "reason": "the estimator gives no log_energy_spread"}
+            energy.append(lighting_energy(out.mirror_ball.double()))
+            spread.append(b.double())
+    b = torch.cat(spread)
+    z = (lighting_energy(eval_set.mirror_ball.double()).log() - torch.cat(energy).log()).abs() / b
+    subjects = torch.tensor(list(eval_set.subject_seed))
+    table = {}
+    for g, m in _groups(eval_set.skin_tone).items():
+        if not m.any():
+            continue
+        row: dict[str, Any] = {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
+                               "spread": _median(b[m])}
+        for k, nominal in SPREAD_NOMINAL.items():
+            inside = (z[m] <= k).double()
+            row[f"within_{k}"] = float(inside.mean())
+            row[f"within_{k}_ci"] = subject_interval(inside, subjects[m], torch.mean)
+            row[f"nominal_{k}"] = nominal
+        table[g] = row
+    return {"table": table, "reason": ""}
+
+
+# ----------------------------------------------------------------------------------------------
 # all of them
 
 
@@ -734,9 +836,11 @@ def run_checks(
         ks, jitters, position, extent, seed, batch_size: the settings of the checks.
 
     Returns:
-        a dict of the checks run, ``transfer`` (a table), ``exposure`` (``{"eval": table, "photos": table}``,
-        ``"photos"`` only with photos), ``crop`` (a table), and ``seconds`` (``{name: float}``): the tables are
-        the ``"table"`` of :func:`transfer_check`, :func:`exposure_equivariance` and :func:`crop_stability`.
+        a dict of the checks run, ``transfer`` (a table) and ``tone_spread``, ``exposure`` (``{"eval": table,
+        "photos": table}``, ``"photos"`` only with photos), ``crop`` (a table), ``spread`` (``{"table",
+        "reason"}``) and ``seconds`` (``{name: float}``): the tables are the ``"table"`` of
+        :func:`transfer_check`, :func:`exposure_equivariance`, :func:`crop_stability` and
+        :func:`spread_calibration`.
 
     Raises:
         ValueCheckError: an unknown check, or ``"crop"`` without ``context_set``.
@@ -767,6 +871,9 @@ def run_checks(
         if name == "transfer":
             transfer = transfer_check(estimator, eval_set, prediction=prediction, batch_size=batch_size)
             out[name] = transfer["table"]
+            out["tone_spread"] = transfer["tone_spread"]
+        elif name == "spread":
+            out[name] = spread_calibration(estimator, eval_set, batch_size=batch_size)
         elif name == "exposure":
             on_eval = exposure_equivariance(estimator, eval_set.images, ks, prediction=prediction,
                                             batch_size=batch_size)

@@ -37,11 +37,14 @@ estimator (an estimator without weights is reported as skipped) and two oracles,
 the ground truth, unclamped) and "mean of GT" (constant lighting with the true energy). Tables: L_rec per
 sphere for indoor / outdoor / all, relative radiance per channel, and both per skin tone.
 
-Checks (--checks, default all three; "none" for none), on every scored estimator: "transfer", the label-free
-transfer check (energy estimated with the background, over black and over grey, and the truth, per skin tone);
+Checks (--checks, default all four; "none" for none), on every scored estimator: "transfer", the label-free
+transfer check (energy estimated with the background, over black and over grey, and the truth, per skin tone,
+with 95 % intervals over subjects and the spread across tones);
 "exposure", E(k x) / (k E(x)) for k = 0.5 and 0.25 on the eval crops and on real photos (--photos, default
 scikit-image's astronaut, cut by --detector); "crop", the spread of the estimate over --jitters crops jittered
-as a detector's boxes are, on the first --jitter-samples portraits rendered again as wider context crops.
+as a detector's boxes are, on the first --jitter-samples portraits rendered again as wider context crops;
+"spread", whether the estimator's spread of the log energy holds the truth as often as it says (within +-1
+and +-2 spreads, per skin tone; estimators without a spread are reported as such).
 
 examples:
   kornia-ilum evaluate --cache lightstage/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out eval/
@@ -69,7 +72,7 @@ def parse_checks(text: str) -> tuple[str, ...]:
 
     Examples:
         >>> parse_checks("crop,transfer"), parse_checks("none"), parse_checks("all")
-        (('transfer', 'crop'), (), ('transfer', 'exposure', 'crop'))
+        (('transfer', 'crop'), (), ('transfer', 'exposure', 'crop', 'spread'))
     """
     names = [t.strip() for t in text.split(",") if t.strip()]
     if names in (["none"], []):

@@ -4,8 +4,8 @@ r"""The evaluation's tables: summaries of the per-sample scores, as Markdown and
   samples: means over samples (lower is better).
 - **Table 2**: relative radiance per channel, ``(sum L_gt - sum L_pred) / sum L_gt`` (solid-angle weighted):
   mean (the bias; negative: too much light) and mean absolute value.
-- **Table 3**: per skin tone (the subject's Monk tone): ``L_rec`` per sphere and the mean relative radiance per
-  channel.
+- **Table 3**: per skin tone (the subject's Monk tone): ``L_rec`` per sphere, with its 95 % interval over
+  subjects (:mod:`~kornia_ilum.evaluation.bootstrap`), and the mean relative radiance per channel.
 - **Paired differences** against a reference method (``ours`` by default, where it was scored): per sphere, the
   mean over samples of ``L_rec(method) - L_rec(reference)`` on the same portraits, its 95 % interval (normal
   approximation, ``1.96`` standard errors of the mean) and the fraction of samples where the method is better.
@@ -26,6 +26,7 @@ from typing import Any
 
 import torch
 
+from kornia_ilum.evaluation.bootstrap import subject_interval
 from kornia_ilum.evaluation.evaluate import BRDF_NAMES, EvalSet
 
 __all__ = ["format_markdown", "paired_differences", "summarize", "write_report"]
@@ -116,6 +117,7 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
     labels = eval_set.label
     masks = {g: torch.tensor([g == "all" or lab == g for lab in labels], dtype=torch.bool) for g in _GROUPS}
     tones = torch.tensor(eval_set.skin_tone)
+    subjects = torch.tensor(eval_set.subject_seed)
     t1: dict[str, Any] = {}
     t2: dict[str, Any] = {}
     t3: dict[str, Any] = {}
@@ -127,7 +129,10 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
         t3[name] = {}
         for tone in sorted(set(eval_set.skin_tone)):
             m = tones == tone
-            t3[name][str(tone)] = {"count": int(m.sum()), **{b: _mean(s[b][m]) for b in BRDF_NAMES},
+            t3[name][str(tone)] = {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
+                                   **{b: _mean(s[b][m]) for b in BRDF_NAMES},
+                                   **{f"{b}_ci": subject_interval(s[b][m], subjects[m], torch.mean)
+                                      for b in BRDF_NAMES},
                                    "relative_radiance": _means(rr[m]), "relative_radiance_abs": _means(rr[m].abs())}
     digests = {n: m["sha256"] for n, m in results["methods"].items() if "sha256" in m}
     checks = {n: m["checks"] for n, m in results["methods"].items() if "checks" in m}
@@ -209,14 +214,15 @@ def format_markdown(summary: dict[str, Any]) -> str:
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += [
         "",
-        "## Per skin tone (Monk scale): L_rec and relative radiance (mean, R / G / B)",
+        "## Per skin tone (Monk scale): L_rec [95 % interval over subjects] and relative radiance (mean, R / G / B)",
         "",
-        "| method | tone | samples | " + " | ".join(BRDF_NAMES) + " | relative radiance | mean abs |",
-        "|---|---:|---:|" + "---:|" * (len(BRDF_NAMES) + 2),
+        "| method | tone | samples | subjects | " + " | ".join(BRDF_NAMES) + " | relative radiance | mean abs |",
+        "|---|---:|---:|---:|" + "---:|" * (len(BRDF_NAMES) + 2),
     ]
     for name, tones in summary["per_skin_tone"].items():
         for tone, row in tones.items():
-            lines.append(f"| {name} | {tone} | {row['count']} | " + " | ".join(_f(row[b]) for b in BRDF_NAMES)
+            lines.append(f"| {name} | {tone} | {row['count']} | {row.get('subjects', '-')} | "
+                         + " | ".join(_f(row[b]) + _interval(row.get(f"{b}_ci"), 4) for b in BRDF_NAMES)
                          + f" | {_rgb(row['relative_radiance'])} | {_rgb(row['relative_radiance_abs'])} |")
     paired = summary.get("paired", {})
     if paired.get("methods"):
@@ -245,6 +251,12 @@ def format_markdown(summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _interval(ci: list[float] | None, digits: int = 3) -> str:
+    if not ci or any(v is None or math.isnan(v) for v in ci):
+        return ""
+    return f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
+
+
 def _cell(row: dict[str, Any] | None) -> str:
     if not row or row.get("median") is None:
         return "-"
@@ -268,8 +280,16 @@ def _check_tables(summary: dict[str, Any]) -> list[str]:
         ]
         for name, groups in transfer.items():
             for tone, row in groups.items():
-                cells = " | ".join(_f(row[k], 3) for k in keys)
+                cells = " | ".join(_f(row[k], 3) + _interval(row.get(f"{k}_ci")) for k in keys)
                 lines.append(f"| {name} | {tone} | {row['count']} | {cells} |")
+        spreads = {n: c["tone_spread"] for n, c in checks.items() if c.get("tone_spread")}
+        if spreads:
+            lines += ["", "Across skin tones, the largest over the smallest per-tone median [95 % interval over "
+                      "subjects] (tones):", ""]
+            for name, ratios in spreads.items():
+                lines.append(f"- {name}: " + "; ".join(
+                    f"E {k} {r['ratio']:.2f}{_interval(r['interval'], 2)} ({r['max']} over {r['min']})"
+                    for k, r in ratios.items()))
     exposure = {n: c["exposure"] for n, c in checks.items() if "exposure" in c}
     if exposure:
         ks = list(next(iter(exposure.values()))["eval"])
@@ -304,6 +324,24 @@ def _check_tables(summary: dict[str, Any]) -> list[str]:
             for tone, row in groups.items():
                 lines.append(f"| {name} | {tone} | {row['count']} | {_f(row['std_log_energy'], 3)} | "
                              f"{_f(row['max_min_ratio'], 3)} | {_f(row['angle_deg'], 2)} |")
+    spread = {n: c["spread"] for n, c in checks.items() if "spread" in c}
+    if spread:
+        lines += [
+            "",
+            "## Spread of the log energy: the share of portraits whose true log energy lies within +-1 and +-2 "
+            "spreads of the estimate's [95 % interval over subjects]; calibrated: 0.632 and 0.865",
+            "",
+            "| method | tone | samples | median spread | within 1 | within 2 |",
+            "|---|---:|---:|---:|---:|---:|",
+        ]
+        for name, result in spread.items():
+            if result["table"] is None:
+                lines.append(f"| {name} | - | - | {result['reason']} | - | - |")
+                continue
+            for tone, row in result["table"].items():
+                lines.append(f"| {name} | {tone} | {row['count']} | {_f(row['spread'], 3)} | "
+                             f"{_f(row['within_1'], 3)}{_interval(row['within_1_ci'])} | "
+                             f"{_f(row['within_2'], 3)}{_interval(row['within_2_ci'])} |")
     if checks:
         spent = ("; ".join(f"{n}: " + ", ".join(f"{k} {v:.1f}" for k, v in c.get("seconds", {}).items())
                            for n, c in checks.items()))

@@ -57,6 +57,12 @@ class TrainConfig:
             energy against the truth's (:func:`~kornia_ilum.train.losses.energy_loss`), which ``L_rec`` on
             gamma-encoded spheres lets drift low (docs/training.rst, "Why the energy drifts low"). Recipes
             that keep the default :meth:`~kornia_ilum.train.recipes.Recipe.step` have it.
+        lambda_nll: the weight of the scale's own term (0: off). With it, the scale leaves ``L_rec``: every
+            scale's prediction is brought to the truth's energy before the rendering loss and the discriminator
+            (:func:`~kornia_ilum.train.losses.to_true_energy`), and the energy is learned by ``lambda_nll`` times
+            the Laplace negative log-likelihood of the true log energy under the estimate's and the spread
+            head's ``b`` (:func:`~kornia_ilum.train.losses.energy_nll`; the model needs the head:
+            ``--model spread_head=True``). docs/training.rst, "The scale apart".
         multi_scale: the rendering loss at every scale of the generator (4, 8, 16 and 32 px, the paper's
             multi-scale loss); ``False``: at the finest scale only (the paper's ablation "no multi-scale loss":
             the coarser heads then learn from the adversarial term alone).
@@ -130,6 +136,7 @@ class TrainConfig:
     lambda_crop: float = 0.0
     crop_pairs: int = 8
     lambda_energy: float = 0.0
+    lambda_nll: float = 0.0
     multi_scale: bool = True
     loss: str = "rendering"
     seed: int = 0
@@ -176,6 +183,8 @@ class TrainConfig:
             raise ValueCheckError(f"lambda_crop must be non-negative, got {self.lambda_crop!r}")
         if not self.lambda_energy >= 0:
             raise ValueCheckError(f"lambda_energy must be non-negative, got {self.lambda_energy!r}")
+        if not self.lambda_nll >= 0:
+            raise ValueCheckError(f"lambda_nll must be non-negative, got {self.lambda_nll!r}")
         if not isinstance(self.multi_scale, bool):
             raise ValueCheckError(f"multi_scale must be True or False, got {self.multi_scale!r}")
         if self.loss not in LOSSES:

@@ -8,6 +8,8 @@ r"""The training losses of the lighting estimators (LeGendre et al. 2020, Sec. 3
   "log-L2 on the HDR lighting instead of the rendering losses" (:attr:`~kornia_ilum.train.TrainConfig.loss`);
 - :func:`energy_loss`: ``|log E_pred - log E_true|`` per channel, the lighting's energy, an optional term that is
   not the paper's (:attr:`~kornia_ilum.train.TrainConfig.lambda_energy`);
+- :func:`to_true_energy` and :func:`energy_nll`: the scale taken out of ``L_rec`` and learned on its own, with
+  its spread (:attr:`~kornia_ilum.train.TrainConfig.lambda_nll`, docs/training.rst, "The scale apart");
 - :data:`BRDF_WEIGHTS`: the paper's ``lambda_k``.
 
 The default step (:func:`~kornia_ilum.train.recipes.train_step`), the recipes of the plugins and the weight
@@ -22,7 +24,16 @@ from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.metrics import reconstruction_loss, total_radiance
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 
-__all__ = ["BRDF_WEIGHTS", "discriminator_images", "energy_loss", "log_l2_loss", "training_losses"]
+__all__ = [
+    "BRDF_WEIGHTS",
+    "discriminator_images",
+    "energy_loss",
+    "energy_nll",
+    "log_l2_loss",
+    "log_energy",
+    "to_true_energy",
+    "training_losses",
+]
 
 #: lambda_k of the paper: mirror 0.2, diffuse 0.6, matte silver 0.2.
 BRDF_WEIGHTS: dict[str, float] = {"diffuse": 0.6, "matte_silver": 0.2, "mirror": 0.2}
@@ -157,3 +168,80 @@ def energy_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = 1e-4) -> 
     """
     e_pred, e_true = total_radiance(pred.clamp(min=0), torch.float32), total_radiance(target, torch.float32)
     return ((e_pred + eps).log() - (e_true + eps).log()).abs().mean()
+
+
+def log_energy(lighting: torch.Tensor, eps: float = 1e-4) -> torch.Tensor:
+    r"""``log(E + eps)`` per lighting, ``E`` the energy averaged over R, G, B
+    (:func:`~kornia_ilum.metrics.total_radiance`), negative radiance counted as 0; float32.
+
+    Args:
+        lighting: ``(B, 3, S, S)`` linear mirror-ball lighting.
+        eps: added to the energy (in the lighting's units times steradians), for black lightings.
+
+    Returns:
+        ``(B,)`` float32.
+
+    Examples:
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> round(float(log_energy(torch.ones(1, 3, 32, 32) * mirror_ball_valid(32), eps=0.0)[0].exp()), 4)
+        12.5664
+    """
+    return (total_radiance(lighting.clamp(min=0), torch.float32).mean(-1) + eps).log()
+
+
+def to_true_energy(pred: dict[int, torch.Tensor], truth: dict[int, torch.Tensor]) -> dict[int, torch.Tensor]:
+    r"""Each prediction scaled so that its energy is the truth's: the lighting's shape without its strength.
+
+    ``L_pred * E_true / E_pred`` per lighting and scale, with ``E`` the energy averaged over R, G, B (so the
+    colour stays the prediction's). ``L_rec`` of the result is blind to the prediction's overall scale,
+    exactly (its gradient has no component along it): the scale is then learned by :func:`energy_nll` alone,
+    and the L1's pull of the energy below the truth (docs/training.rst, "Why the energy drifts low") is gone.
+
+    Args:
+        pred: ``{size: (B, 3, size, size)}`` predicted linear lighting.
+        truth: the ground truth at the same sizes.
+
+    Returns:
+        ``{size: (B, 3, size, size)}`` float32.
+
+    Examples:
+        >>> light = torch.rand(2, 3, 8, 8) + 0.1
+        >>> out = to_true_energy({8: 5.0 * light}, {8: light})
+        >>> torch.allclose(out[8], light)
+        True
+    """
+    out = {}
+    for s, p in pred.items():
+        gain = (log_energy(truth[s], eps=0.0) - log_energy(p, eps=0.0)).exp()
+        out[s] = p.float() * gain[:, None, None, None]
+    return out
+
+
+def energy_nll(pred: torch.Tensor, target: torch.Tensor, log_spread: torch.Tensor) -> torch.Tensor:
+    r"""The Laplace negative log-likelihood of the true log energy under the estimate's and its spread.
+
+    ``mean(|log E_true - log E_pred| / b + log b)`` over the batch, with ``b = exp(log_spread)`` and ``E`` the
+    energy averaged over R, G, B (:func:`log_energy`; up to the constant ``log 2``). Its minimum over
+    ``E_pred`` is the median of the true energy given the crop (symmetric in log: a light read twice too
+    bright costs what one read half as bright does), and over ``b`` the mean absolute error of that log, so
+    that ``+-b`` holds the truth for ``1 - 1/e`` of the portraits (the calibration that ``kornia-ilum evaluate
+    --checks spread`` measures). Portraits that cannot settle the strength (large ``b``) pull less on it.
+
+    Args:
+        pred: ``(B, 3, S, S)`` predicted linear lighting.
+        target: ``(B, 3, S, S)`` the ground truth at the same size.
+        log_spread: ``(B,)`` the spread head's ``log b``.
+
+    Returns:
+        a float32 scalar.
+
+    Examples:
+        >>> light = torch.ones(2, 3, 8, 8)
+        >>> float(energy_nll(light, light, torch.zeros(2)))
+        0.0
+        >>> round(float(energy_nll(torch.e * light, light, torch.zeros(2))), 4)  # |log e| / 1 + log 1
+        1.0
+    """
+    error = (log_energy(target) - log_energy(pred)).abs()
+    log_spread = log_spread.float()
+    return (error * torch.exp(-log_spread) + log_spread).mean()

@@ -23,7 +23,7 @@ from torch import Tensor, nn
 from kornia_ilum.estimators.ours import DECODER_DEPTHS, LIGHTING_SIZE, OursEstimator
 from kornia_ilum.geometry import mirror_ball_valid
 
-__all__ = ["LOG_RANGE", "SCALES", "MSGDiscriminator", "MultiScaleOurs"]
+__all__ = ["LOG_RANGE", "SCALES", "MSGDiscriminator", "MultiScaleLighting", "MultiScaleOurs"]
 
 #: The lighting sizes of the multi-scale losses, coarse to fine.
 SCALES: tuple[int, ...] = (4, 8, 16, 32)
@@ -34,6 +34,24 @@ _DISC_DEPTHS = (64, 128, 256)
 _DISC_FC = 1024
 
 
+class MultiScaleLighting(dict):
+    """``{size: (B, 3, size, size)}`` lighting of a multi-scale generator, plus the spread head's ``log b``.
+
+    A ``dict`` (so the losses, the discriminator and the recipes take it as they take any multi-scale
+    prediction) with one attribute, :attr:`log_spread`: ``(B,)`` float32 from the estimator's spread head, or
+    ``None`` (:class:`~kornia_ilum.estimators.OursEstimator`, ``spread_head``).
+
+    Examples:
+        >>> out = MultiScaleLighting({32: torch.ones(1, 3, 32, 32)}, log_spread=None)
+        >>> list(out), out.log_spread is None
+        ([32], True)
+    """
+
+    def __init__(self, lighting: dict[int, Tensor], log_spread: Tensor | None) -> None:
+        super().__init__(lighting)
+        self.log_spread = log_spread
+
+
 class MultiScaleOurs(nn.Module):
     r"""``ours`` plus the training-only side branches: face crops -> linear lighting at 4, 8, 16 and 32 px.
 
@@ -42,8 +60,8 @@ class MultiScaleOurs(nn.Module):
             :attr:`estimator` is what gets exported.
 
     Returns:
-        (``forward``) ``{size: (B, 3, size, size)}`` float32 linear radiance, 0 off the ball, for
-        :data:`SCALES`.
+        (``forward``) a :class:`MultiScaleLighting`: ``{size: (B, 3, size, size)}`` float32 linear radiance,
+        0 off the ball, for :data:`SCALES`, and the spread head's ``log_spread`` (``None`` without it).
 
     Examples:
         >>> model = MultiScaleOurs()
@@ -59,14 +77,14 @@ class MultiScaleOurs(nn.Module):
         for s in SCALES:
             self.register_buffer(f"valid_{s}", mirror_ball_valid(s), persistent=False)
 
-    def forward(self, crops: Tensor) -> dict[int, Tensor]:
-        log_32, features, log_scale = self.estimator.decode(crops)  # log_scale: the crops' exposure factor
+    def forward(self, crops: Tensor) -> MultiScaleLighting:
+        log_32, features, log_scale, log_spread = self.estimator.decode(crops)  # log_scale: the exposure factor
         logs = [side(f) + log_scale for side, f in zip(self.sides, features, strict=True)] + [log_32]
         out = {}
         for s, y in zip(SCALES, logs, strict=True):
             radiance = torch.exp(y.float().clamp(-LOG_RANGE, LOG_RANGE))
             out[s] = torch.where(getattr(self, f"valid_{s}"), radiance, 0.0)
-        return out
+        return MultiScaleLighting(out, log_spread)
 
 
 class MSGDiscriminator(nn.Module):

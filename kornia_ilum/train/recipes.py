@@ -36,7 +36,14 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.data import batch_loader, collate
-from kornia_ilum.train.losses import discriminator_images, energy_loss, log_l2_loss, training_losses
+from kornia_ilum.train.losses import (
+    discriminator_images,
+    energy_loss,
+    energy_nll,
+    log_l2_loss,
+    to_true_energy,
+    training_losses,
+)
 from kornia_ilum.train.models import MSGDiscriminator, MultiScaleOurs
 
 __all__ = [
@@ -298,7 +305,10 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
        ``config.multi_scale`` it is taken at 32 px only, and ``config.loss == "log_l2"`` puts
        :func:`~kornia_ilum.train.losses.log_l2_loss` in place of ``L_rec``. With ``pairs`` (:func:`crop_pairs`), plus
        ``lambda_crop`` times :func:`crop_consistency`; with ``lambda_energy``, plus that times
-       :func:`~kornia_ilum.train.losses.energy_loss` at 32 px.
+       :func:`~kornia_ilum.train.losses.energy_loss` at 32 px. With ``lambda_nll``, every scale's prediction is
+       first brought to the truth's energy (:func:`~kornia_ilum.train.losses.to_true_energy`: ``L_rec``, the
+       discriminator and the crop term see the lighting's shape only), and ``lambda_nll`` times
+       :func:`~kornia_ilum.train.losses.energy_nll` at 32 px (the model's ``log_spread``) learns the scale.
 
     Args:
         model: the multi-scale generator (possibly DDP-wrapped): ``crops -> {size: lighting}``.
@@ -315,7 +325,11 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     Returns:
         the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
         without pairs), ``energy`` (:func:`~kornia_ilum.train.losses.energy_loss`, 0 without
-        ``lambda_energy``) and ``rec_<brdf>`` (at 32 px).
+        ``lambda_energy``), ``nll`` and ``spread`` (:func:`~kornia_ilum.train.losses.energy_nll` and the batch's
+        mean ``b``, 0 without ``lambda_nll``) and ``rec_<brdf>`` (at 32 px).
+
+    Raises:
+        ValueCheckError: ``lambda_nll`` for a model without a spread head.
 
     Examples:
         One step of a toy generator, a constant lighting, without a discriminator (not run here: the first
@@ -335,7 +349,7 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         ...                     target=torch.ones(2, 3, 32, 32), config=config,
         ...                     runtime=RuntimeSettings(bf16=False, channels_last=False, workers=0))  # doctest: +SKIP
         >>> sorted(losses)  # doctest: +SKIP
-        ['adv', 'crop', 'disc', 'energy', 'extra', 'loss', 'rec', 'rec_mirror']
+        ['adv', 'crop', 'disc', 'energy', 'extra', 'loss', 'nll', 'rec', 'rec_mirror', 'spread']
         >>> round(losses["loss"].item(), 6)  # doctest: +SKIP
         0.0
     """
@@ -345,6 +359,14 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         pred = model(crops)
     truth = mirror_ball_pyramid(target, tuple(pred))  # the losses' targets, the discriminator's real images
     finest = max(pred)
+    nll = spread = target.new_zeros(())
+    if config.lambda_nll > 0:
+        log_spread = getattr(pred, "log_spread", None)
+        if log_spread is None:
+            raise ValueCheckError("lambda_nll needs a model with a spread head (--model spread_head=True)")
+        nll = energy_nll(pred[finest], truth[finest], log_spread)
+        spread = log_spread.detach().exp().mean()
+        pred = to_true_energy(pred, truth)  # the rest sees the shape: the scale is the likelihood's alone
     scored = pred if config.multi_scale else {finest: pred[finest]}
     if config.loss == "log_l2":
         rec = log_l2_loss(scored, truth, config.lambda_scale)
@@ -370,12 +392,14 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
     energy = energy_loss(pred[finest], truth[finest]) if config.lambda_energy > 0 else rec.new_zeros(())
-    loss = rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
+    loss = (rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
+            + config.lambda_nll * nll)
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
     return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
-            "extra": extra.detach(), "crop": crop.detach(), "energy": energy.detach(), **parts}
+            "extra": extra.detach(), "crop": crop.detach(), "energy": energy.detach(), "nll": nll.detach(),
+            "spread": spread, **parts}
 
 
 def _recipe_classes() -> dict[str, type[Recipe]]:

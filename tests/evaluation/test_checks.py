@@ -16,6 +16,8 @@ from kornia_ilum.evaluation import (
     BACKGROUNDS,
     CHECKS,
     EXPOSURE_FACTORS,
+    INTERVAL_RATIOS,
+    SPREAD_NOMINAL,
     check_runner,
     composite_background,
     crop_stability,
@@ -28,8 +30,10 @@ from kornia_ilum.evaluation import (
     jitter_boxes,
     lighting_energy,
     run_checks,
+    spread_calibration,
     transfer_check,
 )
+from kornia_ilum.estimators import LightingEstimate
 from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_valid, uv_to_pixel
 from kornia_ilum.io import write_ldr
 
@@ -217,9 +221,9 @@ class TestRunChecks:
     def test_tables(self, eval_set, context_set) -> None:
         photos = torch.rand(2, 3, 256, 256)
         out = run_checks(brightness, eval_set, CHECKS, context_set=context_set, photos=photos, jitters=2)
-        assert set(out) == {*CHECKS, "seconds"} and set(out["seconds"]) == set(CHECKS)
+        assert set(out) == {*CHECKS, "tone_spread", "seconds"} and set(out["seconds"]) == set(CHECKS)
         assert set(out["exposure"]) == {"eval", "photos"} and out["exposure"]["photos"]["0.5"]["count"] == 2
-        assert set(run_checks(constant, eval_set, ["transfer"])) == {"transfer", "seconds"}
+        assert set(run_checks(constant, eval_set, ["transfer"])) == {"transfer", "tone_spread", "seconds"}
         with pytest.raises(ValueCheckError, match="unknown checks"):
             run_checks(constant, eval_set, ["speed"])
         with pytest.raises(ValueCheckError, match="context_set"):
@@ -228,7 +232,7 @@ class TestRunChecks:
     def test_evaluate_runs_them_on_the_estimators(self, eval_set, context_set) -> None:
         runner = check_runner(eval_set, ["transfer", "crop"], context_set=context_set, jitters=2)
         results = evaluate(eval_set, ["uniform"], checks=runner)
-        assert set(results["methods"]["uniform"]["checks"]) == {"transfer", "crop", "seconds"}
+        assert set(results["methods"]["uniform"]["checks"]) == {"transfer", "tone_spread", "crop", "seconds"}
         assert all("checks" not in results["methods"][o] for o in ("SH of GT", "mean of GT"))
         with pytest.raises(ValueCheckError, match="context_set"):
             check_runner(eval_set, ["crop"])
@@ -236,3 +240,37 @@ class TestRunChecks:
             check_runner(eval_set, ["speed"])
         with pytest.raises(ValueCheckError, match="at least 2"):
             check_runner(eval_set, ["crop"], context_set=context_set, jitters=1)
+
+
+class TestIntervalsAndSpread:
+    def test_transfer_intervals_bracket_the_medians(self, eval_set) -> None:
+        out = transfer_check(brightness, eval_set)
+        for group, row in out["table"].items():
+            for key in INTERVAL_RATIOS:
+                low, high = row[f"{key}_ci"]
+                assert low <= row[key] + 1e-12 and row[key] <= high + 1e-12, (group, key)
+            assert row["subjects"] >= 1
+        spread = out["tone_spread"]["with/true"]
+        medians = [row["with/true"] for g, row in out["table"].items() if g != "all"]
+        assert math.isclose(spread["ratio"], max(medians) / min(medians), rel_tol=1e-9)
+        assert spread["interval"][0] >= 1.0 - 1e-12
+
+    def test_spread_calibration(self, eval_set) -> None:
+        truth = lighting_energy(eval_set.mirror_ball.double())
+        error = torch.linspace(-1.9, 1.9, len(eval_set), dtype=torch.float64)
+
+        def off(crops: torch.Tensor, start: list[int] = [0]) -> LightingEstimate:  # noqa: B006 (a counter)
+            i = start[0]
+            start[0] += len(crops)
+            e = (truth[i : i + len(crops)] * error[i : i + len(crops)].exp()).float()
+            ball = VALID.expand(len(crops), 3, 32, 32) * (e / (4 * math.pi))[:, None, None, None]
+            return LightingEstimate(mirror_ball=ball, valid=VALID.bool(), log_energy_spread=torch.ones(len(crops)))
+
+        out = spread_calibration(off, eval_set, batch_size=4)
+        row = out["table"]["all"]
+        inside = float((error.abs() <= 1 + 1e-6).double().mean())
+        assert math.isclose(row["within_1"], inside, abs_tol=1e-9) and row["within_2"] == 1.0
+        assert row["nominal_1"] == SPREAD_NOMINAL[1] and row["spread"] == 1.0
+        assert row["within_1_ci"][0] <= row["within_1"] <= row["within_1_ci"][1]
+        none = spread_calibration(constant, eval_set)
+        assert none["table"] is None and "no log_energy_spread" in none["reason"]

@@ -30,7 +30,7 @@ class TestEvaluateCommand:
             assert title in markdown and title in printed
         assert "| ours | real photos | 1 |" in markdown and "| uniform | all | 3 |" in markdown
         assert set(summary["checks"]) == {"uniform", "ours"}
-        assert set(summary["checks"]["ours"]) == {*CHECKS, "seconds"}
+        assert set(summary["checks"]["ours"]) == {*CHECKS, "tone_spread", "seconds"}
         assert summary["checks"]["ours"]["transfer"]["all"]["count"] == 8
         assert summary["checks"]["ours"]["crop"]["all"]["count"] == 3
         settings = summary["check_settings"]
