@@ -28,6 +28,14 @@ negative. So:
   (see there). The recipe imports this module, never the other way: creating the estimator does not import
   the training code.
 
+Exposure, by design (issue 39): ``normalize_exposure=True`` (the default) re-exposes each crop to a
+centre-weighted mean luminance of 0.18 before the network (:func:`kornia_ilum.color.normalize_exposure`, as
+``ours`` does) and multiplies the coefficients by the factor back, so the estimate follows the photo's
+exposure exactly wherever nothing clips. The shipped weights were trained on crops auto-exposed to keys 0.1 to
+0.3, so a crop at 0.18 is one they saw; the training path (:meth:`SHEstimator.coefficients`) is the network
+alone, as trained. ``False`` gives the network as it was trained, which read 1.74 times the light of a photo
+darkened 4 times.
+
 The head's bias starts at uniform radiance :data:`INIT_RADIANCE` (coefficient (0, 0) =
 ``INIT_RADIANCE * sqrt(4 pi)``, the others 0), so that the untrained network's spheres are positive and the
 rendering loss has gradients from the first step (negative sphere pixels have none).
@@ -40,6 +48,7 @@ import math
 import torch
 from torch import Tensor, nn
 
+from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int, trusted
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.estimators.ours import build_encoder
@@ -72,6 +81,8 @@ class SHEstimator(LightingEstimator):
 
     Args:
         latent_dim: size of the encoder's fully-connected bottleneck (1024, as in ``ours``).
+        normalize_exposure: re-expose the crop to a metered 0.18 and scale the estimate back (module
+            docstring, "Exposure"); not saved in the weights.
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``sh`` (the raw
@@ -111,10 +122,11 @@ class SHEstimator(LightingEstimator):
         "(kornia_ilum_sh/weights/); reinstall it",
     )
 
-    def __init__(self, latent_dim: int = 1024) -> None:
+    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True) -> None:
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
+        self.normalize_exposure = bool(normalize_exposure)
         self.encoder, self.to_latent = build_encoder(latent_dim)  # the same encoder as ours
         self.head = nn.Linear(latent_dim, NUM_COEFFICIENTS * 3)
         with torch.no_grad():
@@ -139,9 +151,13 @@ class SHEstimator(LightingEstimator):
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
+        scale = None
+        if self.normalize_exposure:
+            with torch.autocast(crops.device.type, enabled=False), trusted():  # forward() checked the crops
+                crops, scale = normalize_exposure(crops.float())
         sh = self.coefficients(crops)
         with torch.autocast(sh.device.type, enabled=False):
-            sh = sh.float()
+            sh = sh.float() if scale is None else sh.float() * scale[:, None, None]
             mirror_ball = sh_reconstruct(sh, LIGHTING_SIZE, "mirror_ball", clamp_negative=True)
             log_mirror_ball = torch.log1p(mirror_ball)
         return LightingEstimate(

@@ -12,6 +12,14 @@ resampled to the 32 x 32 equal-area mirror ball of docs/conventions.rst ("Mirror
 area averaging (:func:`~kornia_ilum.geometry.latlong_to_mirror_ball`, ``mode="area"``: ``sum(L * omega)`` per
 channel is kept), and ``log_mirror_ball`` is ``log(1 + mirror_ball)``. Lighting is in the units of the input
 image.
+
+Exposure, by design (issue 39): ``normalize_exposure=True`` (the default) re-exposes each crop to a
+centre-weighted mean luminance of 0.18 before the network (:func:`kornia_ilum.color.normalize_exposure`, as
+``ours`` does) and multiplies the estimate by the factor back, so it follows the photo's exposure exactly
+wherever nothing clips. The shipped weights were trained on crops auto-exposed to keys 0.1 to 0.3, so a crop
+at 0.18 is one they saw; the training path (:meth:`SIPREstimator.log_latlong`) is the network alone, as
+trained. ``False`` gives the network as it was trained, which read 2.55 times the light of a photo darkened 4
+times.
 """
 
 from __future__ import annotations
@@ -19,6 +27,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from kornia_ilum.color import normalize_exposure
+from kornia_ilum.core.check import trusted
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
@@ -45,6 +55,10 @@ class SIPREstimator(LightingEstimator):
     r"""The SIPR encoder and lighting head: face crop -> 16 x 32 log lat-long -> 32 x 32 HDR mirror ball.
 
     See the module docstring and :mod:`kornia_ilum_sipr.network`.
+
+    Args:
+        normalize_exposure: re-expose the crop to a metered 0.18 and scale the estimate back (module
+            docstring, "Exposure"); not saved in the weights.
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
@@ -84,8 +98,9 @@ class SIPREstimator(LightingEstimator):
         needs_weights=True,
     )
 
-    def __init__(self) -> None:
+    def __init__(self, normalize_exposure: bool = True) -> None:
         super().__init__()
+        self.normalize_exposure = bool(normalize_exposure)
         self.encoder = Encoder()
         self.head = LightingHead(LIGHTING_SHAPE)
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
@@ -110,9 +125,15 @@ class SIPREstimator(LightingEstimator):
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.out.weight.dtype
+        scale = None
+        if self.normalize_exposure:
+            with torch.autocast(crops.device.type, enabled=False), trusted():  # forward() checked the crops
+                crops, scale = normalize_exposure(crops.float())
         z = self.log_latlong(crops)
         with torch.autocast(z.device.type, enabled=False):
             mirror_ball = log_latlong_to_mirror_ball(z, LIGHTING_SIZE)
+            if scale is not None:
+                mirror_ball = mirror_ball * scale[:, None, None, None]
             log_mirror_ball = torch.log1p(mirror_ball)
         return LightingEstimate(
             mirror_ball=mirror_ball.to(dtype).contiguous(),
