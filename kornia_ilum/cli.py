@@ -68,8 +68,9 @@ estimator, and write the lighting as an .exr or .hdr file (a 32x32 equal-area mi
 units of the photograph; or a lat-long map with --latlong), plus an optional preview PNG of the diffuse,
 matte silver and mirror reference spheres. Beside each lighting file, a .json of the same name gives
 the main light (direction, solid angle, colour, intensity) and the order-2 SH of the rest, the shape of
-ARCore's Environmental HDR (LightingEstimate.dominant_light). Prints one line per written file, and the
-timing.
+ARCore's Environmental HDR (LightingEstimate.dominant_light), and "log_energy_spread": how far the light's
+strength may be off (the truth within exp(+-spread) times the estimate's energy for 63 % of faces; null for
+estimators without it; docs/questions.rst). Prints one line per written file, and the timing.
 
 output names (-o OUT and --preview PNG):
   OUT is a file name, a directory, or a pattern with the placeholders
@@ -345,8 +346,10 @@ def _cmd_list() -> int:
 def _write_main_light(path: Path, light: Any, face: int, stem: str, estimator: str) -> Path:
     """Write face ``face``'s main light and ambient (:meth:`LightingEstimate.dominant_light`) as JSON, atomically,
     with the image, the face box and the estimator it came from."""
+    spread = light.log_energy_spread
     record = {"image": stem, "face": face, "box": light.boxes[face].tolist(), "estimator": estimator,
-              **light.dominant_light().to_dict(face)}
+              **light.dominant_light().to_dict(face),
+              "log_energy_spread": None if spread is None else float(spread[face])}
     atomic_write(path, lambda tmp: tmp.write_text(json.dumps(record, indent=1) + "\n"))
     return path
 

@@ -10,7 +10,12 @@ by more than the light does. :class:`LightingTracker` takes frames one at a time
   reused;
 - **smooths in log space** with a time constant of ``time_constant`` frames: ``s_t = a s_{t-1} + (1 - a)
   log L_t`` with ``a = exp(-1 / time_constant)`` (0: no smoothing), which treats a light twice too bright and
-  one twice too dark alike;
+  one twice too dark alike. Where the estimator gives the spread of its log energy ``b_t``
+  (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), a frame counts as ``(B_t / b_t)^2``
+  frames, ``B_t`` the smoothed spread so far: its weight is ``1 - a^((B_t / b_t)^2)`` instead of ``1 - a``, so a
+  frame that cannot settle the light's strength (the face turned away, in shadow) moves the estimate less,
+  and a clear one more; the smoothed spread (a geometric mean with the same ``a``) is the output's
+  ``log_energy_spread``;
 - **resets at a cut**: where the crop changed by more than ``cut_above``, the smoothing restarts from the
   new estimate (and the next frame is detected again), so a cut is followed at once.
 
@@ -202,6 +207,7 @@ class LightingTracker:
         """Forget the past: the next frame is detected and estimated afresh, and the smoothing restarts."""
         self._frame, self._since = 0, 0
         self._box = self._thumb = self._raw = self._valid = self._smooth = None
+        self._raw_spread = self._spread = None
 
     def _box_of(self, image: torch.Tensor) -> torch.Tensor | None:
         found = self.detector.detect(image[None], check_values=False)[0]
@@ -252,17 +258,25 @@ class LightingTracker:
             with torch.inference_mode():
                 out = self.estimator(crop, check_values=False)
             self._raw, self._valid, self._thumb = out.mirror_ball, out.valid, thumb
+            self._raw_spread = out.log_energy_spread
         light = self._raw.float()
         mean = light.mean().clamp(min=1e-30)
         log = torch.log(torch.maximum(light, 1e-6 * mean))
+        b = None if self._raw_spread is None else self._raw_spread.float().clamp(min=1e-6)
         if self._smooth is None or cut or self.time_constant == 0:
-            self._smooth = log
+            self._smooth, self._spread = log, b
         else:
             a = math.exp(-1.0 / self.time_constant)
-            self._smooth = a * self._smooth + (1.0 - a) * log
+            gain = 1.0 - a
+            if b is not None and self._spread is not None:  # the frame counts as (B / b)^2 frames
+                gain = (1.0 - a ** ((self._spread / b) ** 2)).view(-1, 1, 1, 1)
+            self._smooth = self._smooth + gain * (log - self._smooth)
+            if b is not None:
+                self._spread = b if self._spread is None else torch.exp(a * self._spread.log() + (1 - a) * b.log())
         ball = torch.where(self._valid, torch.exp(self._smooth), 0.0)
         lighting = LightingEstimate(mirror_ball=ball, valid=self._valid, log_mirror_ball=torch.log1p(ball),
-                                    boxes=self._box.clone(), image_index=torch.zeros(1, dtype=torch.int64))
+                                    boxes=self._box.clone(), image_index=torch.zeros(1, dtype=torch.int64),
+                                    log_energy_spread=self._spread)
         return VideoFrame(index, lighting, detect, estimated, cut)
 
 

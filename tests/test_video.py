@@ -56,6 +56,41 @@ def test_smoothing_in_log_space_with_its_time_constant() -> None:
     assert step[centre].item() == pytest.approx(expected, rel=1e-5)
 
 
+class _Spread(torch.nn.Module):
+    """The uniform estimator with a given spread per call (a stand-in for a learned spread)."""
+
+    def __init__(self, spreads: list[float]) -> None:
+        super().__init__()
+        from kornia_ilum.estimators import create_estimator
+
+        self.inner, self.spreads = create_estimator("uniform"), list(spreads)
+        self.info = self.inner.info
+
+    def forward(self, crops: torch.Tensor, check_values: bool = True):
+        import dataclasses
+
+        out = self.inner(crops, check_values=check_values)
+        return dataclasses.replace(out, log_energy_spread=torch.tensor([self.spreads.pop(0)]))
+
+
+def test_a_frame_counts_as_its_inverse_variance() -> None:
+    def step(spreads: list[float]) -> float:
+        tracker = LightingTracker(estimator="uniform", time_constant=2.0, reuse_below=0.0, cut_above=1.0)
+        tracker.estimator = _Spread(spreads)
+        first = tracker(FACE).lighting
+        out = tracker(_darker(0.8)).lighting
+        return math.log(out.mirror_ball[0, 0, 16, 16] / first.mirror_ball[0, 0, 16, 16]), out.log_energy_spread
+
+    a = math.exp(-1.0 / 2.0)
+    same, spread_same = step([0.3, 0.3])
+    unsure, _ = step([0.3, 0.6])  # twice the spread: a quarter of a frame's weight
+    sure, _ = step([0.3, 0.15])
+    full = same / (1 - a)  # the whole change in log
+    assert unsure == pytest.approx(full * (1 - a**0.25), rel=1e-4)
+    assert sure == pytest.approx(full * (1 - a**4), rel=1e-4)
+    assert spread_same.item() == pytest.approx(0.3, rel=1e-6)
+
+
 def test_a_cut_restarts_the_smoothing_and_detects_again() -> None:
     tracker = LightingTracker(estimator="uniform", time_constant=10.0, detect_every=100)
     tracker(FACE)

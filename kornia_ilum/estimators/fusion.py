@@ -13,7 +13,11 @@ treats symmetrically (a face read 2x too bright and one read 2x too dark give th
 :math:`\epsilon_i` is ``1e-6`` of face ``i``'s mean radiance, so a pixel that one estimator leaves at 0 cannot
 drag the mean to 0. The weights are the caller's confidence in each face: :func:`kornia_ilum.estimate_lighting`
 with ``faces="fused"`` uses the detector's score times the face box's side in pixels (a larger face shows its
-shading over more pixels).
+shading over more pixels). Where the estimator gives the spread of each face's log energy ``b_i``
+(:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), each weight is also divided by
+``b_i^2``: a face that cannot settle the light's strength (a skin of unknown albedo, a face half in shadow)
+counts as the inverse of its variance. The fused spread is then ``sqrt(sum_i p_i^2 b_i^2)`` with ``p_i`` the
+normalised weights: the faces' errors taken as independent (their albedos are), so several faces narrow it.
 
 Light near one person (a lamp beside one face) is not shared, and the fused estimate then averages two
 different lightings: it is for photos whose light is distant.
@@ -45,7 +49,8 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
 
     Returns:
         a :class:`~kornia_ilum.estimators.LightingEstimate` of ``G`` lightings: ``mirror_ball``,
-        ``log_mirror_ball`` (``log(1 + L)``), ``valid``; ``sh`` is ``None`` (project the fused lighting with
+        ``log_mirror_ball`` (``log(1 + L)``), ``valid``, ``log_energy_spread`` where the faces have it (module
+        docstring); ``sh`` is ``None`` (project the fused lighting with
         :func:`~kornia_ilum.sh.sh_project` if needed); ``boxes`` (where the input has them) is the box of each
         group's most confident face, and ``image_index`` the group.
 
@@ -69,6 +74,10 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
         >>> one = fuse_faces(faces, torch.ones(2), torch.zeros(2, dtype=torch.int64))
         >>> round(one.mirror_ball[0, 0, 16, 16].item(), 6)  # 2x too bright and 2x too dark: the truth
         1.0
+        >>> sure = LightingEstimate(mirror_ball=light, valid=valid, log_energy_spread=torch.tensor([0.1, 1.0]))
+        >>> one = fuse_faces(sure, torch.ones(2), torch.zeros(2, dtype=torch.int64))
+        >>> round(one.mirror_ball[0, 0, 16, 16].item(), 3), round(one.log_energy_spread.item(), 4)  # the sure face
+        (1.973, 0.0995)
     """
     light = estimate.mirror_ball
     n = light.shape[0]
@@ -85,9 +94,18 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
     floor = (FLOOR * mean).clamp(min=torch.finfo(work.dtype).tiny)[:, None, None, None]
     logs = torch.log(torch.maximum(work, floor))
     w = weights.to(work)
+    spread = estimate.log_energy_spread
+    if spread is not None:
+        b = spread.to(work).clamp(min=torch.finfo(work.dtype).tiny)
+        w = w / b**2  # inverse variance
     total = torch.zeros(count, dtype=work.dtype, device=light.device).index_add_(0, groups, w)
     if bool((total <= 0).any()):
         raise ValueCheckError("every group of faces needs a positive total weight")
+    fused_spread = None
+    if spread is not None:
+        p = w / total[groups]
+        fused_spread = torch.zeros(count, dtype=work.dtype, device=light.device).index_add_(0, groups, (p * b) ** 2)
+        fused_spread = fused_spread.sqrt().to(spread.dtype)
     summed = torch.zeros(count, *light.shape[1:], dtype=work.dtype, device=light.device)
     summed.index_add_(0, groups, logs * w[:, None, None, None])
     fused = torch.where(valid, torch.exp(summed / total[:, None, None, None]), 0.0)
@@ -97,4 +115,4 @@ def fuse_faces(estimate: LightingEstimate, weights: Tensor, groups: Tensor) -> L
         boxes = estimate.boxes[best]
     return LightingEstimate(mirror_ball=fused.to(light.dtype), valid=estimate.valid,
                             log_mirror_ball=torch.log1p(fused).to(light.dtype), boxes=boxes,
-                            image_index=torch.arange(count, device=light.device))
+                            image_index=torch.arange(count, device=light.device), log_energy_spread=fused_spread)

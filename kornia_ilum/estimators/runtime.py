@@ -84,7 +84,7 @@ RUNTIMES: tuple[str, ...] = ("auto", "eager", "bf16", "onnx", "onnx-int8")
 #: CPUs (``ours`` at batch 1: int8, then ONNX float32, then bfloat16, then eager; docs/bench.rst).
 AUTO_ORDER: tuple[str, ...] = ("onnx-int8", "onnx", "bf16")
 #: The fields of :class:`~kornia_ilum.estimators.LightingEstimate` an exported estimator may output, in order.
-ESTIMATE_FIELDS: tuple[str, ...] = ("mirror_ball", "valid", "log_mirror_ball", "sh")
+ESTIMATE_FIELDS: tuple[str, ...] = ("mirror_ball", "valid", "log_mirror_ball", "sh", "log_energy_spread")
 #: The largest difference of ``log(1 + L)`` from eager float32 that a float32 runtime may have.
 PARITY_ATOL = 1e-4
 #: The largest relative change of mean ``L_rec`` (any sphere) from eager float32 that a reduced-precision

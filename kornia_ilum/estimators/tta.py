@@ -269,8 +269,9 @@ def average_estimates(estimates: LightingEstimate, passes: int) -> LightingEstim
         passes: ``P``.
 
     Returns:
-        ``B`` estimates: ``mirror_ball`` and ``sh`` (where present) averaged in float32 or float64 and cast
-        back; ``log_mirror_ball`` is ``log1p`` of the averaged mirror ball where the input has it.
+        ``B`` estimates: ``mirror_ball``, ``sh`` and ``log_energy_spread`` (where present) averaged in float32
+        or float64 and cast back (the spread: the passes' mean, since their errors are far from independent);
+        ``log_mirror_ball`` is ``log1p`` of the averaged mirror ball where the input has it.
 
     Raises:
         ValueCheckError: ``len(estimates)`` is not a multiple of ``passes``.
@@ -300,6 +301,7 @@ def average_estimates(estimates: LightingEstimate, passes: int) -> LightingEstim
         valid=estimates.valid,
         log_mirror_ball=log_mirror_ball,
         sh=None if estimates.sh is None else mean(estimates.sh),
+        log_energy_spread=None if estimates.log_energy_spread is None else mean(estimates.log_energy_spread),
     )
 
 
@@ -420,7 +422,8 @@ class TestTimeAugmented(LightingEstimator):
             log_mirror_ball = torch.cat([log_mirror_ball[:n], flip_lighting_horizontal(log_mirror_ball[n:])])
         sh = est.sh if est.sh is None else torch.cat([est.sh[:n], mirror_sh(est.sh[n:])])
         return LightingEstimate(
-            mirror_ball=mirror_ball, valid=est.valid, log_mirror_ball=log_mirror_ball, sh=sh
+            mirror_ball=mirror_ball, valid=est.valid, log_mirror_ball=log_mirror_ball, sh=sh,
+            log_energy_spread=est.log_energy_spread,
         )
 
     def predict(self, crops: Tensor) -> LightingEstimate:

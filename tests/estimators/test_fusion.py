@@ -62,3 +62,16 @@ def test_estimate_lighting_fuses_every_face_of_each_photo() -> None:
     assert len(every) >= 2 and len(fused) == 1 and fused.image_index.tolist() == [0]
     lo, hi = every.mirror_ball.min(0).values, every.mirror_ball.max(0).values
     assert ((fused.mirror_ball >= lo * (1 - 1e-5)) & (fused.mirror_ball <= hi * (1 + 1e-5))).all()
+
+
+def test_spreads_weigh_as_inverse_variances() -> None:
+    torch.manual_seed(1)
+    faces = _faces(1.0, 4.0)
+    spread = torch.tensor([0.2, 0.4])
+    sure = LightingEstimate(mirror_ball=faces.mirror_ball, valid=VALID, boxes=faces.boxes, log_energy_spread=spread)
+    out = fuse_faces(sure, torch.ones(2), torch.zeros(2, dtype=torch.int64))
+    plain = fuse_faces(faces, torch.tensor([1 / 0.2**2, 1 / 0.4**2]), torch.zeros(2, dtype=torch.int64))
+    torch.testing.assert_close(out.mirror_ball, plain.mirror_ball)  # the same as weights 1 / b^2
+    expected = 1 / (1 / 0.2**2 + 1 / 0.4**2) ** 0.5  # independent faces: the spread narrows
+    assert out.log_energy_spread.item() == pytest.approx(expected, rel=1e-5)
+    assert fuse_faces(faces, torch.ones(2), torch.zeros(2, dtype=torch.int64)).log_energy_spread is None
