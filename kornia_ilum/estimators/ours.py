@@ -134,6 +134,7 @@ class Decoded(NamedTuple):
     features: list[Tensor]
     log_scale: Tensor
     log_spread: Tensor | None
+    latent: Tensor
 
 
 class OursEstimator(LightingEstimator):
@@ -241,13 +242,13 @@ class OursEstimator(LightingEstimator):
             crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
 
         Returns:
-            a :class:`Decoded` ``(log_radiance, features, log_scale, log_spread)``: :math:`(B, 3, 32, 32)` in
-            the units of ``crops``, the decoder's activations :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8, 8)`,
-            :math:`(B, 16, 16, 16)` (before each upsampling), :math:`(B, 1, 1, 1)`: ``log(scale)`` of
+            a :class:`Decoded` ``(log_radiance, features, log_scale, log_spread, latent)``: :math:`(B, 3, 32,
+            32)` in the units of ``crops``, the decoder's activations :math:`(B, 64, 4, 4)`, :math:`(B, 32, 8,
+            8)`, :math:`(B, 16, 16, 16)` (before each upsampling), :math:`(B, 1, 1, 1)`: ``log(scale)`` of
             :func:`~kornia_ilum.color.normalize_exposure` (0 without ``normalize_exposure``), already added to
-            ``log_radiance``, and :math:`(B,)` ``log b`` clamped to :data:`LOG_SPREAD_RANGE` (``None`` without
-            the spread head). ``log_radiance``, ``log_scale`` and ``log_spread`` are float32 (float64 for a
-            float64 model), also under autocast.
+            ``log_radiance``, :math:`(B,)` ``log b`` clamped to :data:`LOG_SPREAD_RANGE` (``None`` without
+            the spread head), and the bottleneck :math:`(B, latent\_dim)`. ``log_radiance``, ``log_scale`` and
+            ``log_spread`` are float32 (float64 for a float64 model), also under autocast.
         """
         dtype = self.head.weight.dtype
         work = torch.promote_types(dtype, torch.float32)  # the exposure and its log: never in bfloat16
@@ -271,11 +272,11 @@ class OursEstimator(LightingEstimator):
         with _no_autocast(log_radiance.device):
             if log_spread is not None:
                 log_spread = log_spread.to(work).clamp(*LOG_SPREAD_RANGE)
-            return Decoded(log_radiance.to(work) + log_scale, features, log_scale, log_spread)
+            return Decoded(log_radiance.to(work) + log_scale, features, log_scale, log_spread, latent)
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
-        log_radiance, _, _, log_spread = self.decode(crops)
+        log_radiance, _, _, log_spread, _ = self.decode(crops)
         with _no_autocast(log_radiance.device):
             y = log_radiance.float()
             mirror_ball = torch.where(self.valid, torch.exp(y), 0.0)

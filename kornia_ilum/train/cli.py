@@ -102,6 +102,9 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="weight of the scale's own term: L_rec made blind to the scale, which the Laplace "
                      "likelihood of the true log energy then learns with its spread (needs --model "
                      "spread_head=True; default: 0, off; docs/training.rst)")
+    cmd.add_argument("--lambda-albedo", type=float, default=d.lambda_albedo,
+                     help="weight of the auxiliary task of reading the skin's albedo from the bottleneck (needs "
+                     "--model albedo_head=True, a training-only head; default: 0, off; docs/training.rst)")
     cmd.add_argument("--init", default=None, metavar="WEIGHTS",
                      help="start from these .safetensors weights of the estimator (fine-tuning)")
     cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
@@ -136,7 +139,8 @@ def run_train(args: argparse.Namespace) -> int:
                          log_every=args.log_every, snapshot_every=args.snapshot_every,
                          average_tail=args.average_tail, calibrate_energy=args.calibrate_energy,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
-                         lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll, init=args.init, model=dict(args.model),
+                         lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll,
+                         lambda_albedo=args.lambda_albedo, init=args.init, model=dict(args.model),
                          data=dict(args.data))
     summary = train(config)
     if "weights" in summary:

@@ -63,6 +63,9 @@ class TrainConfig:
             the Laplace negative log-likelihood of the true log energy under the estimate's and the spread
             head's ``b`` (:func:`~kornia_ilum.train.losses.energy_nll`; the model needs the head:
             ``--model spread_head=True``). docs/training.rst, "The scale apart".
+        lambda_albedo: the weight of the auxiliary albedo task (0: off): the L1 of the training-only albedo
+            head's log skin albedo against the subject's tone's (:func:`~kornia_ilum.train.losses.albedo_loss`;
+            the model needs the head: ``--model albedo_head=True``).
         multi_scale: the rendering loss at every scale of the generator (4, 8, 16 and 32 px, the paper's
             multi-scale loss); ``False``: at the finest scale only (the paper's ablation "no multi-scale loss":
             the coarser heads then learn from the adversarial term alone).
@@ -137,6 +140,7 @@ class TrainConfig:
     crop_pairs: int = 8
     lambda_energy: float = 0.0
     lambda_nll: float = 0.0
+    lambda_albedo: float = 0.0
     multi_scale: bool = True
     loss: str = "rendering"
     seed: int = 0
@@ -185,6 +189,8 @@ class TrainConfig:
             raise ValueCheckError(f"lambda_energy must be non-negative, got {self.lambda_energy!r}")
         if not self.lambda_nll >= 0:
             raise ValueCheckError(f"lambda_nll must be non-negative, got {self.lambda_nll!r}")
+        if not self.lambda_albedo >= 0:
+            raise ValueCheckError(f"lambda_albedo must be non-negative, got {self.lambda_albedo!r}")
         if not isinstance(self.multi_scale, bool):
             raise ValueCheckError(f"multi_scale must be True or False, got {self.multi_scale!r}")
         if self.loss not in LOSSES:

@@ -261,7 +261,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
                 terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("energy", config.lambda_energy),
-                                                        ("nll", config.lambda_nll), ("spread", config.lambda_nll))
+                                                        ("nll", config.lambda_nll), ("spread", config.lambda_nll),
+                                                        ("albedo", config.lambda_albedo))
                               if weight > 0)  # a term is logged where it is on
                 _write_log(out, rows, _LOG_FIELDS + terms + recipe.log_fields)
                 _save_checkpoint(out, {

@@ -10,6 +10,8 @@ r"""The training losses of the lighting estimators (LeGendre et al. 2020, Sec. 3
   not the paper's (:attr:`~kornia_ilum.train.TrainConfig.lambda_energy`);
 - :func:`to_true_energy` and :func:`energy_nll`: the scale taken out of ``L_rec`` and learned on its own, with
   its spread (:attr:`~kornia_ilum.train.TrainConfig.lambda_nll`, docs/training.rst, "The scale apart");
+- :func:`albedo_loss`: the auxiliary task of telling the skin's albedo from the face
+  (:attr:`~kornia_ilum.train.TrainConfig.lambda_albedo`);
 - :data:`BRDF_WEIGHTS`: the paper's ``lambda_k``.
 
 The default step (:func:`~kornia_ilum.train.recipes.train_step`), the recipes of the plugins and the weight
@@ -23,9 +25,11 @@ import torch
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.metrics import reconstruction_loss, total_radiance
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
+from kornia_ilum.synth.lightstage.subjects import SKIN_ALBEDO
 
 __all__ = [
     "BRDF_WEIGHTS",
+    "albedo_loss",
     "discriminator_images",
     "energy_loss",
     "energy_nll",
@@ -245,3 +249,31 @@ def energy_nll(pred: torch.Tensor, target: torch.Tensor, log_spread: torch.Tenso
     error = (log_energy(target) - log_energy(pred)).abs()
     log_spread = log_spread.float()
     return (error * torch.exp(-log_spread) + log_spread).mean()
+
+
+def albedo_loss(log_albedo: torch.Tensor, skin_tone: torch.Tensor) -> torch.Tensor:
+    r"""How far the predicted log skin albedo is from the subject's tone's: ``mean |pred - log a(tone)|``.
+
+    ``a(tone)`` is the mean over R, G, B of the tone's calibrated albedo
+    (:data:`~kornia_ilum.synth.lightstage.subjects.SKIN_ALBEDO`, Monk tones 1 to 10: 0.386 to 0.036); samples of
+    unknown tone (``-1``) are left out (0 when none is known). Under any light the face shows its albedo only
+    relative to the light, so this asks the encoder for what the strength of the light depends on.
+
+    Args:
+        log_albedo: ``(B,)`` predicted natural log albedo.
+        skin_tone: ``(B,)`` int Monk tones, ``-1`` unknown.
+
+    Returns:
+        a float32 scalar.
+
+    Examples:
+        >>> truth = torch.tensor([sum(SKIN_ALBEDO[0]) / 3, sum(SKIN_ALBEDO[9]) / 3]).log()
+        >>> float(albedo_loss(truth, torch.tensor([1, 10]))), float(albedo_loss(truth, torch.tensor([-1, -1])))
+        (0.0, 0.0)
+    """
+    table = torch.tensor(SKIN_ALBEDO, dtype=torch.float32, device=log_albedo.device).mean(-1).log()
+    known = (skin_tone >= 1) & (skin_tone <= len(SKIN_ALBEDO))
+    if not bool(known.any()):
+        return log_albedo.new_zeros((), dtype=torch.float32)
+    tone = skin_tone.to(log_albedo.device)[known] - 1
+    return (log_albedo.float()[known] - table[tone]).abs().mean()

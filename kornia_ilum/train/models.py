@@ -38,18 +38,20 @@ class MultiScaleLighting(dict):
     """``{size: (B, 3, size, size)}`` lighting of a multi-scale generator, plus the spread head's ``log b``.
 
     A ``dict`` (so the losses, the discriminator and the recipes take it as they take any multi-scale
-    prediction) with one attribute, :attr:`log_spread`: ``(B,)`` float32 from the estimator's spread head, or
-    ``None`` (:class:`~kornia_ilum.estimators.OursEstimator`, ``spread_head``).
+    prediction) with two attributes, ``(B,)`` float32 or ``None``: :attr:`log_spread`, from the estimator's
+    spread head (:class:`~kornia_ilum.estimators.OursEstimator`, ``spread_head``), and :attr:`log_albedo`, from
+    the training-only albedo head (:class:`MultiScaleOurs`, ``albedo_head``).
 
     Examples:
         >>> out = MultiScaleLighting({32: torch.ones(1, 3, 32, 32)}, log_spread=None)
-        >>> list(out), out.log_spread is None
-        ([32], True)
+        >>> list(out), out.log_spread is None, out.log_albedo is None
+        ([32], True, True)
     """
 
-    def __init__(self, lighting: dict[int, Tensor], log_spread: Tensor | None) -> None:
+    def __init__(self, lighting: dict[int, Tensor], log_spread: Tensor | None,
+                 log_albedo: Tensor | None = None) -> None:
         super().__init__(lighting)
-        self.log_spread = log_spread
+        self.log_spread, self.log_albedo = log_spread, log_albedo
 
 
 class MultiScaleOurs(nn.Module):
@@ -58,6 +60,9 @@ class MultiScaleOurs(nn.Module):
     Args:
         estimator: the network to train (a new :class:`~kornia_ilum.estimators.OursEstimator` by default);
             :attr:`estimator` is what gets exported.
+        albedo_head: add a training-only linear layer from the bottleneck to the log of the subject's skin
+            albedo (:func:`~kornia_ilum.train.losses.albedo_loss`): it asks the encoder to tell skin tones
+            apart; not exported.
 
     Returns:
         (``forward``) a :class:`MultiScaleLighting`: ``{size: (B, 3, size, size)}`` float32 linear radiance,
@@ -70,21 +75,23 @@ class MultiScaleOurs(nn.Module):
         [(4, 4), (8, 8), (16, 16), (32, 32)]
     """
 
-    def __init__(self, estimator: OursEstimator | None = None) -> None:
+    def __init__(self, estimator: OursEstimator | None = None, albedo_head: bool = False) -> None:
         super().__init__()
         self.estimator = OursEstimator() if estimator is None else estimator
         self.sides = nn.ModuleList(nn.Conv2d(d, 3, 1) for d in DECODER_DEPTHS)
+        self.albedo = nn.Linear(self.estimator.latent_dim, 1) if albedo_head else None
         for s in SCALES:
             self.register_buffer(f"valid_{s}", mirror_ball_valid(s), persistent=False)
 
     def forward(self, crops: Tensor) -> MultiScaleLighting:
-        log_32, features, log_scale, log_spread = self.estimator.decode(crops)  # log_scale: the exposure factor
+        log_32, features, log_scale, log_spread, latent = self.estimator.decode(crops)  # log_scale: the exposure
         logs = [side(f) + log_scale for side, f in zip(self.sides, features, strict=True)] + [log_32]
         out = {}
         for s, y in zip(SCALES, logs, strict=True):
             radiance = torch.exp(y.float().clamp(-LOG_RANGE, LOG_RANGE))
             out[s] = torch.where(getattr(self, f"valid_{s}"), radiance, 0.0)
-        return MultiScaleLighting(out, log_spread)
+        log_albedo = None if self.albedo is None else self.albedo(latent)[:, 0].float()
+        return MultiScaleLighting(out, log_spread, log_albedo)
 
 
 class MSGDiscriminator(nn.Module):

@@ -37,6 +37,7 @@ from kornia_ilum.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum.train.data import batch_loader, collate
 from kornia_ilum.train.losses import (
+    albedo_loss,
     discriminator_images,
     energy_loss,
     energy_nll,
@@ -152,12 +153,14 @@ class Recipe:
         """
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
+        tones = batch["skin_tone"]
         pairs = 0
         if config.lambda_crop > 0:
             crops, target, pairs = crop_pairs(crops, target, batch["second_crop"], config.crop_pairs)
             crops = crops.contiguous(memory_format=runtime.memory_format)
+            tones = torch.cat([tones[: len(tones) - pairs], tones[:pairs]])  # a pair's second crop: its face
         return train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
-                          config=config, runtime=runtime, recipe=self, pairs=pairs)
+                          config=config, runtime=runtime, recipe=self, pairs=pairs, skin_tone=tones)
 
     def extra_losses(self, pred: dict[int, torch.Tensor]) -> dict[str, torch.Tensor]:
         """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).
@@ -186,7 +189,8 @@ class Recipe:
 class OursRecipe(Recipe):
     """``ours``: :class:`~kornia_ilum.train.models.MultiScaleOurs` with the MSG-GAN discriminator.
 
-    Its ``build`` options are :class:`~kornia_ilum.estimators.OursEstimator`'s; the exported estimator is the
+    Its ``build`` options are :class:`~kornia_ilum.estimators.OursEstimator`'s, and ``albedo_head``
+    (:class:`~kornia_ilum.train.models.MultiScaleOurs`'s, training only); the exported estimator is the
     generator's ``estimator``, and its energy calibration adds ``log(gain)`` to the head's bias (exact).
 
     Examples:
@@ -199,11 +203,12 @@ class OursRecipe(Recipe):
     name = "ours"
 
     def build(self, **options: Any) -> tuple[nn.Module, nn.Module | None]:
+        albedo_head = bool(options.pop("albedo_head", False))  # the training model's, not the estimator's
         try:
             estimator = OursEstimator(**options)
         except TypeError as exc:
             raise ValueCheckError(f"model options {sorted(options)} are not OursEstimator's: {exc}") from exc
-        return MultiScaleOurs(estimator), MSGDiscriminator()
+        return MultiScaleOurs(estimator, albedo_head=albedo_head), MSGDiscriminator()
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
@@ -285,8 +290,8 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
 
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
                opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
-               config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None, pairs: int = 0
-               ) -> dict[str, torch.Tensor]:
+               config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None, pairs: int = 0,
+               skin_tone: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     r"""One discriminator step, then one generator step; returns the detached losses (the default
     :meth:`Recipe.step`).
 
@@ -321,15 +326,18 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         runtime: ``bf16`` and the memory format.
         recipe: its :meth:`Recipe.extra_losses` join the generator's loss (none for ``None``).
         pairs: the crop pairs at the ends of the batch (:func:`crop_pairs`; 0: none).
+        skin_tone: ``(B,)`` the subjects' Monk tones, for ``lambda_albedo``.
 
     Returns:
         the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
         without pairs), ``energy`` (:func:`~kornia_ilum.train.losses.energy_loss`, 0 without
         ``lambda_energy``), ``nll`` and ``spread`` (:func:`~kornia_ilum.train.losses.energy_nll` and the batch's
-        mean ``b``, 0 without ``lambda_nll``) and ``rec_<brdf>`` (at 32 px).
+        mean ``b``, 0 without ``lambda_nll``), ``albedo`` (:func:`~kornia_ilum.train.losses.albedo_loss`, 0
+        without ``lambda_albedo``) and ``rec_<brdf>`` (at 32 px).
 
     Raises:
-        ValueCheckError: ``lambda_nll`` for a model without a spread head.
+        ValueCheckError: ``lambda_nll`` for a model without a spread head, ``lambda_albedo`` for one without an
+            albedo head or without ``skin_tone``.
 
     Examples:
         One step of a toy generator, a constant lighting, without a discriminator (not run here: the first
@@ -349,7 +357,7 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         ...                     target=torch.ones(2, 3, 32, 32), config=config,
         ...                     runtime=RuntimeSettings(bf16=False, channels_last=False, workers=0))  # doctest: +SKIP
         >>> sorted(losses)  # doctest: +SKIP
-        ['adv', 'crop', 'disc', 'energy', 'extra', 'loss', 'nll', 'rec', 'rec_mirror', 'spread']
+        ['adv', 'albedo', 'crop', 'disc', 'energy', 'extra', 'loss', 'nll', 'rec', 'rec_mirror', 'spread']
         >>> round(losses["loss"].item(), 6)  # doctest: +SKIP
         0.0
     """
@@ -359,7 +367,13 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         pred = model(crops)
     truth = mirror_ball_pyramid(target, tuple(pred))  # the losses' targets, the discriminator's real images
     finest = max(pred)
-    nll = spread = target.new_zeros(())
+    nll = spread = albedo = target.new_zeros(())
+    if config.lambda_albedo > 0:
+        log_albedo = getattr(pred, "log_albedo", None)
+        if log_albedo is None or skin_tone is None:
+            raise ValueCheckError("lambda_albedo needs a model with an albedo head (--model albedo_head=True) "
+                                  "and the batch's skin tones")
+        albedo = albedo_loss(log_albedo, skin_tone)
     if config.lambda_nll > 0:
         log_spread = getattr(pred, "log_spread", None)
         if log_spread is None:
@@ -393,13 +407,13 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
     energy = energy_loss(pred[finest], truth[finest]) if config.lambda_energy > 0 else rec.new_zeros(())
     loss = (rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
-            + config.lambda_nll * nll)
+            + config.lambda_nll * nll + config.lambda_albedo * albedo)
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
     return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
             "extra": extra.detach(), "crop": crop.detach(), "energy": energy.detach(), "nll": nll.detach(),
-            "spread": spread, **parts}
+            "spread": spread, "albedo": albedo.detach(), **parts}
 
 
 def _recipe_classes() -> dict[str, type[Recipe]]:

@@ -138,7 +138,7 @@ class TestOursEstimator:
             for block in net.decoder:
                 h = net.upsample(block(h))
             y = net.head(h) + torch.log(scale)
-            y2, features, log_scale, _ = net.decode(x)
+            y2, features, log_scale, _, _ = net.decode(x)
             torch.testing.assert_close(y2, y, atol=0, rtol=0)
             torch.testing.assert_close(log_scale.flatten(), torch.log(scale), atol=0, rtol=0)
             assert [tuple(f.shape[1:]) for f in features] == [(64, 4, 4), (32, 8, 8), (16, 16, 16)]
@@ -207,7 +207,7 @@ class TestExposure:
         net = OursEstimator(latent_dim=32, normalize_exposure=False).eval()
         x = crops(1)
         with torch.no_grad():
-            y, _, log_scale, _ = net.decode(x)
+            y, _, log_scale, _, _ = net.decode(x)
             assert float(log_scale.abs().max()) == 0.0
             h = net.from_latent(net.to_latent(net.encoder(x - 0.5))).reshape(1, 256, 4, 4)
             for block in net.decoder:
