@@ -9,7 +9,15 @@ import torch
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid, sphere_pyramid
 from kornia_ilum.train import BRDF_WEIGHTS, SCALES, training_losses
-from kornia_ilum.train.losses import discriminator_images, energy_loss
+from kornia_ilum.metrics import reconstruction_loss
+from kornia_ilum.train.losses import (
+    albedo_loss,
+    discriminator_images,
+    energy_loss,
+    energy_nll,
+    log_energy,
+    to_true_energy,
+)
 
 
 class TestLosses:
@@ -90,3 +98,33 @@ class TestEnergyLoss:
         assert torch.isfinite(loss) and torch.isfinite(pred.grad).all()
         torch.testing.assert_close(loss, energy_loss(pred.detach().clamp(min=0), truth))
         assert (pred.grad[pred.detach() > 0] != 0).any() and (pred.grad[pred.detach() < 0] == 0).all()
+
+
+class TestTheScaleApart:
+    def test_to_true_energy_keeps_the_shape_and_takes_the_truths_energy(self) -> None:
+        valid = mirror_ball_valid(32)
+        gen = torch.Generator().manual_seed(0)
+        truth = (torch.rand(2, 3, 32, 32, generator=gen) + 0.1) * valid
+        pred = (torch.rand(2, 3, 32, 32, generator=gen) + 0.1) * valid
+        a, b = to_true_energy({32: pred}, {32: truth})[32], to_true_energy({32: 7.0 * pred}, {32: truth})[32]
+        torch.testing.assert_close(a, b)
+        torch.testing.assert_close(log_energy(a, eps=0.0), log_energy(truth, eps=0.0))
+        x = pred.clone().requires_grad_()  # L_rec of the result has no gradient along the prediction's scale
+        reconstruction_loss(to_true_energy({32: x}, {32: truth})[32], truth, "diffuse").mean().backward()
+        torch.testing.assert_close((x.grad * pred).sum(), torch.tensor(0.0), atol=1e-6, rtol=0)
+
+    def test_the_likelihood_is_least_at_the_truth_with_the_mean_error_as_spread(self) -> None:
+        truth = torch.ones(64, 3, 8, 8)
+        error = torch.linspace(-1.0, 1.0, 64)
+        pred = truth * error.exp()[:, None, None, None]
+        mean_abs = error.abs().mean()
+        best = energy_nll(pred, truth, torch.full((64,), float(mean_abs.log())))
+        for b in (0.5 * mean_abs, 2 * mean_abs):
+            assert energy_nll(pred, truth, torch.full((64,), float(b.log()))) > best
+        biased = energy_nll(pred * 1.5, truth, torch.full((64,), float(mean_abs.log())))
+        assert biased > best
+
+    def test_albedo_loss_leaves_unknown_tones_out(self) -> None:
+        pred = torch.tensor([-1.0, -3.0, 5.0])
+        full = albedo_loss(pred, torch.tensor([1, 10, -1]))
+        assert torch.isclose(full, albedo_loss(pred[:2], torch.tensor([1, 10])))

@@ -169,8 +169,8 @@ class TestTrainStep:
 
     def test_the_generator_steps_on_rec_plus_the_recipes_extra_terms(self) -> None:
         plain, moved = self._run(None)
-        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "energy", "rec_diffuse",
-                              "rec_matte_silver", "rec_mirror"}
+        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "energy", "nll", "spread", "albedo",
+                              "rec_diffuse", "rec_matte_silver", "rec_mirror"}
         assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0 and plain["crop"] == 0
         assert plain["energy"] == 0
         assert torch.equal(plain["loss"], plain["rec"]) and moved.level.item() != 0.5
@@ -280,10 +280,51 @@ class TestCropConsistency:
         torch.testing.assert_close(logl2["rec"], expected)
         torch.testing.assert_close(logl2["loss"], logl2["rec"])
 
-    @pytest.mark.parametrize("weight", ["lambda_crop", "lambda_energy"])
+    @pytest.mark.parametrize("weight", ["lambda_crop", "lambda_energy", "lambda_nll", "lambda_albedo"])
     def test_sipr_refuses_the_terms(self, weight: str) -> None:
         config = TrainConfig(out="-", cache=("-",), **{weight: 1.0})
         with pytest.raises(ValueCheckError, match="crop-consistency or energy"):
             kornia_ilum_sipr.recipe.SIPRRecipe().step(model=None, disc=None, opt_g=None, opt_d=None, batch={},
                                                       device=torch.device("cpu"), config=config,
                                                       runtime=RuntimeSettings(False, False, 0))
+
+
+class TestTheScaleApart:
+    @staticmethod
+    def _step(model: nn.Module, **weights: float) -> dict:
+        torch.manual_seed(0)
+        crops = torch.rand(2, 3, 256, 256)
+        target = (torch.rand(2, 3, 32, 32) + 0.5) * mirror_ball_valid(32)
+        config = TrainConfig(out="-", cache=("-",), lambda_adv=0.0, **weights)
+        runtime = RuntimeSettings(bf16=False, channels_last=False, workers=0)
+        return train_step(model=model, disc=None, opt_g=torch.optim.SGD(model.parameters(), lr=0.0), opt_d=None,
+                          crops=crops, target=target, config=config, runtime=runtime,
+                          skin_tone=torch.tensor([2, 9]))
+
+    def test_the_scale_leaves_l_rec_and_the_likelihood_learns_it(self) -> None:
+        torch.manual_seed(0)
+        model, _ = OursRecipe().build(spread_head=True)
+        out = self._step(model, lambda_nll=0.5)
+        assert out["nll"] > 0 and out["spread"] > 0
+        torch.testing.assert_close(out["loss"], out["rec"] + 0.5 * out["nll"])
+        with torch.no_grad():  # a brighter head: the same L_rec, another likelihood
+            model.estimator.head.bias += 2.0
+        brighter = self._step(model, lambda_nll=0.5)
+        torch.testing.assert_close(brighter["rec"], out["rec"], rtol=1e-4, atol=1e-6)
+        assert not torch.isclose(brighter["nll"], out["nll"])
+
+    def test_the_albedo_task(self) -> None:
+        torch.manual_seed(0)
+        model, _ = OursRecipe().build(albedo_head=True)
+        out = self._step(model, lambda_albedo=0.25)
+        assert out["albedo"] > 0 and out["nll"] == 0
+        torch.testing.assert_close(out["loss"], out["rec"] + 0.25 * out["albedo"])
+        assert not any(k.startswith("albedo") for k in model.estimator.state_dict())  # training only
+
+    def test_the_terms_need_their_heads(self) -> None:
+        torch.manual_seed(0)
+        model, _ = OursRecipe().build()
+        with pytest.raises(ValueCheckError, match="spread head"):
+            self._step(model, lambda_nll=1.0)
+        with pytest.raises(ValueCheckError, match="albedo head"):
+            self._step(model, lambda_albedo=1.0)

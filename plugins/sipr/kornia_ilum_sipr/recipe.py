@@ -125,9 +125,9 @@ class SIPRRecipe(Recipe):
              opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
              config: TrainConfig, runtime: RuntimeSettings) -> dict[str, Tensor]:
         """One Adam step on the relighting and lighting losses (module docstring)."""
-        if config.lambda_crop > 0 or config.lambda_energy > 0:
+        if config.lambda_crop > 0 or config.lambda_energy > 0 or config.lambda_nll > 0 or config.lambda_albedo > 0:
             raise ValueCheckError("the sipr recipe has no crop-consistency or energy term: train it with "
-                                  "lambda_crop=0 and lambda_energy=0")
+                                  "lambda_crop=0, lambda_energy=0, lambda_nll=0 and lambda_albedo=0")
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target_image, alpha = batch_images(batch, "pair_image", device), batch_images(batch, "alpha", device)
         source = batch["mirror_ball"].to(device, non_blocking=True).float()
