@@ -190,7 +190,7 @@ class OursEstimator(LightingEstimator):
         input_size=_INPUT_SIZE,
         weights=(
             WeightFile(
-                "ours.safetensors", "9435f49c599dae2a11b39529a13224fa66f68aaa779fe59d4475f6a066db6385"
+                "ours.safetensors", "560c8838926fb16a14df73fe7e2c330599369677f6f3abf88dea47208c833165"
             ),
         ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",
