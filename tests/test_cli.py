@@ -64,7 +64,8 @@ class TestEstimate:
         record = json.loads(exr.with_suffix(".json").read_text())  # the main light beside the .exr
         assert record["image"] == "astronaut" and record["face"] == 0 and len(record["box"]) == 4
         expected = light.dominant_light().to_dict(0)
-        assert record.keys() == {"image", "face", "box", "estimator"} | expected.keys()
+        assert record.keys() == {"image", "face", "box", "estimator", "log_energy_spread"} | expected.keys()
+        assert record["log_energy_spread"] == pytest.approx(float(light.log_energy_spread[0]))
         for key in ("direction", "irradiance_rgb", "ambient_sh_arcore"):
             np.testing.assert_allclose(record[key], expected[key], rtol=1e-5, atol=1e-7)
 

@@ -293,8 +293,8 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
         batch_size: crops per forward pass.
 
     Returns:
-        ``{"energy": {"with", "black", "grey", "true": (N,) float64}, "table": {group: row}, "tone_spread":
-        {ratio: ...}}``; the groups are ``"all"`` and each skin tone; a row holds ``count``, ``subjects`` and
+        ``{"energy": {"with", "black", "grey", "true": (N,) float64}, "table": {group: row}}`` and
+        ``"tone_spread"``; the groups are ``"all"`` and each skin tone; a row holds ``count``, ``subjects`` and
         the medians over its samples of the ratios ``with/true``, ``black/true``, ``grey/true``, ``black/with``
         and ``grey/with``, and for :data:`INTERVAL_RATIOS` their 95 % interval over subjects (``"with/true_ci"``,
         ...: :func:`~kornia_ilum.evaluation.bootstrap.subject_interval`). ``tone_spread`` holds, for the same
@@ -836,9 +836,9 @@ def run_checks(
         ks, jitters, position, extent, seed, batch_size: the settings of the checks.
 
     Returns:
-        a dict of the checks run, ``transfer`` (a table) and ``tone_spread``, ``exposure`` (``{"eval": table,
-        "photos": table}``, ``"photos"`` only with photos), ``crop`` (a table), ``spread`` (``{"table",
-        "reason"}``) and ``seconds`` (``{name: float}``): the tables are the ``"table"`` of
+        a dict of the checks run, ``transfer`` (a table) and ``tone_spread``, ``exposure``
+        (``{"eval": table, "photos": table}``, ``"photos"`` only with photos), ``crop`` (a table), ``spread``
+        (``{"table", "reason"}``) and ``seconds`` (``{name: float}``): the tables are the ``"table"`` of
         :func:`transfer_check`, :func:`exposure_equivariance`, :func:`crop_stability` and
         :func:`spread_calibration`.
 

@@ -542,14 +542,18 @@ def _constants(
     if key not in _CONSTANTS:
         if mode == "auto":
             mode = "area" if _num_valid(*tgt) <= _num_valid(*src) else "bilinear"
-        if src == tgt:
-            tensors: tuple = ()
-        elif mode == "area":
-            tensors = tuple(m.to(device=device, dtype=dtype) for m in _area_operator_f64(src, tgt))
-        else:
-            nearest = _nearest_valid_f64(src[1]).to(device) if src[0] == "mirror_ball" else None
-            tensors = (_bilinear_grid_f64(src, tgt).to(device=device, dtype=dtype), nearest)
-        mask = mirror_ball_valid(tgt[1], device=device).to(dtype) if tgt[0] == "mirror_ball" else None
+        # copies made outside inference mode: constants first built under torch.inference_mode() would be
+        # inference tensors, which a later call with autograd cannot save for backward
+        with torch.inference_mode(False):
+            if src == tgt:
+                tensors: tuple = ()
+            elif mode == "area":
+                tensors = tuple(m.to(device=device, dtype=dtype, copy=True) for m in _area_operator_f64(src, tgt))
+            else:
+                nearest = _nearest_valid_f64(src[1]).to(device, copy=True) if src[0] == "mirror_ball" else None
+                tensors = (_bilinear_grid_f64(src, tgt).to(device=device, dtype=dtype, copy=True), nearest)
+            mask = (mirror_ball_valid(tgt[1], device=device).to(dtype, copy=True) if tgt[0] == "mirror_ball"
+                    else None)
         if len(_CONSTANTS) >= 64:
             _CONSTANTS.pop(next(iter(_CONSTANTS)))
         _CONSTANTS[key] = (mode, tensors, mask)

@@ -153,12 +153,13 @@ class Recipe:
         """
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
-        tones = batch["skin_tone"]
+        tones = batch.get("skin_tone")
         pairs = 0
         if config.lambda_crop > 0:
             crops, target, pairs = crop_pairs(crops, target, batch["second_crop"], config.crop_pairs)
             crops = crops.contiguous(memory_format=runtime.memory_format)
-            tones = torch.cat([tones[: len(tones) - pairs], tones[:pairs]])  # a pair's second crop: its face
+            if tones is not None:  # a pair's second crop shows its first crop's face
+                tones = torch.cat([tones[: len(tones) - pairs], tones[:pairs]])
         return train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
                           config=config, runtime=runtime, recipe=self, pairs=pairs, skin_tone=tones)
 

@@ -118,7 +118,7 @@ class TestSHEstimator:
 
     def test_negative_lobes_clamped_in_the_estimate(self):
         """A head that predicts a sun's SH: .sh keeps the raw coefficients, mirror_ball is clamped at 0."""
-        net = SHEstimator()
+        net = SHEstimator(normalize_exposure=False)  # the network's coefficients, not rescaled to the crop's exposure
         with torch.no_grad():
             net.head.weight.zero_()
             net.head.bias.copy_(sun_sh(1).flatten())
