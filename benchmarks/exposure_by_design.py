@@ -49,8 +49,7 @@ def main() -> None:
             estimator = create_estimator(name, normalize_exposure=design)
             pred = predict(estimator, eval_set.images)
             scores[design] = score(pred, eval_set.mirror_ball)
-            crops = eval_set.images
-            on_eval = exposure_equivariance(estimator, crops, prediction=pred)["table"]
+            on_eval = exposure_equivariance(estimator, eval_set.images, prediction=pred)["table"]
             on_photos = exposure_equivariance(estimator, photos)["table"]
             rec = " / ".join(f"{float(scores[design][b].mean()):.4f}" for b in BRDF_NAMES)
             eq = ", ".join(f"k={k}: eval {on_eval[k]['median']:.3f}, photos {on_photos[k]['median']:.3f}"

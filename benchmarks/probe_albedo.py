@@ -3,8 +3,8 @@
 Run: ``python benchmarks/probe_albedo.py --cache EVAL_CACHE ... --hdri ../shared/data/hdri ../shared/data/hdri_more
 [--weights ours=RUN/ours.safetensors] [--samples 1024] [--json probe.json]``
 
-The eval portraits of ``kornia-ilum evaluate`` (the same ``build_eval_set``) go through the estimator; its
-1024-d bottleneck (the output of ``to_latent``) is read by a forward hook. Ridge regressions from the
+The eval portraits of ``kornia-ilum evaluate`` (the same ``build_eval_set``) go through the estimator's raw
+network (``OursEstimator.decode``), which gives its 1024-d bottleneck (``latent``) with the estimate. Ridge regressions from the
 standardised bottleneck, fitted and scored by 5-fold cross-validation **over subjects** (no face is in both the
 fit and the score), predict:
 
@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kornia_ilum.color import normalize_exposure
 from kornia_ilum.evaluation import build_eval_set, lighting_energy, load_checkpoint, load_estimator
+from kornia_ilum.evaluation.cli import parse_weights
 from kornia_ilum.synth.lightstage import read_manifest
 
 FOLDS = 5
@@ -41,20 +41,16 @@ FOLDS = 5
 
 def bottleneck(estimator: torch.nn.Module, images: torch.Tensor, batch: int = 32
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The bottleneck of each crop, the estimate's log energy and the exposure normalisation's log scale."""
-    grabbed: list[torch.Tensor] = []
-    hook = estimator.to_latent.register_forward_hook(lambda m, i, o: grabbed.append(o.float()))
-    log_e, log_s = [], []
-    try:
-        with torch.inference_mode():
-            for i in range(0, len(images), batch):
-                crops = images[i : i + batch].float() / 255.0
-                out = estimator(crops)
-                log_e.append(lighting_energy(out.mirror_ball.double()).log())
-                log_s.append(normalize_exposure(crops)[1].double().log())
-    finally:
-        hook.remove()
-    return torch.cat(grabbed).numpy(), torch.cat(log_e).numpy(), torch.cat(log_s).numpy()
+    """The bottleneck of each crop, the estimate's log energy and the exposure normalisation's log scale, from
+    one pass of :meth:`~kornia_ilum.estimators.OursEstimator.decode`."""
+    latent, log_e, log_s = [], [], []
+    with torch.inference_mode():
+        for i in range(0, len(images), batch):
+            out = estimator.decode(images[i : i + batch].float() / 255.0)
+            latent.append(out.latent.float())
+            log_e.append(lighting_energy(out.log_radiance.double().exp()).log())  # 0 solid angle off the ball
+            log_s.append(out.log_scale.double().flatten())
+    return torch.cat(latent).numpy(), torch.cat(log_e).numpy(), torch.cat(log_s).numpy()
 
 
 def ridge_cv(x: np.ndarray, y: np.ndarray, groups: np.ndarray, alphas: list[float]) -> tuple[np.ndarray, float, float]:
@@ -83,14 +79,13 @@ def main() -> None:
     parser.add_argument("--cache", nargs="+", required=True)
     parser.add_argument("--hdri", nargs="*", default=[])
     parser.add_argument("--samples", type=int, default=1024)
-    parser.add_argument("--weights", default=None, help="ours=FILE: a run's weights instead of the shipped ones")
+    parser.add_argument("--weights", type=parse_weights, default=None,
+                        help="ours=FILE: a run's weights instead of the shipped ones")
     parser.add_argument("--alphas", type=float, nargs="+", default=[1.0, 10.0, 100.0, 1000.0, 10000.0])
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
-    torch.set_num_threads(torch.get_num_threads())
     if args.weights:
-        name, path = args.weights.split("=", 1)
-        estimator = load_checkpoint(name, path)[0]
+        estimator = load_checkpoint(*args.weights)[0]
     else:
         estimator = load_estimator("ours")
     eval_set = build_eval_set(args.cache, args.hdri, args.samples)
