@@ -178,10 +178,12 @@ def dominant_direction(mirror_ball: torch.Tensor) -> torch.Tensor:
     return torch.where(vanishes, torch.zeros_like(v), v / norm.clamp(min=torch.finfo(v.dtype).tiny))
 
 
-def _energies(estimator: Estimator, batches: Iterator[torch.Tensor], directions: bool = False
-              ) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """The estimator on each batch of float crops: energies ``(N,)`` float64 (and directions ``(N, 3)``)."""
-    energy, direction = [], []
+def _energies(estimator: Estimator, batches: Iterator[torch.Tensor], directions: bool = False,
+              spreads: bool = False) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
+    """The estimator on each batch of float crops: energies ``(N,)`` float64 (and directions ``(N, 3)``, and
+    the estimates' ``log_energy_spread`` ``(N,)`` float64). With ``spreads``, an estimator that gives no spread
+    stops the pass at the first batch: its energies so far, ``None``, ``None``."""
+    energy, direction, spread = [], [], []
     with torch.inference_mode():
         for crops in batches:
             out = estimator(fit_crops(estimator, crops))
@@ -189,7 +191,13 @@ def _energies(estimator: Estimator, batches: Iterator[torch.Tensor], directions:
             energy.append(lighting_energy(ball))
             if directions:
                 direction.append(dominant_direction(ball))
-    return torch.cat(energy), torch.cat(direction) if directions else None
+            if spreads:
+                b = getattr(out, "log_energy_spread", None)
+                if b is None:
+                    return torch.cat(energy), None, None
+                spread.append(b.double())
+    return (torch.cat(energy), torch.cat(direction) if directions else None,
+            torch.cat(spread) if spreads else None)
 
 
 def _floats(images: torch.Tensor) -> torch.Tensor:
@@ -710,7 +718,7 @@ def crop_stability(
             x = _floats(images[i : i + per]).repeat_interleave(jitters, 0)
             yield crop_images(x, boxes[i : i + per].reshape(-1, 4), size).clamp_(0.0, 1.0)
 
-    flat_energy, flat_direction = _energies(estimator, batches(), directions=True)
+    flat_energy, flat_direction, _ = _energies(estimator, batches(), directions=True)
     energy = flat_energy.reshape(n, jitters)
     direction = flat_direction.reshape(n, jitters, 3)  # type: ignore[union-attr]
     log_e = torch.where(energy > 0, energy.clamp(min=1e-300).log(), torch.nan)
@@ -777,18 +785,12 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
         (0.5, 1.0, 0.632)
     """
     check_positive_int(batch_size, "batch_size")
-    energy, spread = [], []
-    with torch.inference_mode():
-        for i in range(0, len(eval_set), batch_size):
-            crops = _floats(eval_set.images[i : i + batch_size])
-            out = estimator(fit_crops(estimator, crops))
-            b = getattr(out, "log_energy_spread", None)
-            if b is None:
-                return {"table": None, "reason": "the estimator gives no log_energy_spread"}
-            energy.append(lighting_energy(out.mirror_ball.double()))
-            spread.append(b.double())
-    b = torch.cat(spread)
-    z = (lighting_energy(eval_set.mirror_ball.double()).log() - torch.cat(energy).log()).abs() / b
+    images = eval_set.images
+    batches = (_floats(images[i : i + batch_size]) for i in range(0, len(images), batch_size))
+    energy, _, b = _energies(estimator, batches, spreads=True)
+    if b is None:
+        return {"table": None, "reason": "the estimator gives no log_energy_spread"}
+    z = (lighting_energy(eval_set.mirror_ball.double()).log() - energy.log()).abs() / b
     subjects = torch.tensor(list(eval_set.subject_seed))
     table = {}
     for g, m in _groups(eval_set.skin_tone).items():
