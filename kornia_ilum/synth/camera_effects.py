@@ -15,12 +15,18 @@ camera pipeline, and is what :class:`~kornia_ilum.synth.lightstage.PortraitDatas
    ``log read^2 = 2.18 log shot + 1.2``, without their jitter). The default range, ``shot`` in
    ``[1e-5, 1e-3]``, gives a noise of 0.04 to 1.3 % of mid-grey's value plus a read noise of at most 0.001
    (about 3 codes in black): a phone's output after its own denoising, not raw.
-4. :func:`tone_curve` (on the sRGB-encoded values): a gamma ``y = x^gamma`` then a monotone S-curve
+4. :func:`highlight_rolloff` (linear, the sensor's values after the gain): a shoulder that compresses the values
+   above a knee ``1 - s`` towards white instead of clipping them at 1, as phones' HDR pipelines do (several
+   exposures merged, highlights tone-mapped down). Without it an exposure metered on a dark face clips what is
+   brighter than the skin: the whites of the eyes, the teeth, the background, which are the references a face
+   carries for the strength of the light (docs/training.rst, "The references a face carries"). Drawn for half
+   the photos, ``s`` in ``[0.25, 0.6]``: white (1) maps to 0.70-0.88, four times white to 0.91-0.98.
+5. :func:`tone_curve` (on the sRGB-encoded values): a gamma ``y = x^gamma`` then a monotone S-curve
    ``y - c sin(2 pi y) / (2 pi)`` (``c > 0`` adds contrast, ``c < 0`` flattens; ``|c| < 1``); both end points stay
    fixed. Phones tone-map with curves of their own, not the bare sRGB curve. :func:`encode_tone8` is the fused
    path: linear to 8-bit codes through one table per image (of the sRGB curve and the tone curve), as fast as
-   :func:`~kornia_ilum.color.encode_srgb8`.
-5. :func:`jpeg_compress` (8-bit): an OpenCV JPEG round trip at a quality of 40 to 95 (4:2:0 chroma subsampling,
+   :func:`~kornia_ilum.color.encode_srgb8`; it folds the roll-off into the same table.
+6. :func:`jpeg_compress` (8-bit): an OpenCV JPEG round trip at a quality of 40 to 95 (4:2:0 chroma subsampling,
    OpenCV's default), one image at a time (noise-like content costs more than photos).
 
 :meth:`CameraEffects.apply` runs the chain fused on CPU, one image at a time in a scratch image that stays in
@@ -60,12 +66,14 @@ from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 
 __all__ = [
     "CameraEffects",
+    "RandomHighlightRolloff",
     "RandomJpeg",
     "RandomLensBlur",
     "RandomSensorNoise",
     "RandomToneCurve",
     "RandomVignette",
     "encode_tone8",
+    "highlight_rolloff",
     "jpeg_compress",
     "lens_blur",
     "read_noise_for_shot",
@@ -299,6 +307,50 @@ def sensor_noise(
     return std.mul_(noise).add_(linear)
 
 
+def highlight_rolloff(linear: torch.Tensor, strength: torch.Tensor | float) -> torch.Tensor:
+    r"""A highlight shoulder: the values above the knee ``k = 1 - s`` compressed towards white (1) instead of clipped.
+
+    ``y = x`` for ``x <= k``, ``y = k + (x - k) / (1 + (x - k) / s)`` above: continuous with slope 1 at the knee,
+    increasing, and below 1 for every finite ``x``, so an 8-bit encoding that clips at 1 keeps highlights apart
+    that it would otherwise clip to one white. ``s = 0`` is the identity (the encoding's own clip at 1).
+
+    Args:
+        linear: ``(B, C, H, W)`` float images (linear, exposed; HDR allowed, non-negative).
+        strength: ``s`` in ``[0, 1)``, a number or ``(B,)``; 0 leaves an image unchanged.
+
+    Returns:
+        ``(B, C, H, W)``, in the dtype and on the device of ``linear``.
+
+    Raises:
+        ValueCheckError: ``strength`` outside ``[0, 1)`` or not finite.
+
+    Shape:
+        - linear: :math:`(B, C, H, W)`
+        - strength: a number or :math:`(B,)`
+        - Output: :math:`(B, C, H, W)`
+
+    Convention:
+        Images of docs/conventions.rst ("Images"): ``(B, C, H, W)`` float, linear values (HDR allowed).
+
+    Examples:
+        >>> x = torch.tensor([0.18, 0.5, 1.0, 3.0, 1e4]).reshape(1, 1, 1, 5)
+        >>> [round(v, 3) for v in highlight_rolloff(x, 0.5).flatten().tolist()]  # mid-grey stays, white does not
+        [0.18, 0.5, 0.75, 0.917, 1.0]
+    """
+    _check_images(linear, "linear")
+    s = _per_image(strength, linear.shape[0], "strength")
+    if ((s < 0) | (s >= 1) | ~torch.isfinite(s)).any():
+        raise ValueCheckError("strength must be in [0, 1)")
+    return _rolloff(linear, s.to(linear.dtype).reshape(-1, 1, 1, 1))
+
+
+def _rolloff(x: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
+    """:func:`highlight_rolloff` on checked inputs (``s`` broadcasts against ``x``; ``s = 0`` rows unchanged)."""
+    over = (x - (1.0 - s)).clamp(min=0.0)
+    shoulder = over / (1.0 + over / s.clamp(min=1e-12))
+    return torch.where(s > 0, x - over + shoulder, x)
+
+
 def tone_curve(image: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0
                ) -> torch.Tensor:
     r"""A camera's tone curve on top of sRGB: ``y = x^gamma``, then the S-curve ``y - c sin(2 pi y) / (2 pi)``.
@@ -349,32 +401,34 @@ def _tone(x: torch.Tensor, c: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
 #: :func:`~kornia_ilum.color.encode_srgb8`): fine enough that a value is at most a code off.
 _TONE_CELLS = 4096
 
-
 @functools.lru_cache(maxsize=1)
 def _srgb_cells() -> torch.Tensor:
     x = ((torch.arange(_TONE_CELLS, dtype=torch.float64) + 0.5) / _TONE_CELLS) ** 2
     return linear_to_srgb(x.reshape(1, 1, 1, -1).expand(1, 3, 1, -1))[0, 0, 0]
 
 
-def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0
-                 ) -> torch.Tensor:
-    r"""Linear to 8-bit codes through the sRGB curve and :func:`tone_curve`, fused into one table per image.
+def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: torch.Tensor | float = 1.0,
+                 rolloff: torch.Tensor | float = 0.0) -> torch.Tensor:
+    r"""Linear to 8-bit codes through :func:`highlight_rolloff`, the sRGB curve and :func:`tone_curve`, fused into
+    one table per image.
 
-    Clips to ``[0, 1]``, encodes with sRGB, applies the tone curve and rounds to codes: the result of
-    ``round(255 * tone_curve(linear_to_srgb(clip(x))))`` read from a table of 4096 cells evenly spaced in
-    ``sqrt(x)`` (at most one code off, near code boundaries). Images whose curve is the identity go through
-    :func:`~kornia_ilum.color.encode_srgb8` and are exactly its codes.
+    Rolls the highlights off, clips to ``[0, 1]``, encodes with sRGB, applies the tone curve and rounds to codes:
+    the result of ``round(255 * tone_curve(linear_to_srgb(clip(highlight_rolloff(x)))))`` read from a table of
+    4096 cells evenly spaced in ``sqrt(x)`` (at most one code off, near code boundaries); the roll-off runs on
+    the values scaled to the table's units, before the lookup. Images without a curve go through
+    :func:`~kornia_ilum.color.encode_srgb8`'s table and, without a roll-off either, are exactly its codes.
 
     Args:
         linear: ``(B, C, H, W)`` linear images (float).
         contrast, gamma: as in :func:`tone_curve`.
+        rolloff: the strength of :func:`highlight_rolloff`, a number or ``(B,)`` (0: none).
 
     Returns:
         ``(B, C, H, W)`` ``torch.uint8``.
 
     Shape:
         - linear: :math:`(B, C, H, W)`
-        - contrast, gamma: numbers or :math:`(B,)`
+        - contrast, gamma, rolloff: numbers or :math:`(B,)`
         - Output: :math:`(B, C, H, W)`, ``torch.uint8``
 
     Convention:
@@ -385,26 +439,40 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
         >>> x = torch.tensor([0.0, 0.2140, 1.0, 7.0]).reshape(1, 1, 1, 4)
         >>> encode_tone8(x, 0.0).flatten().tolist(), encode_tone8(x, 0.5).flatten().tolist()
         ([0, 127, 255, 255], [0, 127, 255, 255])
+        >>> encode_tone8(x, 0.0, rolloff=0.5).flatten().tolist()  # white and 7 times white apart
+        [0, 127, 225, 251]
     """
     _check_images(linear, "linear")
     b = linear.shape[0]
     c = _per_image(contrast, b, "contrast")
     g = _per_image(gamma, b, "gamma")
+    s = _per_image(rolloff, b, "rolloff")
     if (c.abs() >= 1).any() or (g <= 0).any():
         raise ValueCheckError("contrast must be in (-1, 1) and gamma positive")
+    if ((s < 0) | (s >= 1) | ~torch.isfinite(s)).any():
+        raise ValueCheckError("rolloff must be in [0, 1)")
     if linear.device.type != "cpu":
-        return _encode_tone8_reference(linear, c, g)
+        return _encode_tone8_reference(linear, c, g, s)
     out = torch.empty(linear.shape, dtype=torch.uint8)
     tables, cells = _code_tables(c, g)
     scratch = torch.empty(linear.shape[1:], dtype=torch.float32)
     index = torch.empty(linear.shape[1:], dtype=torch.int32)
+    strength = s.tolist()
     for k in range(b):
-        _encode_one(torch.mul(linear[k], float(cells[k]) ** 2, out=scratch), tables[k], cells[k], index, out[k])
+        u = float(cells[k]) ** 2
+        torch.mul(linear[k], u, out=scratch)
+        if strength[k] > 0:
+            _rolloff_scaled_(scratch, strength[k], u)
+        _encode_one(scratch, tables[k], cells[k], index, out[k])
     return out
 
 
-def _encode_tone8_reference(linear: torch.Tensor, c: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
-    """:func:`encode_tone8` as first written (any device): ``encode_srgb8`` or a 4096-cell table per image."""
+def _encode_tone8_reference(linear: torch.Tensor, c: torch.Tensor, g: torch.Tensor, s: torch.Tensor | None = None
+                            ) -> torch.Tensor:
+    """:func:`encode_tone8` as first written (any device): the roll-off on the linear values, then
+    ``encode_srgb8`` or a 4096-cell table per image."""
+    if s is not None and bool((s > 0).any()):
+        linear = _rolloff(linear, s.to(device=linear.device, dtype=linear.dtype).reshape(-1, 1, 1, 1))
     b = linear.shape[0]
     out = torch.empty(linear.shape, dtype=torch.uint8, device=linear.device)
     toned = ((c != 0) | (g != 1)).tolist()
@@ -437,6 +505,12 @@ def _code_tables(c: torch.Tensor, g: torch.Tensor) -> tuple[list[torch.Tensor], 
         for k, table in zip(toned.tolist(), toned_tables, strict=True):
             tables[k], cells[k] = table, _TONE_CELLS
     return tables, cells
+
+
+def _rolloff_scaled_(x: torch.Tensor, s: float, u: float) -> torch.Tensor:
+    """:func:`highlight_rolloff` of strength ``s > 0`` in place on values in units of ``1 / u`` (``x u``)."""
+    over = (x - (1.0 - s) * u).clamp_(min=0.0)
+    return x.sub_(over).add_(over.div_(over.mul(1.0 / (s * u)).add_(1.0)))
 
 
 def _sqrt_(x: torch.Tensor) -> torch.Tensor:
@@ -628,6 +702,33 @@ class RandomSensorNoise(_RandomEffect):
         return sensor_noise(linear, self.draw(linear.shape[0], generator), generator=generator)
 
 
+def _rolloff_of(params: dict[str, torch.Tensor], b: int) -> torch.Tensor:
+    """The roll-off strengths of :meth:`CameraEffects.draw`'s parameters (none in parameters drawn without it)."""
+    return _per_image(params["rolloff"], b, "rolloff") if "rolloff" in params else torch.zeros(b, dtype=torch.float64)
+
+
+class RandomHighlightRolloff(_RandomEffect):
+    r"""Random :func:`highlight_rolloff`: with probability ``p``, ``strength`` uniform in ``strength``, else none.
+
+    Examples:
+        >>> x = torch.full((4, 3, 8, 8), 3.0)
+        >>> y = RandomHighlightRolloff(p=1.0)(x, torch.Generator().manual_seed(0))
+        >>> bool((y < 1).all()), bool((y > 0.9).all())
+        (True, True)
+    """
+
+    def __init__(self, p: float = 0.5, strength: tuple[float, float] = (0.25, 0.6)) -> None:
+        super().__init__()
+        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", 0.0, 1.0, open_hi=True)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return _draw(n, self.p, *self.strength, generator)
+
+    def forward(self, linear: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        _check_generator(generator)
+        return highlight_rolloff(linear, self.draw(linear.shape[0], generator))
+
+
 class RandomToneCurve(_RandomEffect):
     r"""Random :func:`tone_curve`: with probability ``p``, ``contrast`` uniform and ``gamma`` log-uniform in their
     ranges, else the identity. :meth:`draw` returns ``(B, 2)``: contrast, gamma.
@@ -691,9 +792,9 @@ class CameraEffects:
     r"""The phone-camera pipeline (module docstring): probabilities and ranges of each effect.
 
     :meth:`draw` draws every effect's parameters for a batch, always in the same order and always all of them
-    (so switching an effect off leaves the others' draws unchanged); :meth:`apply` runs the pipeline from exposed
-    linear images to 8-bit codes: lens blur, vignette, sensor noise (linear), tone curve and sRGB (one table per
-    image, :func:`encode_tone8`), JPEG. :meth:`off` has every probability 0: plain sRGB encoding, no noise.
+    (so switching an effect off leaves the others' draws unchanged; the roll-off, added last, is drawn last);
+    :meth:`apply` runs the pipeline from exposed linear images to 8-bit codes: lens blur, vignette, sensor noise
+    (linear), highlight roll-off, sRGB and tone curve (one table per image, :func:`encode_tone8`), JPEG. :meth:`off` has every probability 0: plain sRGB encoding, no noise.
 
     Args:
         blur_p, blur_sigma: :class:`RandomLensBlur`.
@@ -701,12 +802,13 @@ class CameraEffects:
         noise_p, noise_shot: :class:`RandomSensorNoise`.
         tone_p, tone_contrast, tone_gamma: :class:`RandomToneCurve`.
         jpeg_p, jpeg_quality: :class:`RandomJpeg`.
+        rolloff_p, rolloff_strength: :class:`RandomHighlightRolloff`.
 
     Examples:
         >>> fx = CameraEffects()
         >>> params = fx.draw(2, torch.Generator().manual_seed(0))
         >>> sorted(params)
-        ['blur', 'jpeg', 'noise', 'tone', 'vignette']
+        ['blur', 'jpeg', 'noise', 'rolloff', 'tone', 'vignette']
         >>> fx.apply(torch.full((2, 3, 16, 16), 0.18), params, generator=torch.Generator().manual_seed(1)).dtype
         torch.uint8
     """
@@ -722,6 +824,8 @@ class CameraEffects:
     tone_gamma: tuple[float, float] = (0.8, 1.25)
     jpeg_p: float = 0.5
     jpeg_quality: tuple[float, float] = (40.0, 95.0)
+    rolloff_p: float = 0.5
+    rolloff_strength: tuple[float, float] = (0.25, 0.6)
 
     def __post_init__(self) -> None:
         self.modules()  # checks every field
@@ -729,21 +833,23 @@ class CameraEffects:
     @classmethod
     def off(cls) -> CameraEffects:
         """No effect: the plain sRGB encoding of the exposed image, without noise."""
-        return cls(blur_p=0.0, vignette_p=0.0, noise_p=0.0, tone_p=0.0, jpeg_p=0.0)
+        return cls(blur_p=0.0, vignette_p=0.0, noise_p=0.0, tone_p=0.0, jpeg_p=0.0, rolloff_p=0.0)
 
     def modules(self) -> dict[str, _RandomEffect]:
-        """The effects as modules, in the pipeline's order."""
+        """The effects as modules, in the pipeline's order but for the roll-off (drawn last, applied before the
+        tone curve)."""
         return {
             "blur": RandomLensBlur(self.blur_p, self.blur_sigma),
             "vignette": RandomVignette(self.vignette_p, self.vignette_strength),
             "noise": RandomSensorNoise(self.noise_p, self.noise_shot),
             "tone": RandomToneCurve(self.tone_p, self.tone_contrast, self.tone_gamma),
             "jpeg": RandomJpeg(self.jpeg_p, self.jpeg_quality),
+            "rolloff": RandomHighlightRolloff(self.rolloff_p, self.rolloff_strength),
         }
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
         """Per-image parameters of every effect: ``blur``, ``vignette``, ``noise`` (shot), ``jpeg`` (quality;
-        0: none) ``(n,)`` and ``tone`` ``(n, 2)`` (contrast, gamma); the identity where an effect is not drawn."""
+        0: none), ``rolloff`` (strength) ``(n,)`` and ``tone`` ``(n, 2)`` (contrast, gamma); the identity where an effect is not drawn."""
         _check_generator(generator)
         return {name: module.draw(n, generator) for name, module in self.modules().items()}
 
@@ -766,8 +872,8 @@ class CameraEffects:
             On CPU float32 the effects run fused, one image at a time on a scratch image that stays in the cache:
             the lens blur on the images that draw it (OpenCV's separable filter), then one multiplication by
             ``gain * (1 - v r^2)`` times the table's scale ``u`` (``cells^2``), the sensor noise in those units
-            (``x u + sqrt(shot u) sqrt(x u + read^2 u / shot) n`` is ``u`` times the noisy ``x``), the table
-            lookup of :func:`encode_tone8` and the JPEG round trip of the images that draw it. The result equals the
+            (``x u + sqrt(shot u) sqrt(x u + read^2 u / shot) n`` is ``u`` times the noisy ``x``), the highlight
+            roll-off in those units, the table lookup of :func:`encode_tone8` and the JPEG round trip of the images that draw it. The result equals the
             unfused chain (:meth:`apply_reference`) up to float rounding: codes at most one off, for a few
             values near code boundaries (then JPEG may spread that difference a little). Other devices or
             dtypes run :meth:`apply_reference`.
@@ -786,6 +892,7 @@ class CameraEffects:
         vig = _per_image(params["vignette"], b, "vignette").tolist()
         quality = _per_image(params["jpeg"], b, "jpeg").round().long().tolist()
         tables, cells = _code_tables(params["tone"][:, 0].double(), params["tone"][:, 1].double())
+        strength = _rolloff_of(params, b).tolist()
         blur = _per_image(params["blur"], b, "blur")
         sources = list(linear)
         sel = torch.nonzero(blur > 0).flatten()
@@ -809,6 +916,8 @@ class CameraEffects:
             if noisy[k]:  # sqrt(A x+ + R) = sqrt(A) sqrt(x+ + R / A), A = shot u, R = read^2 u^2
                 torch.clamp(x, min=0.0, out=std).add_(read2[k] * u / shot_l[k])
                 x.addcmul_(_sqrt_(std), noise[k], value=math.sqrt(shot_l[k] * u))
+            if strength[k] > 0:
+                _rolloff_scaled_(x, strength[k], u)
             _encode_one(x, tables[k], cells[k], index, out[k])
             if quality[k] > 0:
                 _jpeg_one(out[k], quality[k])
@@ -849,7 +958,8 @@ class CameraEffects:
             if noise is not None and not isinstance(noise, torch.Tensor):
                 noise = torch.stack(list(noise))
             x = sensor_noise(x, params["noise"], generator=generator, noise=noise)
-        codes = _encode_tone8_reference(x, params["tone"][:, 0].double(), params["tone"][:, 1].double())
+        codes = _encode_tone8_reference(x, params["tone"][:, 0].double(), params["tone"][:, 1].double(),
+                                        _rolloff_of(params, len(x)))
         quality = params["jpeg"]
         if (quality > 0).any():
             codes = jpeg_compress(codes, quality)

@@ -9,12 +9,14 @@ from kornia_ilum.color import encode_srgb8, linear_to_srgb
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.synth.camera_effects import (
     CameraEffects,
+    RandomHighlightRolloff,
     RandomJpeg,
     RandomLensBlur,
     RandomSensorNoise,
     RandomToneCurve,
     RandomVignette,
     encode_tone8,
+    highlight_rolloff,
     jpeg_compress,
     lens_blur,
     sensor_noise,
@@ -37,7 +39,7 @@ def linear() -> torch.Tensor:
 
 
 MODULES = [RandomLensBlur(p=1.0), RandomVignette(p=1.0), RandomSensorNoise(p=1.0), RandomToneCurve(p=1.0),
-           RandomJpeg(p=1.0)]
+           RandomJpeg(p=1.0), RandomHighlightRolloff(p=1.0)]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: type(m).__name__)
@@ -60,6 +62,7 @@ def test_functionals_identity_at_zero(linear) -> None:
     assert torch.equal(tone_curve(x, zero, torch.ones(4)), x)
     codes = encode_srgb8(linear)
     assert torch.equal(jpeg_compress(codes, zero), codes)
+    assert torch.equal(highlight_rolloff(linear, zero), linear)
     assert torch.equal(encode_tone8(linear, zero, torch.ones(4)), codes)
 
 
@@ -99,6 +102,29 @@ def test_tone_curve_is_monotone_with_fixed_ends() -> None:
         tone_curve(x, 1.0)
 
 
+def test_highlight_rolloff_keeps_highlights_apart_below_white() -> None:
+    x = torch.logspace(-3, 4, 200, dtype=torch.float64).reshape(1, 1, 1, -1).expand(4, 3, 1, -1)
+    s = torch.tensor([0.0, 0.25, 0.5, 0.6], dtype=torch.float64)
+    y = highlight_rolloff(x, s)
+    assert (y[1:].diff(dim=-1) > 0).all() and (y[1:] < 1).all()  # increasing, never white
+    knee = x <= (1 - s).reshape(-1, 1, 1, 1)
+    assert torch.equal(y[knee], x[knee])  # the identity below the knee: mid-grey and the skin stay where they are
+    # slope 1 at the knee (continuous), and white at 1 compressed to k + s / 2
+    k = 1 - 0.5
+    eps = 1e-6
+    at = torch.tensor([k - eps, k + eps], dtype=torch.float64).reshape(1, 1, 1, 2)
+    assert highlight_rolloff(at, 0.5).diff().item() == pytest.approx(2 * eps, rel=1e-4)
+    assert highlight_rolloff(torch.ones(1, 1, 1, 1), 0.5).item() == pytest.approx(0.75, abs=1e-6)
+    # the 8-bit encoding now tells 1, 2, 4 and 8 times white apart, where plain sRGB clips them all to 255
+    codes = encode_tone8(torch.tensor([1.0, 2.0, 4.0, 8.0]).reshape(1, 1, 1, 4), 0.0, rolloff=0.5).flatten()
+    assert (codes.diff() > 0).all() and (codes < 255).all()
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueCheckError, match="strength"):
+            highlight_rolloff(x, bad)
+    with pytest.raises(ValueCheckError, match="rolloff"):
+        encode_tone8(x, 0.0, rolloff=1.0)
+
+
 def test_encode_tone8_matches_the_curve_on_srgb(linear) -> None:
     c, g = torch.tensor([0.5, -0.2, 0.0, 0.3]), torch.tensor([1.0, 1.2, 0.8, 1.0])
     codes = encode_tone8(linear, c, g)
@@ -133,6 +159,11 @@ def test_camera_effects_pipeline(linear) -> None:
     # switching one effect off leaves the other effects' draws unchanged
     q = CameraEffects(jpeg_p=0.0).draw(16, gen(5))
     assert torch.equal(q["noise"], p1["noise"]) and (q["jpeg"] == 0).all()
+    # the roll-off, added last, is drawn last: the other effects' draws are those of the camera before it
+    g = gen(5)
+    before = {name: m.draw(16, g) for name, m in fx.modules().items() if name != "rolloff"}
+    assert all(torch.equal(before[k], p1[k]) for k in before)
+    assert 0.2 < (p1["rolloff"] > 0).float().mean() < 0.8
     with pytest.raises(ValueCheckError):
         CameraEffects(tone_contrast=(-0.5, 1.0))
 
@@ -218,6 +249,9 @@ def test_encode_tone8_mixed_batch_matches_the_reference(linear) -> None:
                                                                                   dtype=torch.float64)
     assert torch.equal(encode_tone8(linear, c, g), _encode_tone8_reference(linear, c, g))
     assert torch.equal(encode_tone8(linear, c, g)[0], encode_srgb8(linear[0]))
+    s = torch.tensor([0.0, 0.3, 0.5, 0.0], dtype=torch.float64)
+    diff = code_diff(encode_tone8(linear, c, g, s), _encode_tone8_reference(linear, c, g, s))
+    assert diff.max() <= 1 and (diff > 0).float().mean() < 1e-3
 
 
 def test_jpeg_compress_equals_the_strided_round_trip(linear) -> None:
