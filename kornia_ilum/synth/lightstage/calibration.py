@@ -24,9 +24,12 @@ the table and fails when a subject fails.
 hats) to what they may reflect, from its materials alone (no render): each part's mean diffuse albedo over its
 opaque texels inside :data:`PART_ALBEDO_RANGES`. Hair of every kind is held to the span of natural hair, from
 black (measured ``L*`` 18 with its shine, Y 0.025, so its diffuse part lies below that: J. Cosmetic Science
-51(5), "Measurement of hair luster") to white; the rest, for which no measured albedo was found, to what
-any natural surface may reflect (below fresh snow's 0.9), so nothing in the light stage reflects more light
-than it receives. The lips are skin (the same albedo map) and are inside the skin check's mask.
+51(5), "Measurement of hair luster") to white; the teeth, over their enamel texels (not the gums, not the
+map's blank area), to the span of in-vivo incisors (Joiner et al. 2008: L* 70-85, b* 15-25: 0.2 to 0.85 per
+linear channel and a luminance of 0.41 to 0.66, :data:`PART_LUMINANCE_RANGES`); the rest, for which no measured albedo was found, to what any natural surface may reflect
+(below fresh snow's 0.9), so nothing in the light stage reflects more light than it receives. A metal glasses
+frame has no diffuse albedo: its ``albedo`` is its specular colour ``F0`` and is held to the same span. The
+lips are skin (the same albedo map) and are inside the skin check's mask.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from typing import Any
 
 import torch
 
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.synth.lightstage.cache import read_manifest
@@ -45,10 +49,12 @@ from kornia_ilum.synth.lightstage.field import ReflectanceField
 from kornia_ilum.synth.lightstage.portraits import load_fields
 from kornia_ilum.synth.lightstage.portraits.compose import add_relit
 from kornia_ilum.synth.lightstage.subjects import LANDMARK_NAMES
+from kornia_ilum.synth.lightstage.subjects.makehuman import enamel_mask
 from kornia_ilum.synth.lightstage.subjects.skin import SKIN_SPECULAR_ALBEDO, measured_skin_range
 
 __all__ = [
     "PART_ALBEDO_RANGES",
+    "PART_LUMINANCE_RANGES",
     "PartCheck",
     "SkinCheck",
     "check_cache",
@@ -297,8 +303,12 @@ def check_cache(cache: str | os.PathLike[str], split: str | None = "eval", rtol:
 PART_ALBEDO_RANGES: dict[str, tuple[float, float]] = {
     "hair": (0.005, 0.6), "brows": (0.005, 0.6), "lashes": (0.005, 0.6), "beard": (0.005, 0.6),
     "eyes": (0.02, 0.9), "sclera": (0.02, 0.9), "iris": (0.005, 0.9), "lips": (0.005, 0.9),
-    "teeth": (0.02, 0.9), "tongue": (0.02, 0.9), "glasses": (0.005, 0.9), "hat": (0.0, 0.9),
+    "teeth": (0.2, 0.85), "tongue": (0.02, 0.9), "glasses": (0.005, 0.9), "hat": (0.0, 0.9),
 }  # fmt: skip
+
+#: The range ``(low, high)`` of a part's mean luminance (Rec. 709 ``Y`` of its mean albedo), for the parts that
+#: have a measured one: the teeth, L* 70-85 (Joiner et al. 2008).
+PART_LUMINANCE_RANGES: dict[str, tuple[float, float]] = {"teeth": (0.41, 0.66)}
 
 
 @dataclass
@@ -309,6 +319,7 @@ class PartCheck:
         name: the part's name.
         albedo: its mean diffuse albedo over its opaque texels, linear RGB.
         low, high: the allowed range (:data:`PART_ALBEDO_RANGES`), for every channel.
+        luminance: the allowed range of its luminance (:data:`PART_LUMINANCE_RANGES`), or ``None``.
 
     Examples:
         >>> PartCheck("hair", (0.02, 0.015, 0.01), *PART_ALBEDO_RANGES["hair"]).ok
@@ -321,21 +332,28 @@ class PartCheck:
     albedo: tuple[float, float, float]
     low: float
     high: float
+    luminance: tuple[float, float] | None = None
 
     @property
     def ok(self) -> bool:
-        """Every channel inside ``[low, high]``."""
-        return all(self.low <= a <= self.high for a in self.albedo)
+        """Every channel inside ``[low, high]``, and the luminance inside its range where there is one."""
+        y = sum(w * a for w, a in zip(LUMINANCE, self.albedo))
+        return all(self.low <= a <= self.high for a in self.albedo) and (
+            self.luminance is None or self.luminance[0] <= y <= self.luminance[1])
 
 
-def _mean_albedo(material: Any) -> tuple[float, float, float]:
-    """A material's mean albedo over its opaque texels (``alpha >= 0.5``), or its constant albedo."""
+def _mean_albedo(material: Any, name: str = "") -> tuple[float, float, float]:
+    """A material's mean albedo over its opaque texels (``alpha >= 0.5``; for ``"teeth"`` its enamel texels,
+    :func:`~kornia_ilum.synth.lightstage.subjects.makehuman.enamel_mask`, not the gums or the map's blank
+    area), or its constant albedo."""
     texture = material.albedo_texture
     if texture is None:
         return tuple(float(c) for c in material.albedo)  # type: ignore[return-value]
     rgb = torch.as_tensor(texture, dtype=torch.float64).reshape(-1, 3)
     if material.opacity_texture is not None:
         rgb = rgb[torch.as_tensor(material.opacity_texture).reshape(-1) >= 0.5]
+    elif name == "teeth":
+        rgb = rgb[torch.from_numpy(enamel_mask(texture)).reshape(-1)]
     return _rgb(rgb.mean(0))
 
 
@@ -359,5 +377,6 @@ def check_parts(subject: Any) -> list[PartCheck]:
         key = "beard" if part.name.startswith("beard") else part.name
         if key in PART_ALBEDO_RANGES:
             low, high = PART_ALBEDO_RANGES[key]
-            out.append(PartCheck(part.name, _mean_albedo(part.material), low, high))
+            out.append(PartCheck(part.name, _mean_albedo(part.material, key), low, high,
+                                 PART_LUMINANCE_RANGES.get(key)))
     return out

@@ -12,7 +12,8 @@ much slower scalar variant (docs/lightstage.rst, "Measured").
 
 Materials (:func:`material_bsdf`): ``diffuse`` is Lambertian; ``skin``, ``glossy`` and ``hair`` are Mitsuba's
 ``principled`` BSDF (Disney, Burley 2012) with a GGX specular lobe of ``alpha = roughness`` and the material's
-``specular``; all of these are two-sided. ``cornea`` is a smooth clear coat: a one-sided Fresnel mirror
+``specular``; ``metal`` is ``principled`` with ``metallic = 1`` (no diffuse part: a GGX lobe tinted by the
+albedo, taken as ``F0``, Schlick's Fresnel towards white at grazing angles); all of these are two-sided. ``cornea`` is a smooth clear coat: a one-sided Fresnel mirror
 (IOR from ``specular``: ``F0 = 0.08 specular``, ``eta = (1 + sqrt(F0)) / (1 - sqrt(F0))``, 1.376 for the real
 cornea's ``F0 = 0.025``) over a straight-through transmission of about ``1 - F(theta)``. The transmission is a
 *null* interface, so the ``volpath`` integrator traces shadow rays through it and the iris behind it is lit by
@@ -65,7 +66,7 @@ MITSUBA_VARIANTS: tuple[str, ...] = ("llvm_ad_rgb", "scalar_rgb")
 #: Environment variable that names the variant to use when ``variant=None`` (skips the probe).
 VARIANT_ENV = "KORNIA_ILUM_MITSUBA_VARIANT"
 
-MATERIAL_KINDS: tuple[str, ...] = ("skin", "diffuse", "glossy", "cornea", "hair")
+MATERIAL_KINDS: tuple[str, ...] = ("skin", "diffuse", "glossy", "metal", "cornea", "hair")
 
 _CORNEA_MIRROR_PROBABILITY = 0.3  # how often a camera path picks the cornea's mirror lobe
 
@@ -252,13 +253,13 @@ def material_bsdf(material: Material) -> dict[str, Any]:
         roughness = math.sqrt(max(alpha, 1e-4))
     if kind == "diffuse":
         inner: dict[str, Any] = {"type": "diffuse", "reflectance": albedo}
-    else:  # skin, glossy, hair: a diffuse base under a GGX dielectric specular lobe
+    else:  # skin, glossy, hair: a diffuse base under a GGX dielectric specular lobe; metal: the tinted lobe alone
         inner = {
             "type": "principled",
             "base_color": albedo,
             "roughness": roughness,
             "specular": specular,
-            "metallic": 0.0,
+            "metallic": 1.0 if kind == "metal" else 0.0,
         }
     return {"type": "twosided", "bsdf": inner}
 
@@ -288,14 +289,15 @@ def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
     r"""The diffuse part of :func:`material_bsdf`: the same BSDF with ``specular = 0``.
 
     Mitsuba's ``principled`` is linear in ``specular`` (its GGX lobe's Fresnel scales with it and the diffuse
-    base does not), so ``material_bsdf - diffuse_twin_bsdf`` is the specular part.
+    base does not), so ``material_bsdf - diffuse_twin_bsdf`` is the specular part. A ``metal`` has no diffuse
+    part: its twin is a black Lambertian, and all of its light is specular.
 
     Args:
         material: a subject :class:`Material`, as for :func:`material_bsdf`.
 
     Returns:
-        the BSDF dict of :func:`material_bsdf` with the principled lobe's ``specular`` set to 0 (other BSDFs
-        unchanged).
+        the BSDF dict of :func:`material_bsdf` with the principled lobe's ``specular`` set to 0 (a black
+        ``diffuse`` for a ``metal``; other BSDFs unchanged).
 
     Examples:
         >>> from types import SimpleNamespace
@@ -303,6 +305,8 @@ def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
         0.0
     """
     bsdf = material_bsdf(material)
+    if getattr(material, "kind", None) == "metal":
+        return {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}}}
     if bsdf["type"] == "twosided" and bsdf["bsdf"]["type"] == "principled":
         bsdf = {"type": "twosided", "bsdf": {**bsdf["bsdf"], "specular": 0.0}}
     return bsdf

@@ -18,7 +18,7 @@ from tests.synth.lightstage.spheres import material
 
 class TestMaterialBsdf:
     @pytest.mark.slow
-    @pytest.mark.parametrize("kind", ["skin", "diffuse", "glossy", "cornea", "hair"])
+    @pytest.mark.parametrize("kind", ["skin", "diffuse", "glossy", "metal", "cornea", "hair"])
     def test_smoke(self, kind: str, variant: str) -> None:
         import mitsuba as mi  # lazy: Mitsuba is slow to import, and only the slow tests need it
 
@@ -30,6 +30,19 @@ class TestMaterialBsdf:
         assert bsdf["bsdf"]["roughness"] == pytest.approx(0.4)
         assert bsdf["bsdf"]["specular"] == 0.35
 
+    def test_metal_is_all_specular(self) -> None:
+        """A metal (a titanium glasses frame) is the principled lobe tinted by F0, with no diffuse part: its
+        diffuse twin is black, so the one-pass renderer puts all of its light in the specular part."""
+        from kornia_ilum.synth.lightstage.materials import diffuse_twin_bsdf
+        from kornia_ilum.synth.lightstage.subjects.base import FRAME_ALBEDO, frame_material
+
+        frame = frame_material("metal", FRAME_ALBEDO["metal"], 0.12)
+        bsdf = material_bsdf(frame)["bsdf"]
+        assert bsdf["metallic"] == 1.0 and bsdf["base_color"]["value"] == pytest.approx(FRAME_ALBEDO["metal"])
+        assert diffuse_twin_bsdf(frame)["bsdf"] == {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0] * 3}}
+        plastic = material_bsdf(frame_material("black", FRAME_ALBEDO["black"], 0.12))["bsdf"]
+        assert plastic["metallic"] == 0.0 and diffuse_twin_bsdf(material("glossy"))["bsdf"]["specular"] == 0.0
+
     def test_cornea_ior(self) -> None:
         """F0 = 0.08 specular: specular 0.3125 is the real cornea's F0 = 0.025, IOR 1.376."""
         bsdf = material_bsdf(material("cornea", specular=0.3125))
@@ -39,7 +52,7 @@ class TestMaterialBsdf:
     @pytest.mark.parametrize(
         ("mat", "match"),
         [
-            (SimpleNamespace(kind="metal", albedo=(0.5, 0.5, 0.5)), "kind must be one of"),
+            (SimpleNamespace(kind="velvet", albedo=(0.5, 0.5, 0.5)), "kind must be one of"),
             (SimpleNamespace(kind="skin", albedo=(1.5, 0.5, 0.5)), r"albedo must be 3 linear RGB values in \[0, 1\]"),
             (SimpleNamespace(kind="skin", albedo=(0.5, 0.5, 0.5), roughness=2.0), "roughness must be in"),
             (SimpleNamespace(kind="glossy", albedo=(0.5, 0.5, 0.5), specular=-1.0), "specular must be in"),

@@ -44,11 +44,13 @@ __all__ = [
     "LANDMARK_NAMES",
     "MONK_SKIN_TONES_SRGB",
     "SKIN_ALBEDO",
+    "TEETH_ALBEDO",
     "Material",
     "MeshPart",
     "Subject",
     "SubjectSource",
     "fabric_colour",
+    "frame_material",
     "icosphere",
     "merge_meshes",
     "pick",
@@ -76,10 +78,43 @@ FABRIC_NEUTRALS = {
 
 #: Glasses frames, by kind: the share of each (mannequins and MakeHuman heads alike).
 GLASSES_FRAMES: dict[str, float] = {"black": 3.0, "tortoise": 2.0, "metal": 1.5, "colour": 1.5}
-#: The linear albedo of each frame kind but ``"colour"`` (a random :func:`fabric_colour`).
+#: The linear albedo of each frame kind but ``"colour"`` (a random :func:`fabric_colour`); for ``"metal"`` the
+#: colour of its specular reflectance at normal incidence, ``F0`` (metals have no diffuse albedo): titanium, the
+#: commonest metal of spectacle frames, (0.542, 0.497, 0.449) in Real-Time Rendering 4th ed., Table 9.2.
 FRAME_ALBEDO: dict[str, tuple[float, float, float]] = {
-    "black": (0.015, 0.015, 0.015), "tortoise": (0.12, 0.05, 0.015), "metal": (0.45, 0.40, 0.30),
+    "black": (0.015, 0.015, 0.015), "tortoise": (0.12, 0.05, 0.015), "metal": (0.542, 0.497, 0.449),
 }  # fmt: skip
+
+#: Linear RGB albedo of tooth enamel (the incisors' mean): CIELAB L* 77, a* 1, b* 20, the middle of the in-vivo
+#: spectrophotometer measurements of Joiner et al. 2008 ("Tooth colour: a review of the literature", L* 70-85,
+#: b* 15-25), converted with D65 sRGB primaries.
+TEETH_ALBEDO: tuple[float, float, float] = (0.62, 0.50, 0.32)
+
+
+def frame_material(frame: str, albedo: tuple[float, float, float], roughness: float) -> "Material":
+    """The material of a glasses frame of kind ``frame`` (:data:`GLASSES_FRAMES`).
+
+    A ``"metal"`` frame is a ``"metal"`` material (a tinted GGX lobe, no diffuse part) of ``F0`` = ``albedo``;
+    the others are ``"glossy"`` plastics (a diffuse ``albedo`` under a 4 % lobe); both of GGX ``roughness``
+    (a satin finish: the one-pass renderer samples each light's region, so a sharper lobe would only be
+    noisier).
+
+    Args:
+        frame: the frame's kind.
+        albedo: its :data:`FRAME_ALBEDO` (or a random colour for ``"colour"``), linear RGB.
+        roughness: the GGX alpha of a plastic frame's lobe.
+
+    Returns:
+        the :class:`Material`.
+
+    Examples:
+        >>> frame_material("metal", FRAME_ALBEDO["metal"], 0.12).kind, frame_material("black", (0.015,) * 3, 0.12).kind
+        ('metal', 'glossy')
+    """
+    rgb = tuple(float(c) for c in albedo)
+    if frame == "metal":
+        return Material("metal", rgb, roughness, 0.5)
+    return Material("glossy", rgb, roughness, 0.5)
 
 
 def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -209,8 +244,9 @@ class Material:
     """How a mesh part is shaded (see the module's *Materials*).
 
     Args:
-        kind: ``"skin"``, ``"diffuse"``, ``"glossy"``, ``"cornea"`` or ``"hair"``.
-        albedo: the diffuse albedo (the transmittance for ``"cornea"``), linear RGB in ``[0, 1]``.
+        kind: ``"skin"``, ``"diffuse"``, ``"glossy"``, ``"metal"``, ``"cornea"`` or ``"hair"``.
+        albedo: the diffuse albedo (the transmittance for ``"cornea"``, the specular colour ``F0`` for
+            ``"metal"``), linear RGB in ``[0, 1]``.
         roughness: the GGX alpha of the specular lobe.
         specular: Mitsuba principled ``specular`` (``F0 = 0.08 specular``; 0.5 is an index of refraction of 1.5).
         albedo_texture: optional ``(H, W, 3)`` float32 linear albedo map, looked up through the part's

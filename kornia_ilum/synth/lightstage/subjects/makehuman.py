@@ -19,7 +19,8 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
 5. Proxies bound to the morphed mesh: high-poly eyes (the eyeball, diffuse, textured with one of 9 iris
    colours drawn by skin tone (:func:`iris_probabilities`; the ``brown`` map's irises re-tinted medium to
    dark brown, :func:`retint_iris`), and its outer shell as a closed ``"cornea"``, the tear film's and the
-   cornea's gloss), one of 12 eyebrows, one of 4 eyelashes, teeth, tongue and one of
+   cornea's gloss), one of 12 eyebrows, one of 4 eyelashes, teeth (the enamel re-tinted to measured incisors,
+   :func:`retint_teeth`), tongue and one of
    six hair styles (or bald), hair re-tinted to a natural colour. Hair, brows and lashes carry binary
    ``opacity_texture`` maps (:func:`clean_alpha`); their faces that cover no opaque texel are dropped
    (:func:`~kornia_ilum.synth.lightstage.subjects.makehuman_assets.opaque_faces`). For three subjects in four,
@@ -47,6 +48,7 @@ import numpy as np
 from kornia_ilum.synth.lightstage.subjects.base import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
+    TEETH_ALBEDO,
     Material,
     MeshPart,
     Subject,
@@ -88,11 +90,13 @@ __all__ = [
     "MakeHumanSource",
     "clean_alpha",
     "clip_mesh_below",
+    "enamel_mask",
     "find_makehuman_root",
     "iris_probabilities",
     "retint_hair",
     "retint_iris",
     "retint_skin",
+    "retint_teeth",
 ]
 
 #: hm08 base-mesh vertex of each :data:`LANDMARK_NAMES` point. Chosen by geometry on the unmorphed base mesh
@@ -312,6 +316,52 @@ def retint_skin(
     out = np.clip(tex * scale.astype(np.float32), 0.0, max_albedo).astype(np.float32)
     mean = out[mask].astype(np.float64).mean(0)
     return out, (float(mean[0]), float(mean[1]), float(mean[2]))
+
+
+def enamel_mask(texture: np.ndarray) -> np.ndarray:
+    """The texels of a teeth map that are enamel: neither gum (red over 1.6 times green) nor blank (linear mean
+    under 0.05, the map's unused area).
+
+    Args:
+        texture: ``(H, W, 3)`` linear albedo.
+
+    Returns:
+        ``(H, W)`` bool.
+
+    Examples:
+        >>> tex = np.array([[[0.3, 0.28, 0.27], [0.2, 0.04, 0.05], [0.0, 0.0, 0.0]]], np.float32)
+        >>> enamel_mask(tex).tolist()  # a tooth, the gum, blank
+        [[True, False, False]]
+    """
+    t = np.asarray(texture, dtype=np.float32)
+    return (t[..., 0] <= 1.6 * t[..., 1]) & (t.mean(-1) >= 0.05)
+
+
+def retint_teeth(texture: np.ndarray, target: tuple[float, float, float] = TEETH_ALBEDO) -> np.ndarray:
+    """A teeth map whose enamel texels (:func:`enamel_mask`) average ``target`` (:func:`retint_skin` on them;
+    the gums and the rest unchanged).
+
+    MakeHuman's map has neutral enamel of about 0.30 linear (L* 60); measured incisors are brighter and
+    yellower (:data:`~kornia_ilum.synth.lightstage.subjects.base.TEETH_ALBEDO`).
+
+    Args:
+        texture: ``(H, W, 3)`` linear albedo.
+        target: the enamel's mean, linear RGB.
+
+    Returns:
+        ``(H, W, 3)`` float32.
+
+    Examples:
+        >>> tex = np.array([[[0.3, 0.28, 0.27], [0.2, 0.04, 0.05]]], np.float32)
+        >>> [round(float(c), 2) for c in retint_teeth(tex)[0, 0]], retint_teeth(tex)[0, 1].tolist() == tex[0, 1].tolist()
+        ([0.62, 0.5, 0.32], True)
+    """
+    tex = np.asarray(texture, dtype=np.float32)
+    mask = enamel_mask(tex)
+    if not mask.any():
+        return tex
+    tinted, _ = retint_skin(tex, mask, target)
+    return np.where(mask[..., None], tinted, tex).astype(np.float32)
 
 
 def iris_probabilities(tone: int) -> np.ndarray:
@@ -847,6 +897,8 @@ class MakeHumanSource:
                                        ("tongue", "tongue/tongue01/tongue01.mhclo", "skin", 0.4)):  # fmt: skip
             px, pv, f, uv = proxy_mesh(rel, mouth_c)
             rgb, _ = a.texture(a.material_texture(px))
+            if name == "teeth":
+                rgb = retint_teeth(rgb)
             parts.append(MeshPart(name, pv.astype(np.float32), f.astype(np.int32),
                                   Material(kind, tuple(float(c) for c in rgb.reshape(-1, 3).mean(0)), rough, 0.5,
                                            albedo_texture=rgb, subsurface=kind == "skin"),

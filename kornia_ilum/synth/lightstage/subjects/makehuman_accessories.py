@@ -32,6 +32,7 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     Material,
     MeshPart,
     fabric_colour,
+    frame_material,
     merge_meshes,
     pick,
 )
@@ -188,7 +189,8 @@ def _arch(x: np.ndarray, z0: float) -> np.ndarray:
 
 
 def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray], head: np.ndarray) -> list[MeshPart]:
-    """The frame (``"glasses"``, glossy) and the lenses (``"lenses"``, ``"cornea"`` kind) fitted to a head.
+    """The frame (``"glasses"``, :func:`~kornia_ilum.synth.lightstage.subjects.base.frame_material`) and the
+    lenses (``"lenses"``, ``"cornea"`` kind) fitted to a head.
 
     Args:
         p: :func:`accessory_params`.
@@ -205,8 +207,8 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
         >>> head = 0.1 * icosphere(2)[0]  # a ball for a head
         >>> eyes = [np.array([-0.032, 0.0, 0.07]), np.array([0.032, 0.0, 0.07])]
         >>> ears = [np.array([-0.075, -0.01, -0.01]), np.array([0.075, -0.01, -0.01])]
-        >>> [(part.name, part.material.kind) for part in glasses_parts(p, eyes, ears, head)]
-        [('glasses', 'glossy'), ('lenses', 'cornea')]
+        >>> p["glasses_frame"], [(part.name, part.material.kind) for part in glasses_parts(p, eyes, ears, head)]
+        ('metal', [('glasses', 'metal'), ('lenses', 'cornea')])
     """
     if not p["glasses"]:
         return []
@@ -261,7 +263,7 @@ def glasses_parts(p: dict, eye_centres: list[np.ndarray], ears: list[np.ndarray]
     lv, lf, _ = merge_meshes(lenses)
     ln = np.tile(np.float32([0.0, 0.0, 1.0]), (len(lv), 1))
     return [
-        MeshPart("glasses", fv, ff, Material("glossy", tuple(float(c) for c in p["glasses_albedo"]), 0.12, 0.5), fnrm),
+        MeshPart("glasses", fv, ff, frame_material(p["glasses_frame"], p["glasses_albedo"], 0.12), fnrm),
         MeshPart("lenses", lv, _orient(lv, lf, ln).astype(np.int32), Material("cornea", (1.0, 1.0, 1.0), 0.0, 0.5), ln),
     ]
 

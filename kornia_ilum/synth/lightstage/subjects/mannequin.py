@@ -90,6 +90,7 @@ from kornia_ilum.synth.lightstage.subjects.base import (
     MeshPart,
     Subject,
     fabric_colour,
+    frame_material,
     merge_meshes,
     pick,
     seed_digest,
@@ -1161,7 +1162,7 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
             (*box, 0.0028))  # fmt: skip
     if p["glasses"]:
         add("glasses", mesh_sdf(fn_of(_glasses_sdf), (-0.08, -0.02, -0.01), (0.08, 0.024, 0.1), 0.001),
-            Material("glossy", tuple(p["glasses_albedo"]), 0.15, 0.5))  # fmt: skip
+            frame_material(p["glasses_frame"], p["glasses_albedo"], 0.15))  # fmt: skip
     if p["earrings"]:
         add("earrings", mesh_sdf(fn_of(_earring_sdf), (-0.11, -0.075, -0.06), (0.11, -0.005, 0.03), 0.0007),
             Material("glossy", tuple(p["earring_albedo"]), 0.08, 0.5))  # fmt: skip

@@ -21,9 +21,11 @@ from kornia_ilum.synth.lightstage.subjects.makehuman import (
     _IRIS,
     clean_alpha,
     clip_mesh_below,
+    enamel_mask,
     iris_probabilities,
     retint_iris,
     retint_skin,
+    retint_teeth,
 )
 from kornia_ilum.synth.lightstage.subjects.makehuman_assets import load_texture
 
@@ -63,6 +65,37 @@ def test_iris_colours_follow_skin_tone_and_brown_irises_are_brown(mh):
     # Sampled subjects: mostly brown eyes on dark skin.
     dark = [q for q in map(mh.params, range(400)) if q["skin_tone"] >= 6]
     assert sum(q["iris"] in ("brown", "brownlight") for q in dark) >= 0.9 * len(dark)
+
+
+def test_teeth_enamel_is_measured_incisors_and_gums_stay(mh):
+    """MakeHuman's enamel (about 0.30 linear, neutral) is re-tinted to TEETH_ALBEDO (L* 77, b* 20); the gums and
+    the blank texels keep their values; a sampled subject's teeth carry the re-tinted map and pass the part check."""
+    from kornia_ilum.synth.lightstage.calibration import check_parts
+    from kornia_ilum.synth.lightstage.subjects.base import TEETH_ALBEDO
+
+    tex, _ = load_texture(mh.root / "teeth" / "materials" / "teeth.png")
+    enamel = enamel_mask(tex)
+    assert 0.15 < enamel.mean() < 0.4  # a quarter of the map; the gums and the blank area are not enamel
+    before = tex[enamel].mean(0)
+    assert before.max() < 0.4 and before.max() - before.min() < 0.05  # too dark and neutral: the audit's finding
+    out = retint_teeth(tex)
+    np.testing.assert_allclose(out[enamel].mean(0), TEETH_ALBEDO, rtol=0.02)
+    assert np.array_equal(out[~enamel], tex[~enamel])
+    subject = mh.sample(0)
+    teeth = next(p for p in subject.parts if p.name == "teeth")
+    np.testing.assert_allclose(teeth.material.albedo_texture[enamel].mean(0), TEETH_ALBEDO, rtol=0.02)
+    assert next(c for c in check_parts(subject) if c.name == "teeth").ok
+    assert not check_parts_on(tex)
+
+
+def check_parts_on(texture):
+    """Whether MakeHuman's own teeth map (before the re-tint) passes the teeth check: it does not (too dark)."""
+    from types import SimpleNamespace
+
+    from kornia_ilum.synth.lightstage.calibration import check_parts
+
+    part = SimpleNamespace(name="teeth", material=SimpleNamespace(albedo_texture=texture, opacity_texture=None))
+    return check_parts(SimpleNamespace(parts=[part]))[0].ok
 
 
 def test_opacity_textures_binary_without_film(mh):
