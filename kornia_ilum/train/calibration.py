@@ -16,6 +16,14 @@ A gain changes no direction and no ratio between two estimates (the crop and tra
 values); it moves the median of the energy's ratio to the truth to 1 on the training distribution. It never
 reads the evaluation split. The recipe applies the gain (:meth:`~kornia_ilum.train.recipes.Recipe.scale_output`;
 for ``ours``, a constant added to the head's log-radiance bias: exact).
+
+The spread of the strength, fitted at export (:func:`fit_spread`, ``--fit-spread N``): for an estimator whose
+spread head was not trained with the network (``sipr``, whose recipe has no likelihood term), the head alone
+(a linear layer ``log b = w . f + c`` on the features the estimator gives it) is fitted on fresh portraits of
+the same training stream, the rest frozen: the Laplace negative log-likelihood
+``mean(|log E_true - log E_pred| e^(-log b) + log b)`` (:func:`~kornia_ilum.train.losses.energy_nll`) is
+convex in ``(w, c)``, so L-BFGS on the standardised features finds its minimum (a small ridge on ``w`` keeps
+1000-odd features from fitting the portraits' noise). The lighting does not change.
 """
 
 from __future__ import annotations
@@ -27,10 +35,12 @@ import torch
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.metrics import total_radiance
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.train.data import collate
+from kornia_ilum.train.losses import log_energy
 from kornia_ilum.train.recipes import PROBE_STREAM, Recipe
 
-__all__ = ["CALIBRATION_STREAM", "calibrate_energy", "energy_log_ratios"]
+__all__ = ["CALIBRATION_STREAM", "calibrate_energy", "energy_log_ratios", "fit_spread"]
 
 #: The data stream of the calibration portraits: neither a training stream (``rank * workers + k``) nor the
 #: float16 probe's (:data:`~kornia_ilum.train.recipes.PROBE_STREAM`).
@@ -132,3 +142,91 @@ def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: Portra
     return {"samples": samples, "gain": gain.tolist(),
             "median_ratio_before": torch.exp(-before.median(0).values).tolist(),
             "median_ratio_after": torch.exp(-after.median(0).values).tolist()}
+
+
+def fit_spread(estimator: torch.nn.Module, dataset: PortraitDataset, samples: int, *, ridge: float = 1e-2,
+               batch: int = 32) -> dict[str, Any]:
+    r"""Fit ``estimator``'s spread head alone, in place, on ``samples`` fresh training portraits (module docstring).
+
+    Args:
+        estimator: a trained estimator with a spread head ``estimator.spread`` (an ``nn.Linear`` to one
+            output) whose ``forward`` returns ``log_energy_spread``; float32, on the CPU.
+        dataset: the training portraits as the estimator's recipe draws them.
+        samples: the portraits the head is fitted on (:data:`CALIBRATION_STREAM`).
+        ridge: the weight of ``|w|^2`` on the standardised features.
+        batch: portraits per forward pass.
+
+    Returns:
+        ``{"samples", "features", "nll_before", "nll_after", "within_one_spread", "median_spread"}`` on the
+        fitted portraits (``within_one_spread``: the share whose true log energy lies within ``+-b``, nominal
+        ``1 - 1/e``), for the run's ``summary.json``.
+
+    Raises:
+        ValueCheckError: ``samples`` is not positive, the estimator has no spread head, or an estimate or a
+            truth has no energy.
+
+    Examples:
+        It needs a light-stage cache and a trained estimator (``kornia-ilum train --fit-spread N`` calls it at
+        export):
+
+        >>> from kornia_ilum.train import TrainConfig
+        >>> from kornia_ilum.train.data import training_dataset
+        >>> from kornia_ilum.estimators import create_estimator
+        >>> dataset = training_dataset(TrainConfig(out="runs/sh", cache=("lightstage/",)))  # doctest: +SKIP
+        >>> report = fit_spread(create_estimator("sh", spread_head=True), dataset, 2048)  # doctest: +SKIP
+        >>> round(report["within_one_spread"], 1)  # doctest: +SKIP
+        0.6
+    """
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
+        raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
+    head = getattr(estimator, "spread", None)
+    if not isinstance(head, torch.nn.Linear) or head.out_features != 1:
+        raise ValueCheckError("fit_spread needs an estimator with a spread head (--model spread_head=True)")
+    captured: list[torch.Tensor] = []
+    hook = head.register_forward_pre_hook(lambda _, args: captured.append(args[0].detach().double()))
+    stream = dataset.samples(CALIBRATION_STREAM)
+    errors = []
+    try:
+        with torch.no_grad():
+            for start in range(0, samples, batch):
+                chunk = collate([next(stream) for _ in range(min(batch, samples - start))])
+                pred = estimator(chunk["image"].float() / 255.0).mirror_ball
+                errors.append((log_energy(chunk["mirror_ball"].double()) - log_energy(pred.double())).abs())
+    finally:
+        hook.remove()
+    error, features = torch.cat(errors), torch.cat(captured)
+    if not torch.isfinite(error).all():
+        raise ValueCheckError("an estimate or a truth of the calibration portraits has no energy; the spread "
+                              "cannot be fitted")
+    mean, std = features.mean(0), features.std(0).clamp(min=1e-6)
+    x = (features - mean) / std
+    w = torch.zeros(x.shape[1], dtype=torch.float64, requires_grad=True)
+    c = torch.tensor(float(error.mean().clamp(min=1e-3).log()), dtype=torch.float64, requires_grad=True)
+
+    def nll(log_b: torch.Tensor) -> torch.Tensor:
+        return (error * torch.exp(-log_b) + log_b).mean()
+
+    with torch.no_grad():
+        before = float(nll(_log_b(head, features)))
+    opt = torch.optim.LBFGS([w, c], lr=1.0, max_iter=200, line_search_fn="strong_wolfe")
+
+    def closure() -> torch.Tensor:
+        opt.zero_grad()
+        loss = nll(x @ w + c) + ridge * w.square().sum()
+        loss.backward()
+        return loss
+
+    opt.step(closure)
+    with torch.no_grad():
+        weight = (w / std).to(head.weight)
+        head.weight.copy_(weight[None])
+        head.bias.fill_(float(c - (mean / std) @ w))
+        log_b = _log_b(head, features)
+    return {"samples": samples, "features": int(x.shape[1]), "nll_before": before, "nll_after": float(nll(log_b)),
+            "within_one_spread": float((error <= log_b.exp()).double().mean()),
+            "median_spread": float(log_b.exp().median())}
+
+
+def _log_b(head: torch.nn.Linear, features: torch.Tensor) -> torch.Tensor:
+    """The spread head's ``log b`` of captured features (float64), clamped as the estimators clamp it."""
+    return (features @ head.weight.double()[0] + head.bias.double()[0]).clamp(*LOG_SPREAD_RANGE)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import ast
 
-from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.cli import nonnegative_int, positive_int
 from kornia_ilum.train.config import TrainConfig
 from kornia_ilum.train.loop import train
 from kornia_ilum.train.losses import BRDF_WEIGHTS
@@ -64,7 +64,8 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--cache", nargs="+", required=True, metavar="DIR", help="light-stage cache folders")
     cmd.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="folders of real lat-long HDR maps")
     cmd.add_argument("--out", required=True, metavar="OUT", help="the run's folder (resumed if it has a checkpoint)")
-    cmd.add_argument("--steps", type=positive_int, default=d.steps, help=f"generator steps (default: {d.steps})")
+    cmd.add_argument("--steps", type=nonnegative_int, default=d.steps,
+                     help=f"generator steps (default: {d.steps}; 0 with --init: export only)")
     cmd.add_argument("--batch", type=positive_int, default=d.batch, help=f"samples per step (default: {d.batch})")
     cmd.add_argument("--lr", type=float, default=d.lr, help=f"generator learning rate (default: {d.lr})")
     cmd.add_argument("--seed", type=int, default=d.seed, help="seed of the data and the initialisation")
@@ -90,6 +91,10 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="at export, scale each colour channel so that the median estimated energy is the "
                      "truth's on N fresh training portraits (L_rec's bias to dark; docs/training.rst; "
                      "rerunning a finished run with it only re-exports; default: 0, off)")
+    cmd.add_argument("--fit-spread", type=int, default=d.fit_spread, metavar="N",
+                     help="at export, fit the spread head alone (the rest frozen) on N fresh training portraits: "
+                     "the Laplace likelihood of the true log energy (needs --model spread_head=True; with "
+                     "--steps 0 --init WEIGHTS the run does only this; default: 0, off)")
     cmd.add_argument("--lambda-adv", type=float, default=d.lambda_adv,
                      help=f"weight of the adversarial term (default: {d.lambda_adv}; 0 turns it off)")
     cmd.add_argument("--lambda-crop", type=float, default=d.lambda_crop,
@@ -138,6 +143,7 @@ def run_train(args: argparse.Namespace) -> int:
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
                          log_every=args.log_every, snapshot_every=args.snapshot_every,
                          average_tail=args.average_tail, calibrate_energy=args.calibrate_energy,
+                         fit_spread=args.fit_spread,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
                          lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll,
                          lambda_albedo=args.lambda_albedo, init=args.init, model=dict(args.model),

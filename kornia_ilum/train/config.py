@@ -99,6 +99,10 @@ class TrainConfig:
             true energy is 1 on this many fresh portraits of the training distribution (0: off;
             :func:`~kornia_ilum.train.calibration.calibrate_energy`, which says why ``L_rec`` leaves a bias).
             Only the export depends on it, as for ``average_tail``.
+        fit_spread: after training, fit the estimator's spread head alone, the rest frozen, on this many fresh
+            portraits of the training distribution (0: off; :func:`~kornia_ilum.train.calibration.fit_spread`;
+            the model needs ``spread_head``). With ``steps=0`` and ``init``, the only thing the run does.
+            Only the export depends on it, as for ``average_tail``.
         model: constructor arguments of the estimator to train (for example ``{"normalize_exposure": False}``),
             passed to the recipe's ``build`` (:class:`~kornia_ilum.train.recipes.Recipe`).
         init: a ``.safetensors`` file of the estimator's weights to start from instead of its random
@@ -154,6 +158,7 @@ class TrainConfig:
     snapshot_every: int = 0
     average_tail: float = 0.0
     calibrate_energy: int = 0
+    fit_spread: int = 0
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
     init: str | None = None
@@ -162,14 +167,17 @@ class TrainConfig:
     def __post_init__(self) -> None:
         for name in ("steps", "batch", "checkpoint_every", "log_every", "crop_pairs"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise ValueCheckError(f"{name} must be a positive integer, got {v!r}")
+            zero_ok = name == "steps" and self.init is not None  # 0 steps from --init: an export alone
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0 or (v == 0 and not zero_ok):
+                raise ValueCheckError(f"{name} must be a positive integer{' (0 only with init)' * (name == 'steps')}"
+                                      f", got {v!r}")
         every = self.snapshot_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 0:
             raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
-        calibrate = self.calibrate_energy
-        if isinstance(calibrate, bool) or not isinstance(calibrate, int) or calibrate < 0:
-            raise ValueCheckError(f"calibrate_energy must be a non-negative integer, got {calibrate!r}")
+        for name in ("calibrate_energy", "fit_spread"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueCheckError(f"{name} must be a non-negative integer, got {v!r}")
         if not 0 <= self.average_tail < 1:
             raise ValueCheckError(f"average_tail must be in [0, 1), got {self.average_tail!r}")
         if self.average_tail > 0 and not self.snapshot_every:
@@ -207,7 +215,7 @@ class TrainConfig:
         """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree (a
         setting that a checkpoint predates counts as its default there)."""
         skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every", "average_tail",
-                "calibrate_energy"}
+                "calibrate_energy", "fit_spread"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 
 

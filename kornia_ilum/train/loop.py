@@ -39,7 +39,7 @@ from kornia_ilum.core.files import atomic_write, sha256_file
 from kornia_ilum.estimators import read_weights
 from kornia_ilum.metrics import reconstruction_loss
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
-from kornia_ilum.train.calibration import calibrate_energy
+from kornia_ilum.train.calibration import calibrate_energy, fit_spread
 from kornia_ilum.train.config import RuntimeSettings, TrainConfig, resolve_runtime
 from kornia_ilum.train.data import training_dataset
 from kornia_ilum.train.losses import BRDF_WEIGHTS
@@ -297,6 +297,8 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Re
             summary["averaged_snapshots"] = steps
         if config.calibrate_energy:
             summary["energy_calibration"] = calibrate_energy(estimator, recipe, dataset, config.calibrate_energy)
+        if config.fit_spread:
+            summary["spread_fit"] = fit_spread(estimator, dataset, config.fit_spread)
         summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors",
                                             recipe.probe(dataset))
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))

@@ -201,6 +201,42 @@ class TestMultiScaleSH:
         torch.testing.assert_close(extras["negative"], NEGATIVE_PENALTY * negative_penalty(lighting, VALID))
 
 
+class TestSpreadHead:
+    def test_the_head_adds_the_spread_and_changes_nothing_else(self):
+        torch.manual_seed(0)
+        plain = SHEstimator()
+        torch.manual_seed(0)
+        spread = SHEstimator(spread_head=True)
+        x = crops(2)
+        with torch.no_grad():
+            a, b = plain(x), spread(x)
+        assert a.log_energy_spread is None and b.log_energy_spread.shape == (2,)
+        assert (b.log_energy_spread > 0).all()
+        torch.testing.assert_close(a.sh, b.sh)  # the head is built last: the rest draws the same initial weights
+
+    def test_a_file_with_the_head_turns_it_on_and_one_without_keeps_the_model(self):
+        with_head = SHEstimator(spread_head=True).state_dict()
+        net = SHEstimator()
+        net.load_state_dict(with_head, strict=True)
+        assert net.spread is not None
+        older = SHEstimator().state_dict()
+        net = SHEstimator(spread_head=True)
+        net.load_state_dict(older, strict=True)
+        assert net.spread is not None and net(crops(1)).log_energy_spread is not None
+
+    def test_the_training_model_carries_the_spread_for_the_likelihood(self):
+        from kornia_ilum.train.losses import energy_nll
+
+        model, disc = SHRecipe().build(spread_head=True)
+        assert disc is None
+        out = model(crops(2))
+        assert out.log_spread.shape == (2,)
+        truth = (torch.rand(2, 3, 32, 32, generator=torch.Generator().manual_seed(0)) + 0.1) * VALID
+        nll = energy_nll(out[32], truth, out.log_spread)
+        nll.backward()
+        assert torch.isfinite(nll) and model.estimator.spread.weight.grad.abs().sum() > 0
+
+
 class TestTraining:
     @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path):

@@ -77,3 +77,57 @@ def test_a_finished_run_exported_again_with_it_trains_nothing(tiny_cache, tmp_pa
                if k != "head.bias")
     torch.testing.assert_close(got["head.bias"].float(), plain["head.bias"].float() + gain.log(), atol=2e-3,
                                rtol=1e-3)  # both may be float16
+
+
+class _Known(torch.nn.Module):
+    """A toy estimator whose error in log energy is set by its input: ``|log E_pred - log E_true| = 2 v u``, ``v``
+    a brightness its spread head sees (as ``log v``, with a feature of noise) and ``u`` an exponential draw it
+    does not see: the best spread is ``b = 2 v``, and ``+-b`` then holds ``1 - 1/e`` of the portraits."""
+
+    def __init__(self, truth: torch.Tensor) -> None:
+        super().__init__()
+        self.spread = torch.nn.Linear(2, 1)
+        self.truth = truth
+
+    def forward(self, crops):
+        from types import SimpleNamespace
+
+        v, u = crops[:, 0, 0, 0].clamp(min=1e-3), -torch.log(crops[:, 1, 0, 0].clamp(min=1e-3))
+        self.spread(torch.stack([v.log(), torch.randn_like(v)], 1))  # the estimator's own call, which the fit hooks
+        sign = torch.where(crops[:, 2, 0, 0] > 0.5, 1.0, -1.0)
+        return SimpleNamespace(mirror_ball=torch.exp(2 * v * u * sign)[:, None, None, None] * self.truth)
+
+
+class _Stream:
+    """A dataset stand-in: ``samples(stream)`` yields portraits whose first pixel holds ``v``, ``U`` and a sign."""
+
+    def __init__(self, truth: torch.Tensor) -> None:
+        self.truth = truth
+
+    def samples(self, stream: int):
+        g = torch.Generator().manual_seed(stream)
+        while True:
+            image = (torch.rand(3, 4, 4, generator=g) * 255).round().to(torch.uint8)
+            yield {"image": image, "mirror_ball": self.truth[0], "label": "indoor", "skin_tone": 5}
+
+
+def test_fit_spread_learns_where_the_strength_is_uncertain() -> None:
+    from kornia_ilum.train.calibration import fit_spread
+
+    torch.manual_seed(0)
+    truth = torch.ones(1, 3, 8, 8)
+    est = _Known(truth)
+    report = fit_spread(est, _Stream(truth), 2048, batch=256)
+    assert report["nll_after"] < report["nll_before"] and report["features"] == 2
+    w = est.spread.weight.detach()[0]  # log b = log 2 + log v: weight 1 on log v, none on the noise
+    assert abs(float(w[0]) - 1.0) < 0.15 and abs(float(w[1])) < 0.1
+    assert abs(report["within_one_spread"] - (1 - 1 / torch.e)) < 0.04
+    with pytest.raises(ValueCheckError, match="spread head"):
+        fit_spread(torch.nn.Identity(), _Stream(truth), 4)
+    with pytest.raises(ValueCheckError, match="positive integer"):
+        fit_spread(est, _Stream(truth), 0)
+    with pytest.raises(ValueCheckError, match="fit_spread"):
+        TrainConfig(out="x", cache=("c",), fit_spread=-1)
+    with pytest.raises(ValueCheckError, match="0 only with init"):
+        TrainConfig(out="x", cache=("c",), steps=0)
+    assert TrainConfig(out="x", cache=("c",), steps=0, init="w.safetensors").steps == 0

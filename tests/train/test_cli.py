@@ -34,7 +34,7 @@ class TestParser:
         assert args.bf16 is False and args.channels_last is True
         assert args.data == [("fields_per_chunk", 8), ("sphere_sizes", [4, 32]), ("crop", "face")]
 
-    @pytest.mark.parametrize("bad", [["--steps", "0"], ["--data", "=1"], ["--data", "no_equals"]])
+    @pytest.mark.parametrize("bad", [["--steps", "-1"], ["--data", "=1"], ["--data", "no_equals"]])
     def test_bad_arguments(self, bad, capsys) -> None:
         with pytest.raises(SystemExit):
             _parser().parse_args(["train", "--cache", "a", "--out", "run", *bad])

@@ -36,6 +36,12 @@ exposure exactly wherever nothing clips. The shipped weights were trained on cro
 alone, as trained. ``False`` gives the network as it was trained, which read 1.74 times the light of a photo
 darkened 4 times.
 
+The spread of the strength (``spread_head=True``, as in ``ours``): one linear layer from the latent to ``log b``,
+the scale of a Laplace distribution of the true lighting's log energy around the estimate's
+(:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), trained by its negative log-likelihood
+(``kornia-ilum train --estimator sh --lambda-nll``, docs/training.rst). It changes nothing else. A weight file
+that has it turns it on when loaded.
+
 The head's bias starts at uniform radiance :data:`INIT_RADIANCE` (coefficient (0, 0) =
 ``INIT_RADIANCE * sqrt(4 pi)``, the others 0), so that the untrained network's spheres are positive and the
 rendering loss has gradients from the first step (negative sphere pixels have none).
@@ -46,12 +52,14 @@ from __future__ import annotations
 import math
 
 import torch
+from typing import Any
+
 from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int, trusted
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
-from kornia_ilum.estimators.ours import build_encoder
+from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE, build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.sh import sh_reconstruct
 
@@ -83,11 +91,13 @@ class SHEstimator(LightingEstimator):
         latent_dim: size of the encoder's fully-connected bottleneck (1024, as in ``ours``).
         normalize_exposure: re-expose the crop to a metered 0.18 and scale the estimate back (module
             docstring, "Exposure"); not saved in the weights.
+        spread_head: add the spread head (module docstring): the estimate then has ``log_energy_spread``. A
+            weight file that has the head turns it on when loaded.
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``sh`` (the raw
         coefficients), ``mirror_ball`` (their reconstruction clamped at 0), ``log_mirror_ball``
-        (``log(1 + mirror_ball)``) and ``valid``.
+        (``log(1 + mirror_ball)``) and ``valid``, and ``log_energy_spread`` with the spread head.
 
     Shape:
         - Input: :math:`(B, 3, 256, 256)`, sRGB in ``[0, 1]``
@@ -122,7 +132,7 @@ class SHEstimator(LightingEstimator):
         "(kornia_ilum_sh/weights/); reinstall it",
     )
 
-    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True) -> None:
+    def __init__(self, latent_dim: int = 1024, normalize_exposure: bool = True, spread_head: bool = False) -> None:
         super().__init__()
         check_positive_int(latent_dim, "latent_dim")
         self.latent_dim = latent_dim
@@ -132,22 +142,41 @@ class SHEstimator(LightingEstimator):
         with torch.no_grad():
             self.head.bias.zero_()
             self.head.bias[:3] = INIT_RADIANCE * math.sqrt(4 * math.pi)  # coefficient (0, 0), RGB
+        self.spread: nn.Linear | None = nn.Linear(latent_dim, 1) if spread_head else None
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
-    def coefficients(self, crops: Tensor) -> Tensor:
-        r"""The raw network: unclamped SH coefficients, no input checks (the training path).
+    def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
+        has_head = f"{prefix}spread.weight" in state_dict
+        if has_head and self.spread is None:  # a file with the spread head: the model gets one
+            self.spread = nn.Linear(self.latent_dim, 1).to(self.head.weight)
+        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
+            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
+        super()._load_from_state_dict(state_dict, prefix, *args)
+
+    def decode(self, crops: Tensor) -> tuple[Tensor, Tensor | None]:
+        r"""The raw network: unclamped SH coefficients and the spread head's ``log b``, no input checks (the
+        training path).
 
         Args:
             crops: sRGB crops in ``[0, 1]``, :math:`(B, 3, 256, 256)`.
 
         Returns:
-            :math:`(B, 9, 3)` radiance SH coefficients (the order of docs/conventions.rst), in the dtype of
-            the head (or of an enclosing autocast).
+            ``(sh, log_spread)``: :math:`(B, 9, 3)` radiance SH coefficients (the order of
+            docs/conventions.rst), in the dtype of the head (or of an enclosing autocast), and :math:`(B,)`
+            float32 ``log b`` clamped to :data:`~kornia_ilum.estimators.ours.LOG_SPREAD_RANGE` (``None`` without
+            the spread head).
         """
         dtype = self.head.weight.dtype
         with trusted():  # the layers' own checks would scan every activation; the crops were checked
             latent = self.to_latent(self.encoder(crops.to(dtype) - 0.5))
-        return self.head(latent).reshape(-1, NUM_COEFFICIENTS, 3)
+        log_spread = None
+        if self.spread is not None:
+            log_spread = self.spread(latent)[:, 0].float().clamp(*LOG_SPREAD_RANGE)
+        return self.head(latent).reshape(-1, NUM_COEFFICIENTS, 3), log_spread
+
+    def coefficients(self, crops: Tensor) -> Tensor:
+        r"""The unclamped SH coefficients of :meth:`decode`, :math:`(B, 9, 3)`."""
+        return self.decode(crops)[0]
 
     def predict(self, crops: Tensor) -> LightingEstimate:
         dtype = self.head.weight.dtype
@@ -155,7 +184,7 @@ class SHEstimator(LightingEstimator):
         if self.normalize_exposure:
             with torch.autocast(crops.device.type, enabled=False), trusted():  # forward() checked the crops
                 crops, scale = normalize_exposure(crops.float())
-        sh = self.coefficients(crops)
+        sh, log_spread = self.decode(crops)
         with torch.autocast(sh.device.type, enabled=False):
             sh = sh.float() if scale is None else sh.float() * scale[:, None, None]
             mirror_ball = sh_reconstruct(sh, LIGHTING_SIZE, "mirror_ball", clamp_negative=True)
@@ -165,4 +194,5 @@ class SHEstimator(LightingEstimator):
             valid=self.valid,
             log_mirror_ball=log_mirror_ball.to(dtype),
             sh=sh.to(dtype),
+            log_energy_spread=None if log_spread is None else torch.exp(log_spread).to(dtype),
         )

@@ -36,6 +36,7 @@ from torch import Tensor, nn
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_reconstruct
+from kornia_ilum.train.models import MultiScaleLighting
 from kornia_ilum.train.recipes import Recipe
 from kornia_ilum_sh.estimator import SHEstimator
 
@@ -73,8 +74,9 @@ class MultiScaleSH(nn.Module):
             :attr:`estimator` is what gets exported.
 
     Returns:
-        (``forward``) ``{size: (B, 3, size, size)}`` float32 linear radiance, 0 off the ball, possibly
-        negative (the order-2 function as it is), for :data:`SCALES`.
+        (``forward``) a :class:`~kornia_ilum.train.models.MultiScaleLighting`: ``{size: (B, 3, size, size)}`` float32
+        linear radiance, 0 off the ball, possibly negative (the order-2 function as it is), for :data:`SCALES`,
+        and the spread head's ``log_spread`` (``None`` without it).
 
     Examples:
         >>> model = MultiScaleSH()
@@ -87,20 +89,21 @@ class MultiScaleSH(nn.Module):
         super().__init__()
         self.estimator = SHEstimator() if estimator is None else estimator
 
-    def forward(self, crops: Tensor) -> dict[int, Tensor]:
-        sh = self.estimator.coefficients(crops)
+    def forward(self, crops: Tensor) -> MultiScaleLighting:
+        sh, log_spread = self.estimator.decode(crops)
         with torch.autocast(sh.device.type, enabled=False):
             lighting = sh_reconstruct(sh.float(), SCALES[-1], "mirror_ball")
-            return mirror_ball_pyramid(lighting, SCALES)
+            return MultiScaleLighting(mirror_ball_pyramid(lighting, SCALES), log_spread)
 
 
 class SHRecipe(Recipe):
-    """``sh``: :class:`MultiScaleSH`, no discriminator; exports :attr:`MultiScaleSH.estimator`."""
+    """``sh``: :class:`MultiScaleSH`, no discriminator; exports :attr:`MultiScaleSH.estimator`. Its one model
+    option is ``spread_head`` (``--model spread_head=True``, for ``--lambda-nll``)."""
 
     name = "sh"
 
-    def build(self) -> tuple[nn.Module, nn.Module | None]:
-        return MultiScaleSH(), None
+    def build(self, spread_head: bool = False) -> tuple[nn.Module, nn.Module | None]:
+        return MultiScaleSH(SHEstimator(spread_head=spread_head)), None
 
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator

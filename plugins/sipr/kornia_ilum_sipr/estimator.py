@@ -20,18 +20,28 @@ wherever nothing clips. The shipped weights were trained on crops auto-exposed t
 at 0.18 is one they saw; the training path (:meth:`SIPREstimator.log_latlong`) is the network alone, as
 trained. ``False`` gives the network as it was trained, which read 2.55 times the light of a photo darkened 4
 times.
+
+The spread of the strength (``spread_head=True``): one linear layer from the bottleneck, averaged over its
+8 x 8 positions, to ``log b``, the scale of a Laplace distribution of the true lighting's log energy around the
+estimate's (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`). It is fitted after training
+with the rest of the network frozen (``kornia-ilum train --estimator sipr --fit-spread N``,
+:func:`kornia_ilum.train.fit_spread`), so the lighting is the trained network's, unchanged. A weight file that
+has it turns it on when loaded.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
-from torch import Tensor
+from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import trusted
 from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
+from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum_sipr.network import LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
+from kornia_ilum_sipr.network import ENCODER_DEPTHS, LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
 
 __all__ = ["INPUT_SIZE", "LIGHTING_SIZE", "PAPER", "SIPREstimator"]
 
@@ -59,10 +69,13 @@ class SIPREstimator(LightingEstimator):
     Args:
         normalize_exposure: re-expose the crop to a metered 0.18 and scale the estimate back (module
             docstring, "Exposure"); not saved in the weights.
+        spread_head: add the spread head (module docstring): the estimate then has ``log_energy_spread``. A
+            weight file that has the head turns it on when loaded.
 
     Returns:
         (from ``forward``) a :class:`~kornia_ilum.estimators.LightingEstimate` with ``mirror_ball``,
-        ``log_mirror_ball`` (``log(1 + mirror_ball)``) and ``valid``.
+        ``log_mirror_ball`` (``log(1 + mirror_ball)``) and ``valid``, and ``log_energy_spread`` with the
+        spread head.
 
     Shape:
         - Input: :math:`(B, 3, 128, 128)` (:data:`INPUT_SIZE`), sRGB in ``[0, 1]``
@@ -98,12 +111,21 @@ class SIPREstimator(LightingEstimator):
         needs_weights=True,
     )
 
-    def __init__(self, normalize_exposure: bool = True) -> None:
+    def __init__(self, normalize_exposure: bool = True, spread_head: bool = False) -> None:
         super().__init__()
         self.normalize_exposure = bool(normalize_exposure)
         self.encoder = Encoder()
         self.head = LightingHead(LIGHTING_SHAPE)
+        self.spread: nn.Linear | None = nn.Linear(ENCODER_DEPTHS[-1], 1) if spread_head else None
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
+
+    def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
+        has_head = f"{prefix}spread.weight" in state_dict
+        if has_head and self.spread is None:  # a file with the spread head: the model gets one
+            self.spread = nn.Linear(ENCODER_DEPTHS[-1], 1).to(self.head.out.weight)
+        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
+            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
+        super()._load_from_state_dict(state_dict, prefix, *args)
 
     def log_latlong(self, crops: Tensor, features: list[Tensor] | None = None) -> Tensor:
         r"""The raw network: ``log(1 + L)`` on the 16 x 32 lat-long grid, no input checks (the training path).
@@ -129,7 +151,11 @@ class SIPREstimator(LightingEstimator):
         if self.normalize_exposure:
             with torch.autocast(crops.device.type, enabled=False), trusted():  # forward() checked the crops
                 crops, scale = normalize_exposure(crops.float())
-        z = self.log_latlong(crops)
+        features = self.encoder(crops.to(dtype))
+        z = self.log_latlong(crops, features)
+        log_spread = None
+        if self.spread is not None:
+            log_spread = self.spread(features[-1].mean((2, 3))).float()[:, 0].clamp(*LOG_SPREAD_RANGE)
         with torch.autocast(z.device.type, enabled=False):
             mirror_ball = log_latlong_to_mirror_ball(z, LIGHTING_SIZE)
             if scale is not None:
@@ -139,4 +165,5 @@ class SIPREstimator(LightingEstimator):
             mirror_ball=mirror_ball.to(dtype).contiguous(),
             valid=self.valid,
             log_mirror_ball=log_mirror_ball.to(dtype).contiguous(),
+            log_energy_spread=None if log_spread is None else torch.exp(log_spread).to(dtype),
         )

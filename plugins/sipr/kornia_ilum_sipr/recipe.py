@@ -104,13 +104,14 @@ class SIPRTrainer(nn.Module):
 
 
 class SIPRRecipe(Recipe):
-    """``sipr``: :class:`SIPRTrainer` on paired black-background portraits; exports its estimator."""
+    """``sipr``: :class:`SIPRTrainer` on paired black-background portraits; exports its estimator. Its one model
+    option is ``spread_head`` (``--model spread_head=True``, for ``--fit-spread``)."""
 
     name = "sipr"
     log_fields = ("relit", "lighting")
 
-    def build(self) -> tuple[nn.Module, nn.Module | None]:
-        return SIPRTrainer(), None
+    def build(self, spread_head: bool = False) -> tuple[nn.Module, nn.Module | None]:
+        return SIPRTrainer(SIPREstimator(spread_head=spread_head)), None
 
     def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
         """The portraits as SIPR was trained on them (module docstring)."""
