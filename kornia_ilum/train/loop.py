@@ -191,7 +191,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
         torch.set_num_threads(config.threads)
     runtime = resolve_runtime(config, device)
     recipe = get_recipe(config.estimator)
-    dataset = recipe.dataset(training_dataset(config))  # checks caches, maps and data settings before any file
+    portraits = training_dataset(config)  # checks caches, maps and data settings before any file
+    dataset = recipe.dataset(portraits)
     out = Path(config.out)
     torch.manual_seed(config.seed)
     try:
@@ -236,7 +237,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
     if start >= config.steps:
-        return _finish(config, runtime, out, recipe, model, dataset, rows, elapsed, start, rank)
+        return _finish(config, runtime, out, recipe, model, portraits, rows, elapsed, start, rank)
     batches = recipe.batches(dataset, config.batch // world, start, rank, world, runtime.workers)
     window_t, window_n = time.perf_counter(), 0
     run_t0 = time.perf_counter()
@@ -275,13 +276,14 @@ def train(config: TrainConfig) -> dict[str, Any]:
             if world > 1:
                 dist.barrier()
     elapsed += time.perf_counter() - run_t0
-    return _finish(config, runtime, out, recipe, model, dataset, rows, elapsed, config.steps, rank)
+    return _finish(config, runtime, out, recipe, model, portraits, rows, elapsed, config.steps, rank)
 
 
 def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Recipe, model: torch.nn.Module,
-            dataset: PortraitDataset, rows: list[dict[str, float]], elapsed: float, step: int,
+            portraits: PortraitDataset, rows: list[dict[str, float]], elapsed: float, step: int,
             rank: int) -> dict[str, Any]:
-    """The summary and the exported weights."""
+    """The summary and the exported weights; ``portraits`` are the training portraits before the recipe's
+    :meth:`~kornia_ilum.train.recipes.Recipe.dataset` (the calibrations draw its ``calibration_dataset``)."""
     summary: dict[str, Any] = {
         "estimator": config.estimator, "steps": step, "samples": step * config.batch, "wall_time_s": elapsed,
         "world_size": _world()[1], "device": config.device, "threads": torch.get_num_threads(),
@@ -296,11 +298,12 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Re
             estimator.load_state_dict(averaged, strict=True)
             summary["averaged_snapshots"] = steps
         if config.calibrate_energy:
-            summary["energy_calibration"] = calibrate_energy(estimator, recipe, dataset, config.calibrate_energy)
+            summary["energy_calibration"] = calibrate_energy(estimator, recipe, recipe.calibration_dataset(portraits),
+                                                             config.calibrate_energy)
         if config.fit_spread:
-            summary["spread_fit"] = fit_spread(estimator, dataset, config.fit_spread)
+            summary["spread_fit"] = fit_spread(estimator, recipe.calibration_dataset(portraits), config.fit_spread)
         summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors",
-                                            recipe.probe(dataset))
+                                            recipe.probe(recipe.dataset(portraits)))
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     return summary
 

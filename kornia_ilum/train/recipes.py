@@ -132,6 +132,11 @@ class Recipe:
         """The light-stage dataset as this recipe needs it (default: as it is)."""
         return dataset
 
+    def calibration_dataset(self, dataset: PortraitDataset) -> PortraitDataset:
+        """The portraits of the calibrations at export (``--calibrate-energy``, ``--fit-spread``): the training
+        portraits as the estimator meets photos at inference (default: :meth:`dataset`'s)."""
+        return self.dataset(dataset)
+
     def batches(self, dataset: PortraitDataset, batch: int, start: int, rank: int, world: int,
                 workers: int) -> Iterator[dict[str, Any]]:
         """The batches of steps ``start, start + 1, ...`` of one rank

@@ -239,3 +239,30 @@ class TestTraining:
         est = SIPREstimator()
         est.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)  # the export loads
         assert not any(k.startswith("decoder") for k in state)
+
+    @pytest.mark.slow  # fits, on a cache that the tiny_cache fixture renders with Mitsuba
+    def test_spread_fitted_at_export_leaves_the_lighting(self, tiny_cache, tmp_path, monkeypatch):
+        """``--steps 0 --init W --model spread_head=True --fit-spread N``: no step, the spread head fitted on
+        portraits at the estimator's input size, every other weight as in ``W``."""
+        monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)
+        torch.manual_seed(0)
+        init = tmp_path / "init.safetensors"
+        safetensors.torch.save_file(SIPREstimator().state_dict(), init)
+        threads = torch.get_num_threads()
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sipr", steps=0,
+                             init=str(init), model={"spread_head": True}, fit_spread=8, batch=2, workers=0,
+                             threads=2, data=small_data())
+        try:
+            summary = train(config)
+        finally:
+            torch.set_num_threads(threads)
+        assert summary["steps"] == 0 and summary["spread_fit"]["samples"] == 8
+        assert summary["spread_fit"]["nll_after"] <= summary["spread_fit"]["nll_before"]
+        state = safetensors.torch.load_file(tmp_path / "run" / "sipr.safetensors")
+        before = safetensors.torch.load_file(init)
+        assert set(state) == set(before) | {"spread.weight", "spread.bias"}
+        assert all(torch.allclose(state[k].float(), before[k].float(), rtol=1e-3, atol=1e-3) for k in before)
+        est = SIPREstimator()
+        est.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)  # the head turns on
+        out = est(torch.rand(2, 3, 128, 128))
+        assert est.spread is not None and out.log_energy_spread.shape == (2,) and (out.log_energy_spread > 0).all()

@@ -119,6 +119,11 @@ class SIPRRecipe(Recipe):
                                      crop_position=CROP_POSITION, crop_extent=CROP_EXTENT, size=INPUT_SIZE)
         return type(dataset)(dataset.fields, config, seed=dataset.seed)
 
+    def calibration_dataset(self, dataset: PortraitDataset) -> PortraitDataset:
+        """The portraits as the estimator meets photos (``ours``'s: environment backgrounds, one image each, the
+        detector's face crops) at its input size: what ``--fit-spread`` fits the spread on."""
+        return type(dataset)(dataset.fields, dataclasses.replace(dataset.config, size=INPUT_SIZE), seed=dataset.seed)
+
     def estimator(self, model: nn.Module) -> nn.Module:
         return model.estimator
 
