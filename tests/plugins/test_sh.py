@@ -255,3 +255,20 @@ class TestTraining:
         est.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)  # the export loads
         checkpoint = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=True)
         assert checkpoint["disc"] == {} and checkpoint["step"] == 2
+
+    @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
+    def test_the_scale_apart_trains_and_exports_the_spread(self, tiny_cache, tmp_path):
+        threads = torch.get_num_threads()
+        config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sh", steps=1, batch=2,
+                             workers=0, threads=1, log_every=1, data=small_data(), model={"spread_head": True},
+                             lambda_nll=0.25)
+        try:
+            summary = train(config)
+        finally:
+            torch.set_num_threads(threads)
+        assert math.isfinite(summary["final"]["nll"]) and summary["final"]["spread"] > 0
+        state = safetensors.torch.load_file(tmp_path / "run" / "sh.safetensors")
+        assert {"spread.weight", "spread.bias"} <= set(state)
+        est = SHEstimator()
+        est.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)
+        assert est(crops(1)).log_energy_spread.shape == (1,)
