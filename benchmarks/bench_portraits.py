@@ -128,9 +128,13 @@ def effect_costs(repeats: int) -> None:
     bank = [noise[k] for k in range(16)]
     rows["CameraEffects.off().apply (fused)"] = lambda: off.apply(x, off_params, gain=gain)
     rows["CameraEffects().apply, 8 draws (fused)"] = lambda: [cam.apply(x, p, noise=bank, gain=gain) for p in drawn]
+    no_rolloff = [{**p, "rolloff": torch.zeros_like(p["rolloff"])} for p in drawn]  # the same draws, no roll-off
+    rows["the same without the roll-off (fused)"] = lambda: [cam.apply(x, p, noise=bank, gain=gain)
+                                                             for p in no_rolloff]
     rows["CameraEffects().apply_reference (unfused)"] = lambda: [cam.apply_reference(x, p, noise=noise, gain=gain)
                                                                  for p in drawn]
-    per = {"CameraEffects().apply, 8 draws (fused)": 8, "CameraEffects().apply_reference (unfused)": 8}
+    per = {"CameraEffects().apply, 8 draws (fused)": 8, "the same without the roll-off (fused)": 8,
+           "CameraEffects().apply_reference (unfused)": 8}
     print("\nper-sample costs (ms, median, one 256 x 256 image out of a batch of 16):")
     for name, fn in rows.items():
         print(f"  {name:44s} {median_ms(fn, repeats) / 16 / per.get(name, 1):6.3f}")

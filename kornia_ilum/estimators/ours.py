@@ -190,7 +190,7 @@ class OursEstimator(LightingEstimator):
         input_size=_INPUT_SIZE,
         weights=(
             WeightFile(
-                "ours.safetensors", "560c8838926fb16a14df73fe7e2c330599369677f6f3abf88dea47208c833165"
+                "ours.safetensors", "04b939680a8f422b179ce0d5375590e7dadc02c7127062d80006575df1c36b6d"
             ),
         ),
         install_hint="the weights ship inside kornia_ilum (kornia_ilum/estimators/weights/); reinstall it",

@@ -127,7 +127,7 @@ class SHEstimator(LightingEstimator):
         "(9 x 3 coefficients) of linear HDR lighting, reconstructed on a 32 x 32 mirror ball",
         paper=PAPER,
         input_size=_INPUT_SIZE,
-        weights=(WeightFile("sh.safetensors", "8063d78c1a7b03615e898e6e919a8c860cd2d3fa814e82b60d673910606dfe26"),),
+        weights=(WeightFile("sh.safetensors", "6d2f6e6aa19090508f5b1d05bc679b27d3de14e5f32e295d5aa53b683188507f"),),
         install_hint="pip install ./plugins/sh (package kornia_ilum_sh); its weights ship inside it "
         "(kornia_ilum_sh/weights/); reinstall it",
     )

@@ -104,7 +104,7 @@ class SIPREstimator(LightingEstimator):
         paper=PAPER,
         input_size=INPUT_SIZE,
         weights=(
-            WeightFile("sipr.safetensors", "84c37dd086d2dfe697921fe022f54866d8fe2859364a9a8956a1f92a8e5346c8"),
+            WeightFile("sipr.safetensors", "2260ef97637cb7807fcc756d1e632b630160e9a8f51e56db53ef75b84cd003d2"),
         ),
         install_hint="pip install ./plugins/sipr (package kornia_ilum_sipr); its weights ship inside it "
         "(kornia_ilum_sipr/weights/); reinstall it",
