@@ -63,7 +63,8 @@ def test_a_faceless_photo_without_fallback_is_refused() -> None:
 @pytest.mark.parametrize("dtype", [torch.bfloat16, torch.float16])
 def test_half_precision_weights_stay_within_the_documented_tolerance(estimator, dtype) -> None:
     """Weights and crops cast to half precision move mean ``L_rec`` by at most ``LREC_RTOL`` (1 %; measured on
-    the probe's 256 check portraits: ours 0.02 % in bfloat16 and 0.002 % in float16, sh 0.08 % and 0.002 %)."""
+    the probe's 256 check portraits: ours 0.02 % in bfloat16 and 0.002 % in float16, sh 0.08 % and 0.002 %; sh's
+    weights of issue 39 move diffuse ``L_rec`` by 0.6 % in bfloat16 on 64 of them, 0.8 % on the 8 here)."""
     reference = create_estimator(estimator)
     half = copy.deepcopy(reference).to(dtype)
 
@@ -73,7 +74,7 @@ def test_half_precision_weights_stay_within_the_documented_tolerance(estimator, 
         def forward(self, crops):
             return half(crops.to(dtype))
 
-    probe = load_probe().part(slice(64, 68))  # four check portraits: float16 convolutions are slow on CPU
+    probe = load_probe().part(slice(64, 72))  # eight check portraits: float16 convolutions are slow on CPU
     ref, got = probe_lrec(reference, probe), probe_lrec(Cast(), probe)
     assert all(abs(got[k] - ref[k]) <= LREC_RTOL * ref[k] for k in ref), (ref, got)
 

@@ -14,6 +14,7 @@ from kornia_ilum.estimators.base import (
     LightingEstimate,
     LightingEstimator,
     WeightFile,
+    adopt_spread_head,
     check_crops,
     read_weights,
 )
@@ -61,6 +62,7 @@ __all__ = [
     "WeightFile",
     "check_crops",
     "read_weights",
+    "adopt_spread_head",
     "fuse_faces",
     "OursEstimator",
     "DEFAULT_ESTIMATOR",

@@ -60,6 +60,7 @@ __all__ = [
     "LightingEstimator",
     "check_crops",
     "check_crop_range",
+    "adopt_spread_head",
     "read_weights",
     "PREVIEW_BRDFS",
     "CROP_RANGE_SLACK",
@@ -642,3 +643,31 @@ def _no_weights_message(info: EstimatorInfo) -> str:
         f"'{info.name}' is registered but ships no trained weights yet; "
         f"pass pretrained=False for an untrained model or pick one of: {ready}"
     )
+
+
+def adopt_spread_head(module: nn.Module, state_dict: dict[str, Any], prefix: str, in_features: int) -> None:
+    """Match ``module.spread`` (an ``nn.Linear(in_features, 1)`` or ``None``) to a state dict about to be loaded.
+
+    For an estimator's ``_load_from_state_dict``: a file with the spread head gives the module one (so that
+    ``load_state_dict(strict=True)`` fills it); a file that predates the head keeps the module's own (its entries
+    are added to ``state_dict`` as they are). See :attr:`LightingEstimate.log_energy_spread`.
+
+    Args:
+        module: the estimator, with a ``spread`` attribute.
+        state_dict: the state dict being loaded (changed in place).
+        prefix: the module's prefix in it.
+        in_features: the head's input size.
+
+    Examples:
+        >>> m = nn.Module()
+        >>> m.spread = None
+        >>> adopt_spread_head(m, {"spread.weight": torch.zeros(1, 4), "spread.bias": torch.zeros(1)}, "", 4)
+        >>> m.spread
+        Linear(in_features=4, out_features=1, bias=True)
+    """
+    has_head = f"{prefix}spread.weight" in state_dict
+    if has_head and module.spread is None:
+        like = next(module.parameters(), None)
+        module.spread = nn.Linear(in_features, 1) if like is None else nn.Linear(in_features, 1).to(like)
+    elif not has_head and module.spread is not None:
+        state_dict.update({f"{prefix}spread.{k}": v for k, v in module.spread.state_dict().items()})

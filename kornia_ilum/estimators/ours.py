@@ -55,7 +55,13 @@ from torch import Tensor, nn
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int, trusted
 from kornia_ilum.core.dtypes import saturating_cast
-from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
+from kornia_ilum.estimators.base import (
+    EstimatorInfo,
+    LightingEstimate,
+    LightingEstimator,
+    WeightFile,
+    adopt_spread_head,
+)
 from kornia_ilum.filters import BlurPool2D
 from kornia_ilum.geometry import mirror_ball_valid
 
@@ -223,11 +229,7 @@ class OursEstimator(LightingEstimator):
         if key not in state_dict:  # a weight file of the paper's network, written before the option existed
             state_dict[key] = torch.tensor(0.0)
         self.normalize_exposure = bool(state_dict[key] > 0.5)
-        has_head = f"{prefix}spread.weight" in state_dict
-        if has_head and self.spread is None:  # a file with the spread head: the model gets one
-            self.spread = nn.Linear(self.latent_dim, 1).to(self.head.weight)
-        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
-            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
+        adopt_spread_head(self, state_dict, prefix, self.latent_dim)
         super()._load_from_state_dict(state_dict, prefix, *args)
 
     def decode(self, crops: Tensor) -> Decoded:

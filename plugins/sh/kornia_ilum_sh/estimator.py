@@ -58,7 +58,7 @@ from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import check_positive_int, trusted
-from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile, adopt_spread_head
 from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE, build_encoder
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.sh import sh_reconstruct
@@ -146,11 +146,7 @@ class SHEstimator(LightingEstimator):
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
     def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
-        has_head = f"{prefix}spread.weight" in state_dict
-        if has_head and self.spread is None:  # a file with the spread head: the model gets one
-            self.spread = nn.Linear(self.latent_dim, 1).to(self.head.weight)
-        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
-            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
+        adopt_spread_head(self, state_dict, prefix, self.latent_dim)
         super()._load_from_state_dict(state_dict, prefix, *args)
 
     def decode(self, crops: Tensor) -> tuple[Tensor, Tensor | None]:

@@ -38,7 +38,7 @@ from torch import Tensor, nn
 
 from kornia_ilum.color import normalize_exposure
 from kornia_ilum.core.check import trusted
-from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile
+from kornia_ilum.estimators import EstimatorInfo, LightingEstimate, LightingEstimator, WeightFile, adopt_spread_head
 from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_sipr.network import ENCODER_DEPTHS, LIGHTING_SHAPE, Encoder, LightingHead, log_latlong_to_mirror_ball
@@ -120,11 +120,7 @@ class SIPREstimator(LightingEstimator):
         self.register_buffer("valid", mirror_ball_valid(LIGHTING_SIZE), persistent=False)
 
     def _load_from_state_dict(self, state_dict: dict[str, Any], prefix: str, *args: Any) -> None:
-        has_head = f"{prefix}spread.weight" in state_dict
-        if has_head and self.spread is None:  # a file with the spread head: the model gets one
-            self.spread = nn.Linear(ENCODER_DEPTHS[-1], 1).to(self.head.out.weight)
-        elif not has_head and self.spread is not None:  # a file that predates the head: keep the model's
-            state_dict.update({f"{prefix}spread.{k}": v for k, v in self.spread.state_dict().items()})
+        adopt_spread_head(self, state_dict, prefix, ENCODER_DEPTHS[-1])
         super()._load_from_state_dict(state_dict, prefix, *args)
 
     def log_latlong(self, crops: Tensor, features: list[Tensor] | None = None) -> Tensor:

@@ -68,16 +68,21 @@ class TestAnalytic:
         checked = 0
         for p in (0.0, 1.0):
             data = small([sphere_field], split=None, environments=uniform_sampler(radiance=0.05, left_light=40.0),
-                         background="black", camera=OFF, flip_probability=p, lightings_per_field=8)
+                         background="black", camera=OFF, flip_probability=p, lightings_per_field=8, matte=True)
             for sample in data.chunk(0, 0):
                 assert sample["flip"] == bool(p)
-                image = sample["image"].float()
+                image = sample["image"].float().sum(0)
                 ball = sample["mirror_ball"].sum(0)  # the light's side in the truth: -X is the ball's left half
                 ball_left, ball_right = ball[:, : S // 2].sum(), ball[:, S // 2 :].sum()
                 if max(ball_left, ball_right) < 10 * min(ball_left, ball_right):
                     continue  # the light was turned to the front or the back
-                left, right = image[:, :, : OUT // 2].mean(), image[:, :, OUT // 2 :].mean()
-                assert (left > right) == (ball_left > ball_right)
+                # the lit side is the side of the sphere's centre (its matte's centroid, wherever the crop's
+                # jitter puts it) where the image's brightness lies
+                x = torch.arange(OUT, dtype=torch.float32)
+                alpha = sample["alpha"][0].float()
+                centre = (alpha.sum(0) * x).sum() / alpha.sum()
+                lit = (image * alpha).sum(0)
+                assert ((lit * x).sum() / lit.sum() < centre) == bool(ball_left > ball_right)
                 checked += 1
         assert checked >= 8
 
@@ -210,7 +215,7 @@ class TestConfig:
         without = small(cache, camera=OFF, background_sharp_probability=1.0).chunk(0, 0)
         assert all(s["background_blur"] == 0 for s in without)
         assert any(s["background_blur"] > 0 for s in with_fx)
-        assert sorted(with_fx[0]["camera"]) == ["blur", "jpeg", "noise", "tone", "vignette"]
+        assert sorted(with_fx[0]["camera"]) == ["blur", "jpeg", "noise", "rolloff", "tone", "vignette"]
         assert any(s["camera"]["jpeg"] > 0 for s in with_fx)
         # the lighting and crops are drawn before the effects: the same with and without them (the exposure
         # meters the blurred or sharp background, so it differs)
