@@ -35,7 +35,8 @@ and well-conditioned for losses in log space.
 The spread of the strength (``spread_head=True``, our addition): one linear layer from the bottleneck to
 ``log b``, the scale of a Laplace distribution of the true lighting's log energy around the estimate's
 (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), trained by its negative log-likelihood
-(``kornia-ilum train --lambda-nll``, docs/training.rst). It changes nothing else: the mirror ball is the
+(``kornia-ilum train --lambda-nll``, docs/training.rst); the shipped head was then refitted at export on fresh
+training portraits, the rest frozen (``--fit-spread``). It changes nothing else: the mirror ball is the
 decoder's. A weight file that has it turns it on when loaded.
 
 Training (:mod:`kornia_ilum.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
