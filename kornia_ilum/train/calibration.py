@@ -18,7 +18,8 @@ reads the evaluation split. The recipe applies the gain (:meth:`~kornia_ilum.tra
 for ``ours``, a constant added to the head's log-radiance bias: exact).
 
 The spread of the strength, fitted at export (:func:`fit_spread`, ``--fit-spread N``): for an estimator whose
-spread head was not trained with the network (``sipr``, whose recipe has no likelihood term), the head alone
+spread head was not trained with the network (``sipr``, whose recipe has no likelihood term), or to refit one
+that was (the shipped heads of ``ours`` and ``sh``), the head alone
 (a linear layer ``log b = w . f + c`` on the features the estimator gives it) is fitted on fresh portraits of
 the same training stream, the rest frozen: the Laplace negative log-likelihood
 ``mean(|log E_true - log E_pred| e^(-log b) + log b)`` (:func:`~kornia_ilum.train.losses.energy_nll`) is
@@ -37,9 +38,9 @@ from typing import Any
 import torch
 
 from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.metrics import total_radiance
 from kornia_ilum.synth.lightstage.portraits import PortraitDataset
-from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.train.data import collate
 from kornia_ilum.train.losses import log_energy
 from kornia_ilum.train.recipes import PROBE_STREAM, Recipe
