@@ -338,10 +338,16 @@ def highlight_rolloff(linear: torch.Tensor, strength: torch.Tensor | float) -> t
         [0.18, 0.5, 0.75, 0.917, 1.0]
     """
     _check_images(linear, "linear")
-    s = _per_image(strength, linear.shape[0], "strength")
-    if ((s < 0) | (s >= 1) | ~torch.isfinite(s)).any():
-        raise ValueCheckError("strength must be in [0, 1)")
+    s = _rolloff_strength(strength, linear.shape[0], "strength")
     return _rolloff(linear, s.to(linear.dtype).reshape(-1, 1, 1, 1))
+
+
+def _rolloff_strength(value: torch.Tensor | float, b: int, name: str) -> torch.Tensor:
+    """``(b,)`` roll-off strengths, checked to lie in ``[0, 1)``."""
+    s = _per_image(value, b, name)
+    if ((s < 0) | (s >= 1) | ~torch.isfinite(s)).any():
+        raise ValueCheckError(f"{name} must be in [0, 1)")
+    return s
 
 
 def _rolloff(x: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
@@ -446,11 +452,9 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
     b = linear.shape[0]
     c = _per_image(contrast, b, "contrast")
     g = _per_image(gamma, b, "gamma")
-    s = _per_image(rolloff, b, "rolloff")
+    s = _rolloff_strength(rolloff, b, "rolloff")
     if (c.abs() >= 1).any() or (g <= 0).any():
         raise ValueCheckError("contrast must be in (-1, 1) and gamma positive")
-    if ((s < 0) | (s >= 1) | ~torch.isfinite(s)).any():
-        raise ValueCheckError("rolloff must be in [0, 1)")
     if linear.device.type != "cpu":
         return _encode_tone8_reference(linear, c, g, s)
     out = torch.empty(linear.shape, dtype=torch.uint8)
@@ -702,11 +706,6 @@ class RandomSensorNoise(_RandomEffect):
         return sensor_noise(linear, self.draw(linear.shape[0], generator), generator=generator)
 
 
-def _rolloff_of(params: dict[str, torch.Tensor], b: int) -> torch.Tensor:
-    """The roll-off strengths of :meth:`CameraEffects.draw`'s parameters (none in parameters drawn without it)."""
-    return _per_image(params["rolloff"], b, "rolloff") if "rolloff" in params else torch.zeros(b, dtype=torch.float64)
-
-
 class RandomHighlightRolloff(_RandomEffect):
     r"""Random :func:`highlight_rolloff`: with probability ``p``, ``strength`` uniform in ``strength``, else none.
 
@@ -892,7 +891,7 @@ class CameraEffects:
         vig = _per_image(params["vignette"], b, "vignette").tolist()
         quality = _per_image(params["jpeg"], b, "jpeg").round().long().tolist()
         tables, cells = _code_tables(params["tone"][:, 0].double(), params["tone"][:, 1].double())
-        strength = _rolloff_of(params, b).tolist()
+        strength = _rolloff_strength(params["rolloff"], b, "rolloff").tolist()
         blur = _per_image(params["blur"], b, "blur")
         sources = list(linear)
         sel = torch.nonzero(blur > 0).flatten()
@@ -959,7 +958,7 @@ class CameraEffects:
                 noise = torch.stack(list(noise))
             x = sensor_noise(x, params["noise"], generator=generator, noise=noise)
         codes = _encode_tone8_reference(x, params["tone"][:, 0].double(), params["tone"][:, 1].double(),
-                                        _rolloff_of(params, len(x)))
+                                        _rolloff_strength(params["rolloff"], len(x), "rolloff"))
         quality = params["jpeg"]
         if (quality > 0).any():
             codes = jpeg_compress(codes, quality)

@@ -33,6 +33,7 @@ estimators are closer to the latter. The lighting does not change.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import torch
@@ -94,21 +95,27 @@ def energy_log_ratios(estimator: torch.nn.Module, dataset: PortraitDataset, samp
         >>> energy_log_ratios(create_estimator("ours"), dataset, samples=64).shape  # doctest: +SKIP
         torch.Size([64, 3])
     """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
-        raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
-    stream = dataset.samples(CALIBRATION_STREAM)
-    ratios = []
-    with torch.no_grad():
-        for start in range(0, samples, batch):
-            chunk = collate([next(stream) for _ in range(min(batch, samples - start))])
-            pred = estimator(chunk["image"].float() / 255.0).mirror_ball
-            ratios.append(torch.log(total_radiance(chunk["mirror_ball"], torch.float64))
-                          - torch.log(total_radiance(pred, torch.float64)))
+    ratios = [torch.log(total_radiance(truth, torch.float64)) - torch.log(total_radiance(pred, torch.float64))
+              for truth, pred in _estimates(estimator, dataset, samples, batch)]
     out = torch.cat(ratios)
     if not torch.isfinite(out).all():
         raise ValueCheckError("an estimate or a truth of the calibration portraits has no energy in a channel; "
                               "the energy cannot be calibrated")
     return out
+
+
+def _estimates(estimator: torch.nn.Module, dataset: PortraitDataset, samples: int, batch: int
+               ) -> Iterator[tuple[torch.Tensor, torch.Tensor]]:
+    """``(truth, estimate)`` mirror balls of ``samples`` portraits of the :data:`CALIBRATION_STREAM`, ``batch`` at a
+    time, the estimator run without gradients (``samples`` checked before any portrait is drawn)."""
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
+        raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
+    stream = dataset.samples(CALIBRATION_STREAM)
+    for start in range(0, samples, batch):
+        chunk = collate([next(stream) for _ in range(min(batch, samples - start))])
+        with torch.no_grad():  # closed before the yield: the caller's grad mode is its own
+            pred = estimator(chunk["image"].float() / 255.0).mirror_ball
+        yield chunk["mirror_ball"], pred
 
 
 def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: PortraitDataset,
@@ -183,21 +190,14 @@ def fit_spread(estimator: torch.nn.Module, dataset: PortraitDataset, samples: in
         >>> round(report["within_one_spread"], 1)  # doctest: +SKIP
         0.6
     """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples <= 0:
-        raise ValueCheckError(f"samples must be a positive integer, got {samples!r}")
     head = getattr(estimator, "spread", None)
     if not isinstance(head, torch.nn.Linear) or head.out_features != 1:
         raise ValueCheckError("fit_spread needs an estimator with a spread head (--model spread_head=True)")
     captured: list[torch.Tensor] = []
     hook = head.register_forward_pre_hook(lambda _, args: captured.append(args[0].detach().double()))
-    stream = dataset.samples(CALIBRATION_STREAM)
-    errors = []
     try:
-        with torch.no_grad():
-            for start in range(0, samples, batch):
-                chunk = collate([next(stream) for _ in range(min(batch, samples - start))])
-                pred = estimator(chunk["image"].float() / 255.0).mirror_ball
-                errors.append((log_energy(chunk["mirror_ball"].double()) - log_energy(pred.double())).abs())
+        errors = [(log_energy(truth.double()) - log_energy(pred.double())).abs()
+                  for truth, pred in _estimates(estimator, dataset, samples, batch)]
     finally:
         hook.remove()
     error, features = torch.cat(errors), torch.cat(captured)

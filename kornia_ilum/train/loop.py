@@ -237,7 +237,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
     if start >= config.steps:
-        return _finish(config, runtime, out, recipe, model, portraits, rows, elapsed, start, rank)
+        return _finish(config, runtime, out, recipe, model, dataset, portraits, rows, elapsed, start, rank)
     batches = recipe.batches(dataset, config.batch // world, start, rank, world, runtime.workers)
     window_t, window_n = time.perf_counter(), 0
     run_t0 = time.perf_counter()
@@ -276,14 +276,15 @@ def train(config: TrainConfig) -> dict[str, Any]:
             if world > 1:
                 dist.barrier()
     elapsed += time.perf_counter() - run_t0
-    return _finish(config, runtime, out, recipe, model, portraits, rows, elapsed, config.steps, rank)
+    return _finish(config, runtime, out, recipe, model, dataset, portraits, rows, elapsed, config.steps, rank)
 
 
 def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Recipe, model: torch.nn.Module,
-            portraits: PortraitDataset, rows: list[dict[str, float]], elapsed: float, step: int,
-            rank: int) -> dict[str, Any]:
-    """The summary and the exported weights; ``portraits`` are the training portraits before the recipe's
-    :meth:`~kornia_ilum.train.recipes.Recipe.dataset` (the calibrations draw its ``calibration_dataset``)."""
+            dataset: PortraitDataset, portraits: PortraitDataset, rows: list[dict[str, float]], elapsed: float,
+            step: int, rank: int) -> dict[str, Any]:
+    """The summary and the exported weights; ``dataset`` is the recipe's training data (the float16 probe's),
+    ``portraits`` the training portraits before :meth:`~kornia_ilum.train.recipes.Recipe.dataset` (the
+    calibrations draw the recipe's ``calibration_dataset`` of them)."""
     summary: dict[str, Any] = {
         "estimator": config.estimator, "steps": step, "samples": step * config.batch, "wall_time_s": elapsed,
         "world_size": _world()[1], "device": config.device, "threads": torch.get_num_threads(),
@@ -297,13 +298,13 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Re
             averaged, steps = average_snapshots(out, after=(1 - config.average_tail) * step, upto=step)
             estimator.load_state_dict(averaged, strict=True)
             summary["averaged_snapshots"] = steps
-        if config.calibrate_energy:
-            summary["energy_calibration"] = calibrate_energy(estimator, recipe, recipe.calibration_dataset(portraits),
-                                                             config.calibrate_energy)
-        if config.fit_spread:
-            summary["spread_fit"] = fit_spread(estimator, recipe.calibration_dataset(portraits), config.fit_spread)
-        summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors",
-                                            recipe.probe(recipe.dataset(portraits)))
+        if config.calibrate_energy or config.fit_spread:
+            calibration = recipe.calibration_dataset(portraits)
+            if config.calibrate_energy:
+                summary["energy_calibration"] = calibrate_energy(estimator, recipe, calibration, config.calibrate_energy)
+            if config.fit_spread:
+                summary["spread_fit"] = fit_spread(estimator, calibration, config.fit_spread)
+        summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors", recipe.probe(dataset))
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     return summary
 
