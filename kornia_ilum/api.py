@@ -88,7 +88,8 @@ def cached_estimator(name: str, device: torch.device, runtime: str = "eager",
 
 
 @functools.lru_cache(maxsize=8)
-def cached_detector(name: str, device: torch.device, max_side: int | None = None) -> FaceDetector:
+def cached_detector(name: str, device: torch.device, max_side: int | None | Literal["auto"] = "auto"
+                    ) -> FaceDetector:
     """The registered detector ``name`` that :func:`estimate_lighting` uses: built once per
     ``(name, device, max_side)`` in this process (the 8 most recent are kept), in eval mode; ``max_side``
     detects on a downscaled copy (:class:`~kornia_ilum.detection.FaceDetector`).
@@ -96,7 +97,8 @@ def cached_detector(name: str, device: torch.device, max_side: int | None = None
     Args:
         name: a registered detector name (:func:`~kornia_ilum.detection.list_detectors`).
         device: where the detector runs (part of the cache key).
-        max_side: the longest side, in pixels, of the copy it detects on; ``None`` detects at full size.
+        max_side: the longest side, in pixels, of the copy it detects on; ``None`` detects at full size;
+            ``"auto"``: the detector's default (:func:`~kornia_ilum.detection.create_detector`).
 
     Returns:
         the shared detector: the same object for the same arguments while it is cached, so do not modify it.
@@ -305,7 +307,8 @@ def estimate_lighting(
             ``pretrained=True`` once per (name, device) in the process and then reused, or a
             :class:`~kornia_ilum.estimators.LightingEstimator` instance (used as given, on its device;
             it is switched to eval mode for the call and restored afterwards).
-        detector: a registered detector name (``"opencv"``, ``"yunet"``, ``"none"``, see
+        detector: a registered detector name (``"yunet"``, the default, with its packaged weights, detecting on
+            a copy of at most 240 pixels; ``"opencv"``, the Haar cascade; ``"none"``; see
             :func:`kornia_ilum.detection.list_detectors`; created once per name) or a
             :class:`~kornia_ilum.detection.FaceDetector` instance.
         faces: ``"largest"`` keeps the largest face box of each image; ``"all"`` keeps every face, largest

@@ -21,8 +21,10 @@ runtime errors (missing or unreadable image, no face, missing weights).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
+import shlex
 import string
 import sys
 import time
@@ -36,7 +38,7 @@ import torch
 
 from kornia_ilum import __version__
 from kornia_ilum.api import cached_detector, cached_estimator, estimate_lighting
-from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.cli import nonnegative_float, positive_int
 from kornia_ilum.core.errors import BaseError, HDRIOError, NoFaceError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
@@ -177,7 +179,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     est.add_argument("-o", "--output", metavar="OUT", help="output file, directory or pattern (see below)")
     est.add_argument("--estimator", metavar="NAME", help="estimator name (default: the registry's default; "
                      "see 'kornia-ilum list')")
-    est.add_argument("--detector", metavar="NAME", default="opencv", help="face detector (default: opencv)")
+    est.add_argument("--detector", metavar="NAME", default=DEFAULT_DETECTOR,
+                     help=f"face detector (default: {DEFAULT_DETECTOR}; opencv: the Haar cascade; 'kornia-ilum list')")
     est.add_argument("--faces", choices=("largest", "all", "fused"), default="largest",
                      help="the largest face of each image, all of them, or one lighting fused from all of them "
                      "(a distant light shared by every face; default: largest)")
@@ -193,9 +196,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="write a lat-long map of H x 2H pixels instead of the 32x32 mirror ball")
     est.add_argument("--half", action="store_true", help="store half floats in the .exr (float32 by default)")
     est.add_argument("--device", default="cpu", help="torch device to run on (default: cpu)")
-    est.add_argument("--detect-side", type=positive_int, metavar="N", default=None,
+    est.add_argument("--detect-side", type=_detect_side, metavar="N", default="auto",
                      help="detect faces on a copy of the image at most N pixels on its longer side (faster; the "
-                     "smallest face found grows by the same factor), then crop from the full image")
+                     "smallest face found grows by the same factor), then crop from the full image; 'full' for "
+                     "the image itself (default: auto, the detector's own: 240 for yunet, full for opencv)")
     est.add_argument("--runtime", choices=RUNTIMES, default="eager",
                      help="what computes the estimate: eager (PyTorch float32, default), bf16, onnx, onnx-int8, or "
                      "auto (the fastest that runs here and passes its parity check; kornia-ilum bench measures "
@@ -230,21 +234,25 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="Estimate the lighting of every frame of a video file (anything OpenCV opens) or an image "
         "sequence (a folder, or a quoted glob such as 'frames/*.png'), with temporal reuse: the face is "
         "detected every --detect-every frames, a frame whose crop barely changed reuses the last estimate, "
-        "and the estimates are smoothed in log space; a cut restarts the smoothing (kornia_ilum.video).",
+        "and the estimates are smoothed in log space; a cut restarts the smoothing (kornia_ilum.video). The source, "
+        "its first frame and the options are checked before anything is written, and the output folder is made "
+        "only once the first frame's lighting is known: a run that fails before its first frame is written leaves "
+        "nothing behind; a later error stops the run (the frames already written stay).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     vid.add_argument("source", help="a video file, a folder of images, or a quoted glob of images")
     vid.add_argument("-o", "--output", required=True, metavar="DIR",
                      help="the folder that gets frame_00000.exr, frame_00001.exr, ...")
     vid.add_argument("--estimator", default=None, metavar="NAME", help="registered estimator (default: ours)")
-    vid.add_argument("--detector", default="opencv", metavar="NAME", help="face detector (default: opencv)")
+    vid.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME",
+                     help=f"face detector (default: {DEFAULT_DETECTOR}; opencv: the Haar cascade)")
     vid.add_argument("--detect-every", type=positive_int, default=5, metavar="N",
                      help="detect the face every N frames, and after a cut (default: 5)")
-    vid.add_argument("--reuse-below", type=float, default=0.002, metavar="X",
+    vid.add_argument("--reuse-below", type=nonnegative_float, default=0.002, metavar="X",
                      help="reuse the last estimate while the crop changed by less than X (default: 0.002)")
-    vid.add_argument("--time-constant", type=float, default=2.0, metavar="T",
+    vid.add_argument("--time-constant", type=nonnegative_float, default=2.0, metavar="T",
                      help="smoothing time constant in frames, 0 for none (default: 2)")
-    vid.add_argument("--cut-above", type=float, default=0.03, metavar="X",
+    vid.add_argument("--cut-above", type=nonnegative_float, default=0.03, metavar="X",
                      help="a crop change above X is a cut: the smoothing restarts (default: 0.03)")
     vid.add_argument("--fallback", choices=("full_image",), default=None,
                      help="estimate from the centred square while no face was found")
@@ -265,6 +273,13 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 # --------------------------------------------------------------------------------------------- outputs
+def _detect_side(text: str) -> int | str | None:
+    """``--detect-side``: a positive number of pixels, ``full`` (``None``: the image itself) or ``auto``."""
+    if text in ("auto", "full"):
+        return None if text == "full" else text
+    return positive_int(text)
+
+
 def _check_pattern(pattern: str, option: str) -> set[str]:
     """Placeholders used in ``pattern``; unknown ones or bad braces are usage errors."""
     try:
@@ -354,25 +369,62 @@ def _write_main_light(path: Path, light: Any, face: int, stem: str, estimator: s
     return path
 
 
+def _remove_empty(folders: Sequence[Path]) -> None:
+    """Remove ``folders`` (deepest first) while they exist and are empty: what a failed run made and left empty."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except FileNotFoundError:
+            continue
+        except OSError:  # not empty (a frame was written), or not removable: leave it and its parents
+            return
+
+
 def _cmd_video(args: argparse.Namespace) -> int:
-    """``kornia-ilum video``: one ``.exr`` per frame, and a summary line."""
-    from kornia_ilum.video import estimate_video  # lazy: OpenCV's video reading is needed here only
+    """``kornia-ilum video``: one ``.exr`` per frame, and a summary line.
+
+    The options, ``-o`` and the source's first frame are checked before the models load, and the output folder
+    (with its missing parents) is made only when the first frame's lighting is known; a failure before the first
+    ``.exr`` is written removes the folders this run made, so that it leaves nothing behind.
+    """
+    from kornia_ilum.video import estimate_video, read_frames  # lazy: OpenCV's video reading is needed here only
 
     out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
+    missing = [p for p in (out, *out.parents) if not p.exists()]  # the folders this run makes, deepest first
+    if out.exists() and not out.is_dir():
+        raise _UsageError(f"-o/--output {args.output!r} is a file; give a folder")
+    if missing and not missing[-1].parent.is_dir():
+        raise _UsageError(f"-o/--output {args.output!r}: {str(missing[-1].parent)!r} is a file; give a folder")
+    estimator = args.estimator or DEFAULT_ESTIMATOR
+    if estimator not in list_estimators():
+        raise _UsageError(f"unknown estimator {estimator!r}; choose one of: {', '.join(list_estimators())}")
+    if args.detector not in list_detectors():
+        raise _UsageError(f"unknown detector {args.detector!r}; choose one of: {', '.join(list_detectors())}")
+    source = read_frames(args.source)
+    first = next(source, None)  # a missing source, no image, an unreadable first frame: fail before any work
+    if first is None:
+        raise HDRIOError(f"no frame in {args.source}")
     t0 = time.perf_counter()
     frames = detected = estimated = cuts = 0
-    stream = estimate_video(args.source, estimator=args.estimator, detector=args.detector,
+    stream = estimate_video(itertools.chain([first], source), estimator=estimator, detector=args.detector,
                             detect_every=args.detect_every, reuse_below=args.reuse_below,
                             time_constant=args.time_constant, cut_above=args.cut_above, fallback=args.fallback,
                             runtime=args.runtime)
     try:
         for frame in stream:
+            if not frames:
+                try:
+                    out.mkdir(parents=True, exist_ok=True)
+                except OSError as e:
+                    raise HDRIOError(f"cannot make the folder {out}: {e.strerror or e}") from None
             frame.lighting.save(out / f"frame_{frame.index:05d}.exr")
             frames, detected, estimated = frames + 1, detected + frame.detected, estimated + frame.estimated
             cuts += frame.cut
-    except NoFaceError as e:  # the hint names the option, not the Python argument
-        raise NoFaceError(_as_options(str(e))) from None
+    except BaseException as e:
+        _remove_empty(missing)  # the folders this run made, if no frame was written into them
+        if isinstance(e, NoFaceError):  # the hint names the option, not the Python argument
+            raise NoFaceError(_as_options(str(e))) from None
+        raise
     seconds = time.perf_counter() - t0
     print(f"{frames} frames in {seconds:.2f} s ({frames / max(seconds, 1e-9):.1f} fps, .exr writes included): "
           f"detected on {detected}, estimated on {estimated}, {cuts} cut(s); wrote {out}/frame_*.exr")
@@ -555,6 +607,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = _warn
         try:
             args = parser.parse_args(argv)
+            args.command_line = shlex.join(["kornia-ilum", *argv])  # what figures record (core.provenance)
             if args.command in ("synth", *LAZY_COMMANDS):
                 return args.func(args)
             if args.command == "export":

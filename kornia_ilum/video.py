@@ -17,7 +17,10 @@ by more than the light does. :class:`LightingTracker` takes frames one at a time
   and a clear one more; the smoothed spread (a geometric mean with the same ``a``) is the output's
   ``log_energy_spread``;
 - **resets at a cut**: where the crop changed by more than ``cut_above``, the smoothing restarts from the
-  new estimate (and the next frame is detected again), so a cut is followed at once.
+  new estimate (and the next frame is detected again), so a cut is followed at once. A detection whose face
+  box overlaps the tracked one by less than :data:`SWITCH_IOU` (the tracked face left the frame, and the
+  tracker took another) is a cut too: the new face's lighting starts afresh, not as a jump that the smoothing
+  carries over several frames.
 
 :func:`read_frames` reads a video file (OpenCV's ``VideoCapture``) or an image sequence (a folder or a glob,
 sorted by name); :func:`estimate_video` chains the two. ``kornia-ilum video IN -o OUT`` writes one ``.exr``
@@ -28,6 +31,7 @@ and the lag after a cut on a light-stage clip.
 from __future__ import annotations
 
 import glob
+import itertools
 import math
 import os
 from collections.abc import Iterable, Iterator
@@ -41,11 +45,11 @@ import torch.nn.functional as F
 from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, pick_faces
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
-from kornia_ilum.detection import FaceDetector, crop_faces, square_crop_boxes
+from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, crop_faces, square_crop_boxes
 from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
 
-__all__ = ["IMAGE_SUFFIXES", "TRACKER_AUTO_ORDER", "LightingTracker", "VideoFrame", "estimate_video", "frame_tensor",
-           "read_frames"]
+__all__ = ["IMAGE_SUFFIXES", "SWITCH_IOU", "TRACKER_AUTO_ORDER", "LightingTracker", "VideoFrame", "estimate_video",
+           "frame_tensor", "read_frames"]
 
 #: What the tracker's ``runtime="auto"`` tries, in order: the float runtimes. The int8 runtime is left out: its
 #: estimates move more with the crop, so a box held between detections keeps it more than 10 % from a fresh box's
@@ -68,8 +72,9 @@ def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
         or closed).
 
     Raises:
-        HDRIOError: nothing to read: the file does not open as a video, or the folder or pattern holds no
-            image (raised on the first ``next``, as the frames are read lazily).
+        HDRIOError: nothing to read: no such file or folder, a folder that cannot be listed, a file that does
+            not open as a video or holds no frame, a folder or pattern with no image, or an image that does not
+            decode (raised on the first ``next`` that meets it, as the frames are read lazily).
 
     Shape:
         - Output: each frame :math:`(H, W, 3)` uint8, channels last, as NumPy images are
@@ -91,25 +96,30 @@ def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
     text = os.fspath(source)
     path = Path(text)
     if path.is_dir() or any(c in text for c in "*?["):
-        files = sorted(p for p in (path.iterdir() if path.is_dir() else map(Path, glob.glob(text)))
-                       if p.suffix.lower() in IMAGE_SUFFIXES)
+        try:
+            files = sorted(p for p in (path.iterdir() if path.is_dir() else map(Path, glob.glob(text)))
+                           if p.suffix.lower() in IMAGE_SUFFIXES)
+        except OSError as e:
+            raise HDRIOError(f"cannot list the folder {text}: {e.strerror or e}") from None
         if not files:
             raise HDRIOError(f"no image ({', '.join(IMAGE_SUFFIXES)}) in {text}")
         for file in files:
             frame = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if frame is None:
-                raise HDRIOError(f"cannot read the image {file}")
+                raise HDRIOError(f"cannot read the image {file}: missing, corrupt or not an image")
             yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
         return
     if not path.is_file():
-        raise HDRIOError(f"no such video file: {text}")
+        raise HDRIOError(f"no such video file or folder: {text}")
     capture = cv2.VideoCapture(text)
     try:
         if not capture.isOpened():
             raise HDRIOError(f"cannot open {text} as a video")
-        while True:
+        for index in itertools.count():
             ok, frame = capture.read()
             if not ok:
+                if index == 0:
+                    raise HDRIOError(f"no frame in {text}: an empty or corrupt video")
                 return
             yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
     finally:
@@ -147,13 +157,26 @@ class VideoFrame:
     cut: bool
 
 
+#: A detection whose box overlaps the tracked face's box by less than this IoU is another face: a cut.
+SWITCH_IOU = 0.3
+
+
+def _iou(a: torch.Tensor, b: torch.Tensor) -> float:
+    """The intersection over union of two ``(1, 4)`` boxes ``(x0, y0, x1, y1)``."""
+    lo, hi = torch.maximum(a[0, :2], b[0, :2]), torch.minimum(a[0, 2:], b[0, 2:])
+    inter = float((hi - lo).clamp(min=0).prod())
+    area = lambda x: float((x[0, 2] - x[0, 0]) * (x[0, 3] - x[0, 1]))  # noqa: E731
+    return inter / max(area(a) + area(b) - inter, 1e-12)
+
+
 class LightingTracker:
     r"""Per-frame lighting with temporal reuse (the module docstring says how).
 
     Args:
         estimator: a registered name (default :data:`~kornia_ilum.estimators.DEFAULT_ESTIMATOR`) or an
             estimator instance.
-        detector: a registered detector name or a :class:`~kornia_ilum.detection.FaceDetector`.
+        detector: a registered detector name (default :data:`~kornia_ilum.detection.DEFAULT_DETECTOR`) or a
+            :class:`~kornia_ilum.detection.FaceDetector`.
         detect_every: detect the face every this many frames (1: every frame); 5 by default, since 10 left a
             box held 19 frames after a cut on a tuning clip (docs/skipping.rst).
         reuse_below: reuse the last raw estimate while the crop differs from the last estimated one by less
@@ -183,8 +206,8 @@ class LightingTracker:
         [(True, True), (False, False), (False, False)]
     """
 
-    def __init__(self, estimator: str | LightingEstimator | None = None, detector: str | FaceDetector = "opencv",
-                 *, detect_every: int = 5, reuse_below: float = 0.002, time_constant: float = 2.0,
+    def __init__(self, estimator: str | LightingEstimator | None = None,
+                 detector: str | FaceDetector = DEFAULT_DETECTOR, *, detect_every: int = 5, reuse_below: float = 0.002, time_constant: float = 2.0,
                  cut_above: float = 0.03, fallback: str | None = None, runtime: str = "eager") -> None:
         check_positive_int(detect_every, "detect_every")
         for name, value in (("reuse_below", reuse_below), ("time_constant", time_constant),
@@ -234,18 +257,20 @@ class LightingTracker:
         index = self._frame
         self._frame += 1
         detect = self._box is None or self._since >= self.detect_every
+        switched = False  # the detection found another face than the tracked one
         if detect:
             box = self._box_of(image)
             if box is None:
                 raise NoFaceError(f"no face found in frame {index} by detector {self.detector.name!r}, and none "
                                   "before it; try fallback='full_image'")
+            switched = self._box is not None and _iou(box, self._box) < SWITCH_IOU
             self._box, self._since = box, 0
         self._since += 1
         size = self.estimator.info.input_size
         crop = crop_faces(image, self._box, size=size, check_values=False)
         thumb = F.adaptive_avg_pool2d(crop, 32)
         change = math.inf if self._thumb is None else float((thumb - self._thumb).abs().mean())
-        cut = self._thumb is not None and change > self.cut_above
+        cut = self._thumb is not None and (change > self.cut_above or switched)
         if cut and not detect:  # the scene changed: find the face again, in this very frame
             box = self._box_of(image)
             if box is not None:
@@ -253,7 +278,7 @@ class LightingTracker:
                 crop = crop_faces(image, box, size=size, check_values=False)
                 thumb = F.adaptive_avg_pool2d(crop, 32)
             self._since, detect = 1, True
-        estimated = self._raw is None or change >= self.reuse_below
+        estimated = self._raw is None or change >= self.reuse_below or switched
         if estimated:
             with torch.inference_mode():
                 out = self.estimator(crop, check_values=False)

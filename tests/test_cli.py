@@ -244,3 +244,98 @@ class TestExport:
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 3 and all(line.startswith("kornia-ilum: error: ") for line in err)
         assert not list(tmp_path.iterdir())
+
+
+class TestVideo:
+    """``kornia-ilum video``: the source, its first frame, -o and the options are checked before anything is
+    written, and a failed run leaves no output folder behind."""
+
+    #: Fast and independent of the CLI's default detector and runtime.
+    FAST = ["--estimator", "uniform", "--detector", "opencv", "--runtime", "eager"]
+
+    @staticmethod
+    def _source(tmp_path: Path, kind: str) -> Path:
+        """A bad source of ``kind``: missing, an empty folder, a corrupt first frame, no face, an empty video."""
+        source = tmp_path / kind
+        if kind == "empty_video.avi":
+            import cv2
+
+            cv2.VideoWriter(str(source), cv2.VideoWriter_fourcc(*"MJPG"), 10, (16, 16)).release()
+        elif kind != "missing":
+            source.mkdir()
+        if kind == "corrupt":
+            (source / "f0.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+            _png(source / "f1.png", np.full((64, 96, 3), 90, np.uint8))
+        if kind == "faceless":
+            for i in range(2):
+                _png(source / f"f{i}.png", np.full((64, 96, 3), 90, np.uint8))
+        return source
+
+    @pytest.mark.parametrize(
+        "kind, message",
+        [
+            ("missing", "no such video file or folder: "),
+            ("empty", "no image (.png, .jpg, .jpeg, .tif, .tiff, .bmp, .webp) in "),
+            ("corrupt", "f0.jpg: missing, corrupt or not an image"),
+            ("faceless", "no face found in frame 0 by detector 'opencv', and none before it; try --fallback"),
+            ("empty_video.avi", "empty_video.avi: an empty or corrupt video"),
+        ],
+    )
+    def test_a_bad_source_leaves_nothing(self, tmp_path, capsys, kind, message):
+        source = self._source(tmp_path, kind)
+        out = tmp_path / "out" / "frames"  # its parent is missing too
+        assert main(["video", str(source), "-o", str(out), *self.FAST]) == 1
+        assert message in _error_line(capsys)
+        assert not (tmp_path / "out").exists()
+        (tmp_path / "out").mkdir()  # an empty folder that existed before the run stays, empty
+        assert main(["video", str(source), "-o", str(tmp_path / "out"), *self.FAST]) == 1
+        assert message in _error_line(capsys)
+        assert (tmp_path / "out").is_dir() and not list((tmp_path / "out").iterdir())
+
+    @pytest.mark.parametrize(
+        "options, message",
+        [
+            (["--time-constant", "-1"], "argument --time-constant: must be a finite number >= 0, got '-1'"),
+            (["--time-constant", "inf"], "argument --time-constant: must be a finite number >= 0, got 'inf'"),
+            (["--cut-above=nan"], "argument --cut-above: must be a finite number >= 0, got 'nan'"),
+            (["--reuse-below", "x"], "argument --reuse-below: must be a finite number >= 0, got 'x'"),
+            (["--detect-every", "0"], "argument --detect-every: must be a positive integer, got '0'"),
+            (["--fallback", "crop"], "argument --fallback: invalid choice: 'crop'"),
+            (["--runtime", "tensorrt"], "argument --runtime: invalid choice: 'tensorrt'"),
+            (["--estimator", "nope"], "unknown estimator 'nope'; choose one of: "),
+            (["--detector", "haar"], "unknown detector 'haar'; choose one of: "),
+        ],
+    )
+    def test_an_option_error_names_the_option(self, tmp_path, capsys, options, message):
+        source = self._source(tmp_path, "faceless")
+        out = tmp_path / "out"
+        assert main(["video", str(source), "-o", str(out), *self.FAST, *options]) == 2
+        line = _error_line(capsys)
+        assert message in line and not any(f"{n}_" in line for n in ("time", "cut", "reuse", "detect"))
+        assert not out.exists()
+
+    def test_an_existing_file_as_output(self, tmp_path, capsys):
+        source = self._source(tmp_path, "faceless")
+        taken = tmp_path / "taken.exr"
+        taken.write_text("keep me")
+        assert main(["video", str(source), "-o", str(taken), *self.FAST]) == 2
+        assert _error_line(capsys) == f"kornia-ilum: error: -o/--output {str(taken)!r} is a file; give a folder"
+        assert main(["video", str(source), "-o", str(taken / "frames"), *self.FAST]) == 2
+        line = _error_line(capsys)
+        assert f"{str(taken)!r} is a file; give a folder" in line and "Errno" not in line
+        assert taken.read_text() == "keep me"
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["faceless", "taken.exr"]
+
+    def test_the_folder_is_made_with_the_first_frame(self, tmp_path, capsys, astronaut):
+        source = tmp_path / "clip"
+        source.mkdir()
+        small = np.ascontiguousarray(astronaut[::2, ::2])
+        for i in range(2):
+            _png(source / f"f{i}.png", small)
+        out = tmp_path / "new" / "frames"
+        assert main(["video", str(source), "-o", str(out), *self.FAST]) == 0
+        assert "2 frames in " in capsys.readouterr().out
+        assert sorted(p.name for p in out.iterdir()) == ["frame_00000.exr", "frame_00001.exr"]
+        faceless = self._source(tmp_path, "faceless")
+        assert main(["video", str(faceless), "-o", str(out), *self.FAST, "--fallback", "full_image"]) == 0
+        assert len(list(out.iterdir())) == 2  # overwritten in place

@@ -128,6 +128,18 @@ def test_reads_videos_and_image_sequences(tmp_path) -> None:
     assert len(list(estimate_video(video, estimator="uniform", fallback="full_image"))) == 4
 
 
+def test_read_frames_refuses_what_it_cannot_read(tmp_path) -> None:
+    (tmp_path / "f0.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+    with pytest.raises(HDRIOError, match="f0.jpg: missing, corrupt or not an image"):
+        next(read_frames(tmp_path))
+    empty = tmp_path / "empty.avi"
+    cv2.VideoWriter(str(empty), cv2.VideoWriter_fourcc(*"MJPG"), 10, (16, 16)).release()
+    with pytest.raises(HDRIOError, match="no frame in .*empty.avi"):
+        next(read_frames(empty))
+    with pytest.raises(HDRIOError, match="no such video file or folder"):
+        next(read_frames(tmp_path / "missing"))
+
+
 def test_the_video_command_writes_one_exr_per_frame(tmp_path) -> None:
     for i in range(3):
         cv2.imwrite(str(tmp_path / f"f{i}.png"), cv2.cvtColor(FACE, cv2.COLOR_RGB2BGR))

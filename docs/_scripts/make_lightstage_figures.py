@@ -1,6 +1,8 @@
-"""Regenerate the light-stage figures of ``docs/lightstage.rst`` (needs the MakeHuman assets and Mitsuba).
+"""Make the light-stage figures of ``docs/lightstage.rst`` again from today's light stage (needs the MakeHuman
+assets and Mitsuba; about 10 minutes on 2 cores), each stamped with the code it shows
+(:mod:`kornia_ilum.core.provenance`; ``tests/test_figures.py`` fails when the light stage has changed since).
 
-    python docs/_scripts/make_lightstage_figures.py --assets ../shared/data/makehuman --cache lightstage/ \
+    python docs/_scripts/make_lightstage_figures.py --assets ../shared/data/makehuman \
         --hdri ../shared/data/hdri ../shared/data/hdri_more
 
 Writes into ``docs/_static/``:
@@ -10,7 +12,9 @@ Writes into ``docs/_static/``:
   subsurface step, under the same real map;
 - ``lightstage_contact_sheet.jpg``: 64 training portraits exactly as :class:`PortraitDataset` yields them
   (camera effects included), sorted by skin tone, each above its ground-truth diffuse, matte-silver and
-  mirror spheres, with the bundled astronaut photograph's face crop first for comparison.
+  mirror spheres, with the bundled astronaut photograph's face crop first for comparison. The portraits come
+  from a cache rendered afresh (one view of each training subject of seeds 0-29, into a temporary folder), so
+  the sheet shows the light stage of this commit.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
+import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -26,22 +31,28 @@ from PIL import Image
 from skimage import data
 
 from kornia_ilum.color import linear_to_srgb
+from kornia_ilum.core.provenance import stamp_figure
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
 from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
 from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
 from kornia_ilum.synth.environments.real import HDRFolderSource
+from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache
 from kornia_ilum.synth.lightstage.olat import render_olat
 from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, relight_portraits
 from kornia_ilum.synth.lightstage.preview import contact_sheet
 from kornia_ilum.synth.lightstage.scene import sample_views
-from kornia_ilum.synth.lightstage.settings import OnePass
-from kornia_ilum.synth.lightstage.subjects import subject_source
+from kornia_ilum.synth.lightstage.settings import Auto, OnePass
+from kornia_ilum.synth.lightstage.subjects import subject_source, subject_split
 from kornia_ilum.synth.sheets import write_grid
 
 matplotlib.use("Agg")
 
 STATIC = Path(__file__).resolve().parents[1] / "_static"
+#: What the figures show: the light stage (and, for the portraits, everything the dataset draws).
+SHOWS = ("kornia_ilum.synth",)
+#: The training subjects of the portraits' sheet: one view each of the training seeds among these.
+PORTRAIT_SEEDS = range(30)
 
 
 def subjects_sheet(assets: str, count: int = 12) -> None:
@@ -50,6 +61,7 @@ def subjects_sheet(assets: str, count: int = 12) -> None:
     contact_sheet([source.sample(s) for s in range(count)], out, size=192, columns=6, spp=128, distance=0.75)
     image = Image.open(out).convert("RGB")  # 256 colours, undithered: under 300 KB
     image.quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(out, optimize=True)
+    stamp_figure(out, command=COMMAND + " --only subjects", shows=SHOWS)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
@@ -75,6 +87,7 @@ def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
     write_grid(tiles, ["without subsurface", "with subsurface (screen-space diffusion)"],
                f"MakeHuman subject {seed} relit by {Path(hdri).name}", out, columns=2, cell=(3.0, 3.1),
                fontsize=8, dpi=100, palette=True)
+    stamp_figure(out, command=COMMAND + " --only subsurface", shows=SHOWS)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 
@@ -93,7 +106,7 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
 
     tiles, captions = [], []
     photo = torch.from_numpy(data.astronaut()).permute(2, 0, 1).float() / 255
-    boxes = create_detector("opencv").detect(photo[None])[0][:1, :4]  # the crop that inference makes
+    boxes = create_detector().detect(photo[None])[0][:1, :4]  # the crop that inference makes (default detector)
     tiles.append(crop_faces(photo, square_crop_boxes(boxes))[0])
     captions.append("photograph (skimage astronaut)")
     for s in samples:
@@ -110,13 +123,26 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
     out = png.with_suffix(".jpg")
     Image.open(png).convert("RGB").save(out, quality=80, optimize=True)
     png.unlink()
+    stamp_figure(out, command=COMMAND + " --only portraits", shows=SHOWS)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
+
+
+COMMAND = ("python docs/_scripts/make_lightstage_figures.py --assets ../shared/data/makehuman "
+           "--hdri ../shared/data/hdri ../shared/data/hdri_more")
+
+
+def fresh_cache(assets: str, folder: Path) -> str:
+    """One view of each training subject of :data:`PORTRAIT_SEEDS`, rendered by today's light stage into
+    ``folder``."""
+    seeds = [s for s in PORTRAIT_SEEDS if subject_split(s) == "train"]
+    build_cache(subject_source("makehuman", assets), seeds, folder, renderer=Auto(), views=SampledViews(1, size=192),
+                workers=Workers(processes=2), progress=True)
+    return str(folder)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--assets", required=True, help="the MakeHuman assets folder")
-    parser.add_argument("--cache", help="a light-stage cache (kornia-ilum synth subjects) for the portraits")
     parser.add_argument("--hdri", nargs="*", default=[], help="folders of real HDR maps")
     parser.add_argument("--only", choices=("subjects", "subsurface", "portraits"), action="append")
     args = parser.parse_args()
@@ -127,8 +153,9 @@ def main() -> None:
     if "subsurface" in only:
         maps = sorted(itertools.chain.from_iterable(Path(h).glob("*.hdr") for h in args.hdri))
         subsurface_pair(args.assets, str(maps[0]) if maps else "")
-    if "portraits" in only and args.cache:
-        portraits_sheet(args.cache, args.hdri)
+    if "portraits" in only:
+        with tempfile.TemporaryDirectory() as tmp:
+            portraits_sheet(fresh_cache(args.assets, Path(tmp) / "cache"), args.hdri)
 
 
 if __name__ == "__main__":

@@ -16,8 +16,7 @@ from kornia_ilum.bench.report import format_bench, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
 from kornia_ilum.bench.skips import skip_rows
 from kornia_ilum.core.cli import positive_int
-from kornia_ilum.core.errors import MissingWeightsError
-from kornia_ilum.detection import DEFAULT_DETECTOR, create_detector, list_detectors
+from kornia_ilum.detection import list_detectors
 from kornia_ilum.estimators.probe import CHECK
 from kornia_ilum.evaluation import build_eval_set, probe_eval_set
 
@@ -69,8 +68,8 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     cmd.add_argument("--samples", type=positive_int, default=1024, metavar="N",
                      help="eval portraits with --cache (default 1024, as kornia-ilum evaluate)")
     cmd.add_argument("--detector", action="append", default=None, metavar="NAME",
-                     help=f"a detector of the end-to-end rows (repeat; default: {DEFAULT_DETECTOR}, and yunet "
-                     "where its weights are found)")
+                     help=f"a detector of the end-to-end rows (repeat; default: {' and '.join(E2E_DETECTORS)}; the "
+                     "first one's eager path is the baseline)")
     cmd.add_argument("--detect-side", type=positive_int, default=320, metavar="N",
                      help="the longer side of the fast rows' downscaled detection (default 320)")
     cmd.add_argument("--threads", type=positive_int, default=None, metavar="N",
@@ -81,19 +80,17 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     return cmd
 
 
+#: The detectors of the end-to-end rows by default: Haar first (its eager path is the baseline), then YuNet.
+E2E_DETECTORS = ("opencv", "yunet")
+
+
 def _detectors(asked: list[str] | None) -> list[str]:
     if asked:
         unknown = [d for d in asked if d not in list_detectors()]
         if unknown:
             raise ValueError(f"unknown detector {unknown[0]!r}; registered detectors: {', '.join(list_detectors())}")
         return asked
-    found = [DEFAULT_DETECTOR]
-    try:
-        create_detector("yunet")
-        found.append("yunet")
-    except MissingWeightsError:
-        pass
-    return found
+    return list(E2E_DETECTORS)
 
 
 def run_bench_command(args: argparse.Namespace) -> int:

@@ -78,7 +78,10 @@ def run_bench(
         estimators: registered names (default: all that ship weights).
         runtimes: of :data:`BENCH_RUNTIMES`; ``"eager"`` is always timed (the baseline of its speed-ups).
         quick: batches 1 and 4, 3 timed calls, one photo size: the same code path in seconds (CI).
-        e2e_detectors: the detectors of the end-to-end rows (registered names).
+        e2e_detectors: the detectors of the end-to-end rows (registered names); the first one's eager row at full
+            resolution is the baseline of every row's speed-up. A last row times the defaults of
+            ``kornia-ilum estimate`` (:data:`~kornia_ilum.detection.DEFAULT_DETECTOR` at its own detection size,
+            eager).
         detect_side: the longer side of the downscaled detection of the fast end-to-end rows.
         compile: also time the eager estimator under :func:`torch.compile`.
         progress: print a line per step.
@@ -190,17 +193,20 @@ def run_bench(
     fast = auto.get(default, "eager")
     for width, height in sizes:
         photo = portrait_photo(width, height)
-        for det_name in e2e_detectors:
-            configs = [("eager", None), (fast, None), (fast, detect_side)]  # today's path first: the baseline
-            base_ms = None
-            for runtime, side in configs:
-                model = models[_label(default, runtime)]
-                detector = cached_detector(det_name, torch.device("cpu"), side)
-                ms = end_to_end(photo, model, detector, repeats=3 if quick else 10)
-                base_ms = base_ms or ms["total"]
-                e2e.append({"photo": f"{width}x{height}", "detector": det_name, "max_side": side,
-                            "estimator": default, "runtime": runtime, "ms": ms, "speedup": base_ms / ms["total"]})
-                say(f"e2e {width}x{height} {det_name} side {side or 'full'} {runtime}: {ms['total']:.1f} ms")
+        configs = [(det, runtime, side) for det in e2e_detectors
+                   for runtime, side in (("eager", None), (fast, None), (fast, detect_side))]
+        configs.append((DEFAULT_DETECTOR, "eager", "auto"))  # what `kornia-ilum estimate` does by default
+        base_ms = None  # the first row: today's path of the first detector (eager, full resolution)
+        for k, (det_name, runtime, side) in enumerate(configs):
+            model = models[_label(default, runtime)]
+            detector = cached_detector(det_name, torch.device("cpu"), side)
+            ms = end_to_end(photo, model, detector, repeats=3 if quick else 10)
+            base_ms = base_ms or ms["total"]
+            e2e.append({"photo": f"{width}x{height}", "detector": det_name, "max_side": detector.max_side,
+                        "estimator": default, "runtime": runtime, "ms": ms, "speedup": base_ms / ms["total"],
+                        "defaults": k == len(configs) - 1})
+            say(f"e2e {width}x{height} {det_name} side {detector.max_side or 'full'} {runtime}"
+                f"{' (the defaults)' if k == len(configs) - 1 else ''}: {ms['total']:.1f} ms")
     return {
         "machine": machine,
         "software": run_info(),

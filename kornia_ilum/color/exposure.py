@@ -29,6 +29,7 @@ __all__ = [
     "EXPOSURE_KEY",
     "LUMINANCE",
     "METERING_SIGMA",
+    "MeteredLuminance",
     "NormalizeExposure",
     "centre_weights",
     "metered_luminance",
@@ -173,8 +174,31 @@ def normalize_exposure(
     return linear_to_srgb((linear * gain).clamp(0.0, 1.0)), metered / key
 
 
+class MeteredLuminance(nn.Module):
+    r"""Module twin of :func:`metered_luminance`.
+
+    Args:
+        sigma: the weights' standard deviation, a fraction of the side.
+
+    Shape:
+        - Input: :math:`(B, 3, H, W)` linear RGB
+        - Output: :math:`(B,)`
+
+    Examples:
+        >>> MeteredLuminance()(torch.full((1, 3, 8, 8), 0.5)).tolist()
+        [0.5]
+    """
+
+    def __init__(self, sigma: float = METERING_SIGMA) -> None:
+        super().__init__()
+        self.sigma = sigma
+
+    def forward(self, linear: torch.Tensor) -> torch.Tensor:
+        return metered_luminance(linear, self.sigma)
+
+
 class NormalizeExposure(nn.Module):
-    r"""Module of :func:`normalize_exposure`: ``forward(srgb) -> (normalised, scale)``.
+    r"""Module twin of :func:`normalize_exposure`: ``forward(srgb) -> (normalised, scale)``.
 
     Args:
         key: the target metered luminance.

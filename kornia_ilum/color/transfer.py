@@ -32,6 +32,7 @@ __all__ = [
     "SRGB8_TABLE_SIZE",
     "LinearToSrgb",
     "SrgbToLinear",
+    "GammaDecode",
     "GammaEncode",
     "Quantize",
 ]
@@ -389,6 +390,30 @@ class GammaEncode(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return gamma_encode(x, self.gamma, knee=self.knee)
+
+
+class GammaDecode(nn.Module):
+    """Module twin of :func:`gamma_decode`.
+
+    Args:
+        gamma: the display gamma, > 0.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Examples:
+        >>> x = torch.tensor([0.001, 0.25, 1.0])
+        >>> torch.allclose(GammaDecode()(GammaEncode()(x)), x)
+        True
+    """
+
+    def __init__(self, gamma: float = 2.2) -> None:
+        super().__init__()
+        self.gamma = gamma
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return gamma_decode(x, self.gamma)
 
 
 class Quantize(nn.Module):

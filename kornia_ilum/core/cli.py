@@ -11,8 +11,9 @@ imports it.
 from __future__ import annotations
 
 import argparse
+import math
 
-__all__ = ["fraction", "nonnegative_int", "positive_int"]
+__all__ = ["fraction", "nonnegative_float", "nonnegative_int", "positive_int"]
 
 
 def positive_int(text: str) -> int:
@@ -62,6 +63,35 @@ def nonnegative_int(text: str) -> int:
         (0, 48)
     """
     return 0 if text.strip() == "0" else positive_int(text)
+
+
+def nonnegative_float(text: str) -> float:
+    """A finite float ``>= 0`` (``type=`` of thresholds such as ``video --time-constant``).
+
+    Args:
+        text: the option's text.
+
+    Returns:
+        the float.
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is no number, not finite (``nan``, ``inf``), or negative.
+
+    Examples:
+        >>> nonnegative_float("0"), nonnegative_float("0.03")
+        (0.0, 0.03)
+        >>> nonnegative_float("-1")
+        Traceback (most recent call last):
+        ...
+        argparse.ArgumentTypeError: must be a finite number >= 0, got '-1'
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
 
 
 def fraction(text: str) -> float:

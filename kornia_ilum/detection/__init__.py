@@ -1,8 +1,9 @@
 """Face detection and the paper's face crop.
 
 Detectors by name (:func:`list_detectors`, :func:`create_detector`, :func:`register_detector`):
-``"opencv"`` (OpenCV's Haar cascade, the default, offline), ``"yunet"`` (Kornia's YuNet with local
-weights, never downloaded) and ``"none"`` (the input already is a crop). Every detector's
+``"yunet"`` (Kornia's YuNet, the default, with its MIT weights inside the package, never downloaded; it detects
+on a copy of at most 240 pixels), ``"opencv"`` (OpenCV's Haar cascade, offline) and ``"none"`` (the input
+already is a crop). Every detector's
 :meth:`FaceDetector.detect` returns ``(N, 5)`` boxes ``(x0, y0, x1, y1, score)`` per image.
 :func:`square_crop_boxes` and :func:`crop_faces` make the paper's crop: a square centred on the face box,
 side 1.25 x max(w, h), zero padding outside the image, resized to 256 with antialiasing.
@@ -14,6 +15,7 @@ from kornia_ilum.detection.detectors import (
     NoFaceDetector,
     OpenCVFaceDetector,
     YuNetFaceDetector,
+    convert_yunet_weights,
 )
 from kornia_ilum.detection.registry import (
     DEFAULT_DETECTOR,
@@ -29,6 +31,7 @@ __all__ = [
     "OpenCVFaceDetector",
     "YuNetFaceDetector",
     "NoFaceDetector",
+    "convert_yunet_weights",
     "DEFAULT_DETECTOR",
     "DETECTORS",
     "list_detectors",

@@ -18,13 +18,14 @@ import math
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
 import torch
-from kornia.contrib import FaceDetector as KorniaFaceDetector
 from kornia.geometry.bbox import nms
 from kornia.models.yunet import YuNet
+from kornia.models.yunet.processors import PriorBox, decode
 import torch.nn.functional as F
 from torch import nn
 
@@ -35,7 +36,7 @@ from kornia_ilum.core.errors import (
     ValueCheckError,
     WeightsChecksumError,
 )
-from kornia_ilum.core.files import sha256_file
+from kornia_ilum.core.files import atomic_write, sha256_file
 from kornia_ilum.detection.crop import CROP_SCALE
 
 __all__ = [
@@ -44,13 +45,24 @@ __all__ = [
     "YuNetFaceDetector",
     "NoFaceDetector",
     "YUNET_WEIGHTS_ENV",
+    "YUNET_WEIGHTS",
     "YUNET_SHA256",
+    "YUNET_SAFETENSORS_SHA256",
+    "convert_yunet_weights",
 ]
 
-#: Environment variable naming a local ``yunet_final.pth`` (used when no ``weights_path`` is given).
+#: Environment variable naming other YuNet weights (a ``.safetensors`` or Kornia's ``yunet_final.pth``), used
+#: instead of the packaged file when no ``weights_path`` is given.
 YUNET_WEIGHTS_ENV = "KORNIA_ILUM_YUNET_WEIGHTS"
-#: SHA-256 of Kornia's ``yunet_final.pth`` (https://huggingface.co/kornia/yunet, 2 MB).
+#: The packaged weights: Kornia's ``yunet_final.pth`` converted to safetensors by :func:`convert_yunet_weights`
+#: (MIT; origin and licence in ASSETS.md and ``weights/LICENSE-yunet.txt`` beside the file).
+YUNET_WEIGHTS = Path(__file__).resolve().parent / "weights" / "yunet.safetensors"
+#: SHA-256 of Kornia's ``yunet_final.pth`` (https://huggingface.co/kornia/yunet, 406 kB).
 YUNET_SHA256 = "ee0a3035c5cbfc9484a31332223c9fd9c0ddcdb7c46b6a19e558ed393b6f2c67"
+#: The smallest side YuNet's network takes; a smaller image (or detection copy) is padded with black to it.
+YUNET_MIN_SIDE = 64
+#: SHA-256 of the packaged :data:`YUNET_WEIGHTS` (the same tensors as ``yunet_final.pth``).
+YUNET_SAFETENSORS_SHA256 = "9d0f84b3f75c6cd20ce9f890e733109cf1273ae88c366196658b9c12c391e92f"
 
 
 class FaceDetector(nn.Module):
@@ -72,8 +84,11 @@ class FaceDetector(nn.Module):
             longer side is at most ``N`` pixels (area-averaged) and scales the boxes back, so the crop is
             still cut from the full-resolution image. A detector's cost grows with the pixels it scans (Haar's
             on a half-size copy: about a third, ``kornia-ilum bench``), but the smallest face it finds grows by
-            the same factor (Haar's 24-pixel window becomes 48 pixels of the photo). Set it with
-            ``create_detector(name, max_side=N)`` or ``kornia-ilum estimate --detect-side N``.
+            the same factor (Haar's 24-pixel window becomes 48 pixels of the photo), so an image in whose copy
+            no face is found is searched again at full size (a second pass only where the first found nothing).
+            Set it with ``create_detector(name, max_side=N)`` or ``kornia-ilum estimate --detect-side N``.
+        default_max_side: the ``max_side`` that :func:`~kornia_ilum.detection.create_detector` gives by default
+            (``max_side="auto"``): ``None`` here, 240 for YuNet.
 
     Examples:
         A detector that takes the central half of every image:
@@ -90,6 +105,7 @@ class FaceDetector(nn.Module):
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     crop_scale: ClassVar[float] = CROP_SCALE
+    default_max_side: ClassVar[int | None] = None
     max_side: int | None = None
 
     def detect(self, image: torch.Tensor, *, check_values: bool = True) -> list[torch.Tensor]:
@@ -133,20 +149,24 @@ class FaceDetector(nn.Module):
                     f"image must be sRGB in [0, 1], got values in [{lo:g}, {hi:g}]"
                     + ("; divide 8-bit images by 255" if hi > 1.5 else "")
                 )
-        batch = image if image.dim() == 4 else image[None]
-        height, width = batch.shape[-2:]
+        full = image if image.dim() == 4 else image[None]
+        height, width = full.shape[-2:]
         side = self.max_side
         small = side is not None and max(height, width) > side
+        batch = full
         if small:
             size = (max(1, round(height * side / max(height, width))), max(1, round(width * side / max(height, width))))
-            batch = F.interpolate(batch, size=size, mode="area")
+            batch = F.interpolate(full, size=size, mode="area")
         with torch.no_grad():
-            found = self._detect(batch)
+            found = [dets.to(torch.float32).reshape(-1, 5) for dets in self._detect(batch)]
+            if small:
+                scale = torch.tensor([width / size[1], height / size[0]] * 2 + [1.0])
+                found = [dets * scale.to(dets.device) if len(dets)  # back to the input's pixels
+                         else self._detect(full[i : i + 1])[0]  # no face in the copy: look again at full size
+                         for i, dets in enumerate(found)]
         out = []
         for dets in found:
             dets = dets.to(device=image.device, dtype=torch.float32).reshape(-1, 5)
-            if small:  # back to the input's pixels
-                dets = dets * dets.new_tensor([width / size[1], height / size[0]] * 2 + [1.0])
             out.append(dets[dets[:, 4].argsort(descending=True, stable=True)])
         return out
 
@@ -296,31 +316,75 @@ class OpenCVFaceDetector(FaceDetector):
 
 # ----------------------------------------------------------------------------------------------- YuNet
 def _yunet_weight_candidates(weights_path: str | os.PathLike[str] | None) -> list[tuple[str, Path]]:
-    """Where the YuNet weights are looked for, in order: the argument, the environment, the hub cache."""
+    """Where the YuNet weights are looked for, in order: the argument, the environment, the package."""
     if weights_path is not None:
         return [("weights_path", Path(weights_path).expanduser())]
     places = []
     if os.environ.get(YUNET_WEIGHTS_ENV):
         places.append((f"${YUNET_WEIGHTS_ENV}", Path(os.environ[YUNET_WEIGHTS_ENV]).expanduser()))
-    places.append(("the torch hub cache", Path(torch.hub.get_dir()) / "checkpoints" / "yunet_final.pth"))
+    places.append(("the package", YUNET_WEIGHTS))
     return places
+
+
+def _read_yunet_state(path: Path) -> dict[str, torch.Tensor]:
+    """The state dict in a ``.safetensors`` file (no pickle), or in a ``.pth`` (``torch.load`` restricted to
+    tensors, ``weights_only=True``)."""
+    if path.suffix == ".safetensors":
+        from safetensors.torch import load_file  # lazy: as the estimators' weights
+
+        return load_file(str(path))
+    return torch.load(path, map_location="cpu", weights_only=True)
+
+
+def convert_yunet_weights(source: str | os.PathLike[str], out: str | os.PathLike[str]) -> str:
+    r"""Convert Kornia's ``yunet_final.pth`` to the safetensors file the package ships (:data:`YUNET_WEIGHTS`).
+
+    The tensors are copied unchanged (float32, and batch norm's int64 counters); the file's metadata names the
+    source and its SHA-256. The output is written atomically and is the same, byte for byte, for the same source,
+    so ``convert_yunet_weights("yunet_final.pth", "yunet.safetensors")`` remakes the packaged file exactly
+    (``tests/detection/test_detectors.py``).
+
+    Args:
+        source: Kornia's ``yunet_final.pth`` (its SHA-256 must be :data:`YUNET_SHA256`).
+        out: the ``.safetensors`` file to write.
+
+    Returns:
+        the SHA-256 of the written file.
+
+    Raises:
+        FileNotFoundError: ``source`` does not exist.
+        WeightsChecksumError: ``source`` is not Kornia's file.
+    """
+    from safetensors.torch import save_file  # lazy: as in _read_yunet_state
+
+    source = Path(source)
+    if not source.is_file():
+        raise FileNotFoundError(f"no YuNet weights at {str(source)!r}")
+    digest = sha256_file(source)
+    if digest != YUNET_SHA256:
+        raise WeightsChecksumError(f"{str(source)!r} has SHA-256 {digest}, not that of Kornia's yunet_final.pth "
+                                   f"({YUNET_SHA256})")
+    state = {k: v.contiguous() for k, v in _read_yunet_state(source).items()}
+    atomic_write(out, lambda tmp: save_file(state, str(tmp), metadata={"source": "yunet_final.pth",
+                                                                        "source_sha256": digest}))
+    return sha256_file(out)
 
 
 class YuNetFaceDetector(FaceDetector):
     r"""Kornia's YuNet face detector (Wu, Peng & Yu, "YuNet: A Tiny Millisecond-level Face Detector",
-    Machine Intelligence Research 2023), with weights from a local file only.
+    Machine Intelligence Research 2023), with the weights that ship inside the package.
 
-    The network is :class:`kornia.models.yunet.YuNet` built with ``pretrained=False``; its state dict is
-    loaded from a local ``yunet_final.pth`` with ``torch.load(weights_only=True)`` after checking the
-    file's SHA-256. Nothing is ever downloaded (unlike :class:`kornia.contrib.FaceDetector`, whose
-    constructor downloads). The weights are looked for, in order, at ``weights_path``, at the path in the
-    environment variable ``KORNIA_ILUM_YUNET_WEIGHTS``, and in the torch hub cache
-    (``torch.hub.get_dir()/checkpoints/yunet_final.pth``, where Kornia's own download puts them).
+    The network is :class:`kornia.models.yunet.YuNet` built with ``pretrained=False``; its state dict is read
+    from the package's ``weights/yunet.safetensors`` (:data:`YUNET_WEIGHTS`: Kornia's ``yunet_final.pth``,
+    MIT, converted by :func:`convert_yunet_weights`; no pickle) after checking the file's SHA-256. Nothing is
+    ever downloaded (unlike :class:`kornia.contrib.FaceDetector`, whose constructor downloads), and no
+    environment variable is needed. Other weights are read from ``weights_path``, else from the path in
+    ``$KORNIA_ILUM_YUNET_WEIGHTS`` (an override): a ``.safetensors`` file, or a ``.pth`` read with
+    ``torch.load(weights_only=True)``.
 
     As Kornia documents, YuNet takes BGR in ``[0, 255]``: the image is scaled by 255 and flipped to BGR.
-    Decoding, score (``sqrt(cls x iou)``), confidence filtering and NMS are Kornia's:
-    :meth:`kornia.contrib.FaceDetector.postprocess`, called on this object, which carries the attributes
-    it reads.
+    Decoding, score (``sqrt(cls x iou)``), confidence filtering and NMS give the detections of Kornia's
+    :meth:`kornia.contrib.FaceDetector.postprocess`, with its anchors made once per image size.
 
     ``confidence_threshold=0.93`` sits between the faces and the false faces measured here (Kornia's 0.3
     keeps too much, and the 0.9 of OpenCV's ``FaceDetectorYN`` demo let a motorcycle's headlights through,
@@ -335,38 +399,50 @@ class YuNetFaceDetector(FaceDetector):
       cat, 0.78).
 
     Args:
-        weights_path: a local ``yunet_final.pth``; ``None`` looks in the environment and the hub cache.
-        sha256: the file's expected SHA-256 (Kornia's file by default); ``None`` skips the check.
+        weights_path: other weights (``.safetensors`` or ``.pth``); ``None``: ``$KORNIA_ILUM_YUNET_WEIGHTS`` if
+            set, else the packaged file.
+        sha256: the file's expected SHA-256, or several accepted ones (by default the packaged file's and
+            Kornia's ``yunet_final.pth``'s); ``None`` skips the check.
         confidence_threshold: minimum score of a face.
         nms_threshold: IoU above which NMS drops the weaker of two boxes (Kornia's 0.3).
         top_k: candidates kept before NMS (Kornia's 5000).
         keep_top_k: faces kept after NMS (Kornia's 750).
 
     Raises:
-        MissingWeightsError: no weight file was found; the message lists every place looked at.
-        WeightsChecksumError: the file's SHA-256 differs from ``sha256``.
+        MissingWeightsError: the weight file was not found; the message says where it looked.
+        WeightsChecksumError: the file's SHA-256 is not ``sha256``.
         ValueCheckError: a threshold is out of range.
 
     Examples:
-        ``YuNetFaceDetector("path/to/yunet_final.pth").detect(image)``; a missing file is reported, never
-        fetched:
+        >>> import skimage.data
+        >>> image = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1) / 255
+        >>> faces = YuNetFaceDetector().detect(image)[0]  # the packaged weights
+        >>> faces.shape
+        torch.Size([1, 5])
+
+        A missing file is reported, never fetched:
 
         >>> YuNetFaceDetector(weights_path="no/such/yunet_final.pth")  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        kornia_ilum.core.errors.MissingWeightsError: YuNet weights (yunet_final.pth) not found; looked at ...
+        kornia_ilum.core.errors.MissingWeightsError: YuNet weights not found; looked at ...
     """
 
     name: ClassVar[str] = "yunet"
+    #: Detection on a copy of at most 240 pixels by default (a 640 x 480 photo at three eighths), then at full size
+    #: where that copy shows no face: on the light stage's eval portraits it finds every face that full size finds
+    #: and more (YuNet's scores dip at some scales), in a third of the time (docs/bench.rst, "The default
+    #: detector").
+    default_max_side: ClassVar[int | None] = 240
     description: ClassVar[str] = (
-        "Kornia's YuNet CNN (Wu et al. 2023); more poses and smaller faces; local weights yunet_final.pth "
-        f"(weights_path=, ${YUNET_WEIGHTS_ENV} or the torch hub cache), never downloaded"
+        "Kornia's YuNet CNN (Wu et al. 2023); more poses and smaller faces; weights shipped in the package "
+        f"(MIT), never downloaded (override: weights_path= or ${YUNET_WEIGHTS_ENV})"
     )
 
     def __init__(
         self,
         weights_path: str | os.PathLike[str] | None = None,
-        sha256: str | None = YUNET_SHA256,
+        sha256: str | Sequence[str] | None = (YUNET_SAFETENSORS_SHA256, YUNET_SHA256),
         confidence_threshold: float = 0.93,
         nms_threshold: float = 0.3,
         top_k: int = 5000,
@@ -381,22 +457,23 @@ class YuNetFaceDetector(FaceDetector):
         if path is None:
             looked = "; ".join(f"{where}: {p}" for where, p in places)
             raise MissingWeightsError(
-                f"YuNet weights (yunet_final.pth) not found; looked at {looked}. They are never downloaded "
-                f"implicitly: pass weights_path=... or set ${YUNET_WEIGHTS_ENV} to a local copy of "
-                "https://huggingface.co/kornia/yunet/resolve/main/yunet_final.pth"
+                f"YuNet weights not found; looked at {looked}. They are never downloaded: pass weights_path=... "
+                f"or set ${YUNET_WEIGHTS_ENV} to a .safetensors or yunet_final.pth file, or unset it to use the "
+                "weights that ship with kornia_ilum"
             )
         if sha256 is not None:
+            accepted = [sha256] if isinstance(sha256, str) else list(sha256)
             digest = sha256_file(path)
-            if digest != sha256.lower():
+            if digest not in {a.lower() for a in accepted}:
                 raise WeightsChecksumError(
-                    f"YuNet weights {str(path)!r} have SHA-256 {digest}, expected {sha256}; "
-                    "pass sha256=None to load another version on purpose"
+                    f"YuNet weights {str(path)!r} have SHA-256 {digest}, expected {' or '.join(accepted)}; "
+                    "pass sha256=None to load other weights on purpose"
                 )
         self.weights_path = path
         self.model = YuNet("test", pretrained=False)
-        self.model.load_state_dict(torch.load(path, map_location="cpu", weights_only=True), strict=True)
+        self.model.load_state_dict(_read_yunet_state(path), strict=True)
         self.model.eval()
-        # The attributes kornia.contrib.FaceDetector.postprocess reads (Kornia's values for its weights).
+        # Kornia's post-processing settings for these weights (kornia.contrib.FaceDetector).
         self.min_sizes = [[10, 16, 24], [32, 48], [64, 96], [128, 192, 256]]
         self.steps = [8, 16, 32, 64]
         self.variance = [0.1, 0.2]
@@ -405,17 +482,52 @@ class YuNetFaceDetector(FaceDetector):
         self.nms_threshold = float(nms_threshold)
         self.top_k = int(top_k)
         self.keep_top_k = int(keep_top_k)
-        self.nms = nms
+        self._prior_cache: dict[tuple, torch.Tensor] = {}
+
+    def _priors(self, height: int, width: int, like: torch.Tensor) -> torch.Tensor:
+        """YuNet's anchors for an input of ``height x width`` (:class:`kornia.models.yunet.processors.PriorBox`),
+        made once per size, device and dtype: Kornia's post-processing builds them in a Python loop at every
+        call, a fifth of the detection's time at 320 x 240 (docs/bench.rst, "The default detector")."""
+        key = (height, width, like.device, like.dtype)
+        if key not in self._prior_cache:
+            if len(self._prior_cache) >= 8:
+                self._prior_cache.pop(next(iter(self._prior_cache)))
+            boxes = PriorBox(self.min_sizes, self.steps, self.clip, image_size=(height, width))
+            self._prior_cache[key] = boxes.to(like.device, like.dtype)()
+        return self._prior_cache[key]
+
+    def _postprocess(self, out: dict[str, torch.Tensor], height: int, width: int) -> list[torch.Tensor]:
+        """Kornia's :meth:`kornia.contrib.FaceDetector.postprocess`, the same detections, with cached anchors and
+        only the candidates above the confidence threshold decoded: ``B`` tensors ``(N, 15)`` (box, five
+        landmarks, score)."""
+        loc_all, conf_all, iou_all = out["loc"], out["conf"], out["iou"]
+        priors = self._priors(height, width, loc_all)
+        scale = loc_all.new_tensor([width, height] * 7)
+        found = []
+        for loc, conf, iou in zip(loc_all, conf_all, iou_all, strict=True):
+            scores = (conf[:, 1] * iou[:, 0].clamp(0.0, 1.0)).sqrt()
+            keep = scores > self.confidence_threshold
+            scores, order = scores[keep].sort(descending=True)
+            order, scores = order[: self.top_k], scores[: self.top_k]
+            boxes = decode(loc[keep][order], priors[keep][order], self.variance) * scale
+            dets = torch.cat((boxes, scores[:, None]), dim=-1)
+            kept = nms(boxes[:, :4], scores, self.nms_threshold)
+            found.append((dets[kept] if len(kept) else dets)[: self.keep_top_k])
+        return found
 
     def _detect(self, image: torch.Tensor) -> list[torch.Tensor]:
         weight = next(self.model.parameters())
         bgr = image.flip(-3).to(device=weight.device, dtype=weight.dtype) * 255.0
-        found = KorniaFaceDetector.postprocess(self, self.model(bgr), bgr.shape[-2], bgr.shape[-1])
+        height, width = bgr.shape[-2:]
+        if min(height, width) < YUNET_MIN_SIDE:  # its five poolings need 64 pixels: pad below and right with black
+            bgr = F.pad(bgr, (0, max(0, YUNET_MIN_SIDE - width), 0, max(0, YUNET_MIN_SIDE - height)))
+        with torch.inference_mode():
+            found = self._postprocess(self.model(bgr), bgr.shape[-2], bgr.shape[-1])
         out = []
         for dets in found:
             dets = dets[:, [0, 1, 2, 3, 14]]
             keep = (dets[:, 2] > dets[:, 0]) & (dets[:, 3] > dets[:, 1]) & dets.isfinite().all(dim=1)
-            out.append(dets[keep])
+            out.append(dets[keep].clone())  # a normal tensor, not an inference tensor
         return out
 
     def train(self, mode: bool = True) -> YuNetFaceDetector:

@@ -2,8 +2,8 @@ r"""Face detectors by name, in timm's style: :func:`list_detectors`, :func:`crea
 :func:`register_detector`, :func:`describe_detector`.
 
 A registered entry is a factory (usually a :class:`~kornia_ilum.detection.FaceDetector` subclass) that
-:func:`create_detector` calls with the keyword arguments it is given. Built-ins: ``"opencv"`` (the
-default), ``"yunet"`` and ``"none"``. :data:`DETECTORS` is a read-only view of the registry.
+:func:`create_detector` calls with the keyword arguments it is given. Built-ins: ``"yunet"`` (the
+default), ``"opencv"`` and ``"none"``. :data:`DETECTORS` is a read-only view of the registry.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import fnmatch
 from collections.abc import Callable
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Literal
 
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import TypeCheckError
@@ -31,8 +31,9 @@ __all__ = [
     "describe_detector",
 ]
 
-#: The detector :func:`kornia_ilum.estimate_lighting` and the CLI use unless told otherwise.
-DEFAULT_DETECTOR = "opencv"
+#: The detector :func:`kornia_ilum.estimate_lighting`, the CLI and the video tracker use unless told otherwise:
+#: YuNet, with its packaged weights, chosen by measurement over Haar (docs/bench.rst, "The default detector").
+DEFAULT_DETECTOR = "yunet"
 
 _REGISTRY: dict[str, Callable[..., FaceDetector]] = {
     cls.name: cls for cls in (OpenCVFaceDetector, YuNetFaceDetector, NoFaceDetector)
@@ -70,16 +71,19 @@ def list_detectors(pattern: str = "*") -> list[str]:
     return sorted(n for n in _REGISTRY if fnmatch.fnmatchcase(n, pattern))
 
 
-def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None = None, **kwargs: Any) -> FaceDetector:
-    """Build the detector registered as ``name`` with ``kwargs`` (e.g. ``weights_path=`` for ``"yunet"``).
+def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None | Literal["auto"] = "auto",
+                    **kwargs: Any) -> FaceDetector:
+    """Build the detector registered as ``name`` with ``kwargs`` (e.g. ``confidence_threshold=`` for ``"yunet"``).
 
     ``max_side`` makes it detect on a copy whose longer side is at most that many pixels
     (:attr:`FaceDetector.max_side <kornia_ilum.detection.FaceDetector>`): faster, but blind to faces smaller than
-    its window at that scale.
+    its window at that scale. By default (``"auto"``) a detector detects at its own
+    :attr:`~kornia_ilum.detection.FaceDetector.default_max_side`: 240 for ``"yunet"``, full size for the others.
 
     Args:
         name: a registered detector name (:func:`list_detectors`).
-        max_side: the longest side, in pixels, of the copy the detector sees; ``None`` detects at full size.
+        max_side: the longest side, in pixels, of the copy the detector sees; ``None`` detects at full size;
+            ``"auto"``: the detector's ``default_max_side``.
         kwargs: passed to the registered factory.
 
     Returns:
@@ -98,12 +102,12 @@ def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None = None
         ...
         ValueError: unknown detector 'haar'; registered detectors: none, opencv, yunet
     """
-    if max_side is not None:
+    if max_side is not None and max_side != "auto":
         check_positive_int(max_side, "max_side")
     detector = _factory(name)(**kwargs)
     if not isinstance(detector, FaceDetector):
         raise TypeCheckError(f"detector {name!r} must build a FaceDetector, got {type(detector).__name__}")
-    detector.max_side = max_side
+    detector.max_side = detector.default_max_side if max_side == "auto" else max_side
     return detector
 
 

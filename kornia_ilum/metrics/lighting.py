@@ -35,6 +35,7 @@ __all__ = [
     "MultiscaleReconstructionLoss",
     "ReconstructionLoss",
     "RelativeRadiance",
+    "TotalRadiance",
     "check_lighting_pair",
     "multiscale_reconstruction_loss",
     "reconstruction_loss",
@@ -453,3 +454,29 @@ class RelativeRadiance(nn.Module):
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return relative_radiance(pred, target)
+
+
+class TotalRadiance(nn.Module):
+    r"""Module twin of :func:`total_radiance`.
+
+    Args:
+        dtype: the dtype to sum in, or ``None`` for the input's (half precision: float32, cast back).
+
+    Shape:
+        - Input: :math:`(*, C, S, S)`
+        - Output: :math:`(*, C)`
+
+    Examples:
+        >>> TotalRadiance(torch.float64)(torch.ones(1, 3, 32, 32)).shape
+        torch.Size([1, 3])
+    """
+
+    def __init__(self, dtype: torch.dtype | None = None) -> None:
+        super().__init__()
+        self.dtype = dtype
+
+    def forward(self, mirror_ball: torch.Tensor) -> torch.Tensor:
+        return total_radiance(mirror_ball, self.dtype)
+
+    def extra_repr(self) -> str:
+        return f"dtype={self.dtype}"

@@ -35,12 +35,14 @@ import math
 from dataclasses import dataclass
 
 import torch
+from torch import nn
 
 from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.render.relight import check_eps, light_norms, relight_product
 
-__all__ = ["KEPT_FRACTION", "SPARSE_RANK", "SparseField", "prepare_sparse", "relight_sparse", "sparse_kept"]
+__all__ = ["KEPT_FRACTION", "SPARSE_RANK", "RelightSparse", "SparseField", "prepare_sparse", "relight_sparse",
+           "sparse_kept"]
 
 #: The most lights a lighting keeps exactly, as a fraction of the field's lights (the rest go to the low rank).
 KEPT_FRACTION = 1 / 32
@@ -226,3 +228,42 @@ def _relight_kept(prepared: SparseField, lights: torch.Tensor, order: torch.Tens
     return out.add_(torch.nn.functional.embedding_bag(
         index.reshape(b * c, k), prepared.rows, mode="sum",
         per_sample_weights=kept.reshape(b * c, k).to(prepared.rows.dtype)).view(b, c, -1))
+
+
+class RelightSparse(nn.Module):
+    r"""Module twin of :func:`relight_sparse`: the field is prepared once (:func:`prepare_sparse`) and its parts
+    are non-persistent buffers, so ``.to(device)`` moves them.
+
+    Args:
+        field: reflectance field, ``(C, P, N)`` or ``(P, N)``, any floating dtype.
+        eps: a light that alone carries more than this fraction of the image's energy is kept exactly, in
+            ``[0, 1)``; ``0``: dense.
+        rank: how many singular directions relight the lights not kept.
+
+    Raises:
+        ShapeError: ``field`` is neither ``(C, P, N)`` nor ``(P, N)``.
+        ValueCheckError: ``eps`` outside ``[0, 1)`` or ``rank`` not positive.
+
+    Shape:
+        - Input: :math:`(B, N, C)` lighting
+        - Output: :math:`(B, C, P)` float32
+
+    Examples:
+        >>> relight_module = RelightSparse(torch.tensor([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]]), eps=0.2, rank=2)
+        >>> [round(v, 4) for v in relight_module(torch.tensor([[[5.0], [1.0], [1.0]]])).flatten().tolist()]
+        [5.0, 2.0]
+    """
+
+    def __init__(self, field: torch.Tensor, eps: float, rank: int = SPARSE_RANK) -> None:
+        super().__init__()
+        self.eps = check_eps(eps)
+        prepared = prepare_sparse(field, rank)
+        for name in ("field", "rows", "norms", "basis", "directions"):
+            self.register_buffer(name, getattr(prepared, name), persistent=False)
+
+    def forward(self, lighting: torch.Tensor) -> torch.Tensor:
+        prepared = SparseField(self.field, self.rows, self.norms, self.basis, self.directions)
+        return relight_sparse(prepared, lighting, self.eps)
+
+    def extra_repr(self) -> str:
+        return f"eps={self.eps}, rank={self.basis.shape[-1]}, lights={self.field.shape[-1]}"

@@ -51,8 +51,10 @@ __all__ = [
     "SILVER_ALPHA",
     "SILVER_F0",
     "SPHERE_SIZES",
+    "EncodeSphere",
     "RenderSpheres",
     "SpherePlan",
+    "SpherePyramid",
     "check_brdf",
     "check_sphere_lighting",
     "check_sphere_sizes",
@@ -806,3 +808,62 @@ class RenderSpheres(nn.Module):
 
     def extra_repr(self) -> str:
         return f"size={self.size}, brdfs={self.brdfs}, lighting_size={self.lighting_size}"
+
+
+class EncodeSphere(nn.Module):
+    r"""Module twin of :func:`encode_sphere`.
+
+    Args:
+        gamma: ``"exact"`` (the metric) or ``"safe"`` (training), one of :data:`GAMMA_MODES`.
+
+    Shape:
+        - Input: :math:`(*)`
+        - Output: :math:`(*)`
+
+    Examples:
+        >>> EncodeSphere("safe")(torch.tensor([0.0, 100.0])).tolist()
+        [0.0, 1.0]
+    """
+
+    def __init__(self, gamma: str = "exact") -> None:
+        super().__init__()
+        gamma_knee(gamma)  # checked when built
+        self.gamma = gamma
+
+    def forward(self, render: torch.Tensor) -> torch.Tensor:
+        return encode_sphere(render, self.gamma)
+
+    def extra_repr(self) -> str:
+        return f"gamma={self.gamma!r}"
+
+
+class SpherePyramid(nn.Module):
+    r"""Module twin of :func:`sphere_pyramid`.
+
+    Args:
+        sizes: sphere sides, each in :data:`SPHERE_SIZES`.
+        brdfs: the spheres, names from :data:`BRDFS`.
+        encode: apply :func:`encode_sphere`; otherwise return the linear renders.
+        gamma: ``"exact"`` or ``"safe"``, see :func:`encode_sphere`.
+
+    Shape:
+        - Input: :math:`(B, 3, S_L, S_L)`
+        - Output: ``{f"{brdf}_{size}":`` :math:`(B, 3, s, s)` ``}``
+
+    Examples:
+        >>> sorted(SpherePyramid(sizes=(4,), brdfs=("mirror",))(torch.ones(1, 3, 32, 32)))
+        ['mirror_4']
+    """
+
+    def __init__(self, sizes: Sequence[int] = (4, 8, 16, 32), brdfs: Sequence[str] = BRDFS, encode: bool = True,
+                 gamma: str = "exact") -> None:
+        super().__init__()
+        self.sizes, self.brdfs = check_sphere_sizes(sizes), _check_brdfs(brdfs)
+        gamma_knee(gamma)  # checked when built
+        self.encode, self.gamma = encode, gamma
+
+    def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:
+        return sphere_pyramid(lighting, self.sizes, self.brdfs, self.encode, self.gamma)
+
+    def extra_repr(self) -> str:
+        return f"sizes={self.sizes}, brdfs={self.brdfs}, encode={self.encode}, gamma={self.gamma!r}"

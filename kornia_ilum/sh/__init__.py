@@ -1,7 +1,13 @@
 """Spherical harmonics (order 2) of lighting; converters to the SH of DPR, SfSNet, DECA, ARCore, WebXR; the main
 light and the SH of the rest (:func:`dominant_light`)."""
 
-from kornia_ilum.sh.dominant import DOMINANT_MAX_ANGLE, DOMINANT_THRESHOLD, DominantLight, dominant_light
+from kornia_ilum.sh.dominant import (
+    DOMINANT_MAX_ANGLE,
+    DOMINANT_THRESHOLD,
+    DominantLight,
+    SplitDominantLight,
+    dominant_light,
+)
 from kornia_ilum.sh.harmonics import (
     LAYOUTS,
     SH_CONSTANTS,
@@ -42,6 +48,7 @@ __all__ = [
     "SHIrradianceAt",
     "SHProject",
     "SHReconstruct",
+    "SplitDominantLight",
     "dominant_light",
     "sh_basis",
     "sh_irradiance",

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import torch
+from torch import nn
 
 from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.check import check_tensor
@@ -31,7 +32,7 @@ from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angle
 from kornia_ilum.sh.harmonics import sh_project
 from kornia_ilum.sh.layouts import sh_to_arcore
 
-__all__ = ["DOMINANT_MAX_ANGLE", "DOMINANT_THRESHOLD", "DominantLight", "dominant_light"]
+__all__ = ["DOMINANT_MAX_ANGLE", "DOMINANT_THRESHOLD", "DominantLight", "SplitDominantLight", "dominant_light"]
 
 #: The default ``threshold`` of :func:`dominant_light`: the light's pixels reach this fraction of the peak.
 DOMINANT_THRESHOLD = 0.02
@@ -120,6 +121,14 @@ def _masked_median(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     return torch.nan_to_num(filled.nanmedian(dim=-1).values, nan=0.0)
 
 
+def _check_split(threshold: float, max_angle: float) -> None:
+    """Raise :class:`ValueCheckError` unless ``threshold`` is in ``(0, 1]`` and ``max_angle`` in ``(0, 90]``."""
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not 0.0 < threshold <= 1.0:
+        raise ValueCheckError(f"threshold must be a number in (0, 1], got {threshold!r}")
+    if isinstance(max_angle, bool) or not isinstance(max_angle, (int, float)) or not 0.0 < max_angle <= 90.0:
+        raise ValueCheckError(f"max_angle must be a number of degrees in (0, 90], got {max_angle!r}")
+
+
 def dominant_light(mirror_ball: torch.Tensor, *, threshold: float = DOMINANT_THRESHOLD,
                    max_angle: float = DOMINANT_MAX_ANGLE) -> DominantLight:
     r"""The main light (direction, solid angle, colour, intensity) and the order-2 SH of the rest.
@@ -162,10 +171,7 @@ def dominant_light(mirror_ball: torch.Tensor, *, threshold: float = DOMINANT_THR
         1.0
     """
     check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"], nonnegative=True)
-    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not 0.0 < threshold <= 1.0:
-        raise ValueCheckError(f"threshold must be a number in (0, 1], got {threshold!r}")
-    if isinstance(max_angle, bool) or not isinstance(max_angle, (int, float)) or not 0.0 < max_angle <= 90.0:
-        raise ValueCheckError(f"max_angle must be a number of degrees in (0, 90], got {max_angle!r}")
+    _check_split(threshold, max_angle)
     dtype = work_dtype(mirror_ball.dtype)
     light = mirror_ball.to(dtype)
     b, _, s, _ = light.shape
@@ -194,3 +200,36 @@ def dominant_light(mirror_ball: torch.Tensor, *, threshold: float = DOMINANT_THR
         return result
     return DominantLight(*(t.to(mirror_ball.dtype) for t in (result.direction, result.solid_angle,
                                                              result.irradiance, result.ambient_sh)))
+
+
+class SplitDominantLight(nn.Module):
+    r"""Module twin of :func:`dominant_light` (named for what it does: :class:`DominantLight` is its result).
+
+    Args:
+        threshold: the light's pixels reach at least this fraction of its brightest pixel's luminance, in
+            ``(0, 1]``.
+        max_angle: the light's largest angular radius in degrees, in ``(0, 90]``.
+
+    Raises:
+        ValueCheckError: ``threshold`` or ``max_angle`` out of range.
+
+    Shape:
+        - Input: :math:`(B, 3, S, S)`
+        - Output: a :class:`DominantLight`: direction :math:`(B, 3)`, solid_angle :math:`(B,)`, irradiance
+          :math:`(B, 3)`, ambient_sh :math:`(B, 9, 3)`
+
+    Examples:
+        >>> SplitDominantLight(max_angle=10.0)(torch.zeros(2, 3, 32, 32)).ambient_sh.shape
+        torch.Size([2, 9, 3])
+    """
+
+    def __init__(self, threshold: float = DOMINANT_THRESHOLD, max_angle: float = DOMINANT_MAX_ANGLE) -> None:
+        super().__init__()
+        _check_split(threshold, max_angle)
+        self.threshold, self.max_angle = threshold, max_angle
+
+    def forward(self, mirror_ball: torch.Tensor) -> DominantLight:
+        return dominant_light(mirror_ball, threshold=self.threshold, max_angle=self.max_angle)
+
+    def extra_repr(self) -> str:
+        return f"threshold={self.threshold}, max_angle={self.max_angle}"

@@ -45,6 +45,7 @@ from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
 from kornia_ilum.core.errors import IlumError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.core.progress import progress
+from kornia_ilum.core.provenance import stamp_figure
 from kornia_ilum.synth.sheets import require_matplotlib, write_contact_sheet
 
 __all__ = [
@@ -57,6 +58,17 @@ __all__ = [
     "run_synth_subjects",
     "split_seeds",
 ]
+
+
+#: What the figures of ``synth environments`` show (their provenance stamp, :mod:`kornia_ilum.core.provenance`).
+ENVIRONMENT_FIGURES_SHOW = ("kornia_ilum.synth.environments", "kornia_ilum.synth.sheets", "kornia_ilum.synth.stats")
+#: What the contact sheet of ``synth subjects`` shows: the light stage and the portraits made from it.
+LIGHTSTAGE_FIGURES_SHOW = ("kornia_ilum.synth",)
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    """The command line that ran (``kornia-ilum`` sets it), for the figures' stamps."""
+    return getattr(args, "command_line", None) or "kornia-ilum synth " + " ".join(sys.argv[1:])
 
 
 _HELP = """\
@@ -198,6 +210,8 @@ def run_synth_environments(args: argparse.Namespace) -> int:
     if sheet:
         written.insert(0, out / "contact_sheet.png")
         write_contact_sheet(sheet, written[0])
+    for figure in (p for p in written if p.suffix == ".png" and p.is_file()):  # figures record what made them
+        stamp_figure(figure, command=_command_line(args), shows=ENVIRONMENT_FIGURES_SHOW)
     print(note)
     print(table)
     print("Per source of the sampled environments:")
@@ -442,6 +456,7 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     t1 = time.perf_counter()
     count = training_sheet(out, out / "contact_sheet.png", count=args.sheet, split=split, folder=args.folder,
                            seed=args.seed)
+    stamp_figure(out / "contact_sheet.png", command=_command_line(args), shows=LIGHTSTAGE_FIGURES_SHOW)
     print(f"{count} portraits in {time.perf_counter() - t1:.1f} s")
     print(f"wrote {out / 'contact_sheet.png'}")
     return 0

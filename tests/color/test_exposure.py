@@ -7,6 +7,7 @@ import torch
 
 from kornia_ilum.color import (
     EXPOSURE_KEY,
+    MeteredLuminance,
     NormalizeExposure,
     centre_weights,
     linear_to_srgb,
@@ -63,6 +64,7 @@ def test_module_and_errors():
     a, s = NormalizeExposure()(x)
     b, t = normalize_exposure(x)
     assert torch.equal(a, b) and torch.equal(s, t)
+    assert torch.equal(MeteredLuminance(0.1)(x), metered_luminance(x, 0.1))
     with pytest.raises(ValueCheckError, match="key"):
         normalize_exposure(x, key=0.0)
     with pytest.raises(ValueCheckError, match="sigma"):

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from kornia_ilum.color import (
     GAMMA_KNEE,
+    GammaDecode,
     GammaEncode,
     LinearToSrgb,
     Quantize,
@@ -198,6 +199,8 @@ class TestGammaEncode:
         x = torch.rand(2, 3, 8, 8)
         torch.testing.assert_close(GammaEncode()(x), gamma_encode(x), atol=0, rtol=0)
         torch.testing.assert_close(GammaEncode(2.4)(x), gamma_encode(x, 2.4), atol=0, rtol=0)
+        torch.testing.assert_close(GammaDecode()(x), gamma_decode(x), atol=0, rtol=0)
+        torch.testing.assert_close(GammaDecode(2.4)(x), gamma_decode(x, 2.4), atol=0, rtol=0)
 
     @pytest.mark.parametrize("dt", HALF_AND_F32)
     def test_dtypes(self, dt):

@@ -32,7 +32,14 @@ from kornia_ilum.detection import (
     crop_faces,
     square_crop_boxes,
 )
-from kornia_ilum.detection.detectors import YUNET_SHA256, YUNET_WEIGHTS_ENV
+from kornia_ilum.core.files import sha256_file
+from kornia_ilum.detection.detectors import (
+    YUNET_SAFETENSORS_SHA256,
+    YUNET_SHA256,
+    YUNET_WEIGHTS,
+    YUNET_WEIGHTS_ENV,
+    convert_yunet_weights,
+)
 
 ASTRONAUT_FACE = torch.tensor([177.0, 62.0, 273.0, 170.0])
 #: (x, y, scale) of the astronaut's face pasted into the group image.
@@ -304,20 +311,12 @@ class TestYuNetFaceDetector:
         assert det.weights_path == yunet_weights
         assert det.detect(astronaut)[0].shape == (1, 5)
 
-    def test_weights_from_hub_cache(self, yunet_weights, monkeypatch, tmp_path):
-        (tmp_path / "checkpoints").mkdir()
-        (tmp_path / "checkpoints" / "yunet_final.pth").symlink_to(yunet_weights)
-        monkeypatch.delenv(YUNET_WEIGHTS_ENV, raising=False)
-        monkeypatch.setattr(torch.hub, "get_dir", lambda: str(tmp_path))
-        assert YuNetFaceDetector().weights_path == tmp_path / "checkpoints" / "yunet_final.pth"
-
-    def test_exception(self, yunet_weights, monkeypatch, tmp_path):
+    def test_yunet_exception(self, yunet_weights, monkeypatch, tmp_path):
         monkeypatch.setenv(YUNET_WEIGHTS_ENV, str(tmp_path / "env.pth"))
-        monkeypatch.setattr(torch.hub, "get_dir", lambda: str(tmp_path / "hub"))
         with pytest.raises(
             MissingWeightsError,
-            match=r"looked at \$KORNIA_ILUM_YUNET_WEIGHTS: .*env\.pth; the torch hub cache: "
-            r".*hub/checkpoints/yunet_final\.pth\. They are never downloaded",
+            match=r"looked at \$KORNIA_ILUM_YUNET_WEIGHTS: .*env\.pth; the package: .*yunet\.safetensors\. They "
+            r"are never downloaded",
         ):
             YuNetFaceDetector()
         with pytest.raises(MissingWeightsError, match=r"looked at weights_path: .*other\.pth\. "):
@@ -326,6 +325,54 @@ class TestYuNetFaceDetector:
             YuNetFaceDetector(weights_path=yunet_weights, sha256="0" * 64)
         with pytest.raises(ValueCheckError, match=r"confidence_threshold must be in \[0, 1\], got 2"):
             YuNetFaceDetector(weights_path=yunet_weights, confidence_threshold=2)
+
+    def test_packaged_weights(self, monkeypatch, astronaut):
+        """With no argument and no environment variable, the weights that ship in the package: safetensors only."""
+        monkeypatch.delenv(YUNET_WEIGHTS_ENV, raising=False)
+        monkeypatch.setattr(torch, "load", lambda *a, **k: pytest.fail("the packaged weights are not unpickled"))
+        det = YuNetFaceDetector()
+        assert det.weights_path == YUNET_WEIGHTS and YUNET_WEIGHTS.suffix == ".safetensors"
+        assert sha256_file(YUNET_WEIGHTS) == YUNET_SAFETENSORS_SHA256
+        assert (YUNET_WEIGHTS.parent / "LICENSE-yunet.txt").read_text().count("MIT License") == 1
+        assert det.detect(astronaut)[0].shape == (1, 5)
+
+    def test_packaged_weights_are_kornias(self, yunet_weights, tmp_path):
+        """convert_yunet_weights remakes the packaged file from Kornia's yunet_final.pth, byte for byte."""
+        out = tmp_path / "yunet.safetensors"
+        assert convert_yunet_weights(yunet_weights, out) == YUNET_SAFETENSORS_SHA256
+        assert out.read_bytes() == YUNET_WEIGHTS.read_bytes()
+        with pytest.raises(WeightsChecksumError, match="not that of Kornia's yunet_final.pth"):
+            convert_yunet_weights(out, tmp_path / "again.safetensors")
+        with pytest.raises(FileNotFoundError):
+            convert_yunet_weights(tmp_path / "missing.pth", tmp_path / "x.safetensors")
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["yunet.safetensors"]
+
+    def test_postprocess_is_kornias(self, astronaut):
+        """The cached-anchor post-processing gives Kornia's detections exactly, at a low threshold too."""
+        from kornia.contrib import FaceDetector as KorniaFaceDetector
+        from kornia.geometry.bbox import nms
+
+        det = YuNetFaceDetector(confidence_threshold=0.3)
+        det.nms = nms  # what Kornia's postprocess reads
+        for image in (astronaut, astronaut[..., :200, :300], torch.rand(3, 120, 200)):
+            bgr = image[None].flip(-3) * 255.0
+            with torch.inference_mode():
+                out = det.model(bgr)
+                ours = det._postprocess(out, *bgr.shape[-2:])[0]
+                theirs = KorniaFaceDetector.postprocess(det, out, *bgr.shape[-2:])[0]
+            assert torch.equal(ours, theirs)
+
+    @pytest.mark.parametrize("size", [(1, 1), (31, 100), (48, 480), (63, 2000)])
+    def test_small_images(self, size):
+        """YuNet's network needs 64 pixels a side: smaller images are padded, not a crash inside torch."""
+        found = YuNetFaceDetector().detect(torch.rand(3, *size))
+        assert found[0].shape == (0, 5)
+        assert create_detector("yunet", max_side=40).detect(torch.rand(3, 300, 2000))[0].shape[1] == 5
+
+    def test_default_detection_size(self):
+        assert create_detector("yunet").max_side == YuNetFaceDetector.default_max_side == 240
+        assert create_detector("yunet", max_side=None).max_side is None
+        assert create_detector("opencv").max_side is None and create_detector("yunet", max_side=200).max_side == 200
 
     def test_sha256_can_be_skipped(self, yunet_weights, tmp_path):
         assert YuNetFaceDetector(weights_path=yunet_weights, sha256=None).weights_path == yunet_weights
@@ -358,7 +405,11 @@ class TestNoFaceDetector:
             NoFaceDetector().detect(torch.rand(3, 4))
 
 
-def test_no_network_access_needed():
-    """The default detector works offline: its cascade ships inside OpenCV's wheel."""
+def test_no_network_access_needed(monkeypatch):
+    """The default detector works offline, with no environment variable: YuNet's weights ship inside the package,
+    as Haar's cascade ships inside OpenCV's wheel."""
+    monkeypatch.delenv(YUNET_WEIGHTS_ENV, raising=False)
     det = create_detector()
-    assert det.cascade_path.is_file() and os.access(det.cascade_path, os.R_OK)
+    assert det.name == "yunet" and det.weights_path == YUNET_WEIGHTS and os.access(det.weights_path, os.R_OK)
+    haar = create_detector("opencv")
+    assert haar.cascade_path.is_file() and os.access(haar.cascade_path, os.R_OK)

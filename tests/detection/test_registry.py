@@ -31,7 +31,7 @@ def restore_registry():
 class TestListDetectors:
     def test_smoke(self):
         assert list_detectors() == ["none", "opencv", "yunet"]
-        assert DEFAULT_DETECTOR == "opencv" and DEFAULT_DETECTOR in list_detectors()
+        assert DEFAULT_DETECTOR == "yunet" and DEFAULT_DETECTOR in list_detectors()
 
     def test_pattern(self):
         assert list_detectors("*n*") == ["none", "opencv", "yunet"]

@@ -15,9 +15,11 @@ from kornia_ilum.metrics import (
     MultiscaleReconstructionLoss,
     ReconstructionLoss,
     RelativeRadiance,
+    TotalRadiance,
     multiscale_reconstruction_loss,
     reconstruction_loss,
     relative_radiance,
+    total_radiance,
 )
 from kornia_ilum.render import BRDFS, render_spheres
 from tests.conftest import assert_close_dtype, hdr_lighting
@@ -263,3 +265,11 @@ class TestRelativeRadiance:
         assert relative_radiance(x, x).abs().max().item() == 0.0
         torch.testing.assert_close(relative_radiance(k * x, x), torch.full((2, 3), 1.0 - k, dtype=F64))
         torch.testing.assert_close(relative_radiance(2 * x, x), torch.full((2, 3), -1.0, dtype=F64))
+
+
+class TestTotalRadiance:
+    @pytest.mark.parametrize("dtype", [None, F64])
+    def test_module_matches_functional(self, dtype):
+        x = hdr_lighting(2, seed=3)
+        torch.testing.assert_close(TotalRadiance(dtype)(x), total_radiance(x, dtype), rtol=0.0, atol=0.0)
+        assert TotalRadiance(dtype)(x.half()).dtype == (torch.float16 if dtype is None else dtype)

@@ -11,7 +11,14 @@ import torch
 
 from kornia_ilum.core.errors import ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.geometry import mirror_ball_to_lights, mirror_ball_valid
-from kornia_ilum.render import KEPT_FRACTION, prepare_sparse, relight_product, relight_sparse, sparse_kept
+from kornia_ilum.render import (
+    KEPT_FRACTION,
+    RelightSparse,
+    prepare_sparse,
+    relight_product,
+    relight_sparse,
+    sparse_kept,
+)
 
 S = 8
 
@@ -101,3 +108,14 @@ def test_refusals() -> None:
         prepare_sparse(field, rank=0)
     with pytest.raises(TypeCheckError, match="rank"):
         prepare_sparse(field, rank=2.0)
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_module_matches_functional(shared) -> None:
+    field, lights = _field(shared), _sky_and_sun()
+    module = RelightSparse(field, eps=0.01, rank=4)
+    torch.testing.assert_close(module(lights), relight_sparse(prepare_sparse(field, rank=4), lights, 0.01),
+                               rtol=0.0, atol=0.0)
+    assert module.state_dict() == {}  # the prepared field is a non-persistent buffer
+    with pytest.raises(ValueCheckError, match="eps"):  # checked when built
+        RelightSparse(field, eps=1.0)

@@ -17,8 +17,12 @@ from kornia_ilum.render import (
     SILVER_ALPHA,
     SILVER_F0,
     SPHERE_SIZES,
+    EncodeSphere,
     RenderSpheres,
+    SpherePyramid,
+    encode_sphere,
     render_spheres,
+    sphere_pyramid,
     sphere_reflectance_field,
 )
 from kornia_ilum.render.spheres import _diffuse, _lighting_samples, _matte_silver
@@ -215,6 +219,18 @@ class TestRenderSpheres:
         for name, render in module(lighting).items():
             torch.testing.assert_close(render, expected[name])
         assert "field_diffuse" not in module.state_dict()  # non-persistent buffers
+
+    def test_encode_and_pyramid_modules_match_functional(self):
+        lighting = torch.rand(2, 3, 32, 32)
+        for gamma in ("exact", "safe"):
+            torch.testing.assert_close(EncodeSphere(gamma)(lighting), encode_sphere(lighting, gamma), rtol=0, atol=0)
+            module = SpherePyramid((4, 16), ("diffuse", "mirror"), gamma=gamma)(lighting)
+            expected = sphere_pyramid(lighting, (4, 16), ("diffuse", "mirror"), gamma=gamma)
+            assert module.keys() == expected.keys()
+            for name, value in module.items():
+                torch.testing.assert_close(value, expected[name], rtol=0, atol=0)
+        with pytest.raises(ValueCheckError):  # checked when built
+            EncodeSphere("srgb")
 
     def test_module_keeps_float64_exact(self):
         """float64 lighting is not rounded through the module's float32 buffers (issue 24)."""

@@ -16,7 +16,7 @@ from kornia_ilum.geometry import (
     mirror_ball_solid_angles,
     mirror_ball_valid,
 )
-from kornia_ilum.sh import dominant_light, sh_project
+from kornia_ilum.sh import SplitDominantLight, dominant_light, sh_project
 
 SKY = torch.tensor([0.2, 0.3, 0.5], dtype=torch.float64)
 SUN = torch.tensor([3000.0, 2600.0, 2000.0], dtype=torch.float64)
@@ -89,3 +89,13 @@ def test_refusals() -> None:
             dominant_light(ball, **bad)
     with pytest.raises(ValueCheckError, match="index"):
         dominant_light(ball).to_dict(1)
+
+
+def test_module_matches_functional() -> None:
+    ball, _ = _sky_with_sun(torch.tensor([0.8, 0.2, -0.3], dtype=torch.float64))
+    module, expected = SplitDominantLight(threshold=0.05, max_angle=15.0)(ball), dominant_light(
+        ball, threshold=0.05, max_angle=15.0)
+    for name in ("direction", "solid_angle", "irradiance", "ambient_sh"):
+        torch.testing.assert_close(getattr(module, name), getattr(expected, name), rtol=0.0, atol=0.0)
+    with pytest.raises(ValueCheckError, match="max_angle"):  # checked when built, not on the first call
+        SplitDominantLight(max_angle=100.0)
