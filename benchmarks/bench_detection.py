@@ -134,14 +134,6 @@ def _shared() -> Path:
     return Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
-def default_yunet_weights() -> str | None:
-    """``$KORNIA_ILUM_YUNET_WEIGHTS`` or the shared data's ``weights/yunet_final.pth`` (None: the detector's
-    own search)."""
-    env = os.environ.get("KORNIA_ILUM_YUNET_WEIGHTS")
-    path = Path(env) if env else _shared() / "weights" / "yunet_final.pth"
-    return str(path) if path.is_file() else None
-
-
 def default_hdri() -> list[str]:
     root = _shared()
     return [str(root / d) for d in ("hdri", "hdri_more") if (root / d).is_dir()]
@@ -155,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--upscale", type=int, default=512, help="frame side before detection (512; 0: as rendered)")
     p.add_argument("--hdri", nargs="*", default=None, help="folders of real maps (default: shared hdri, hdri_more)")
     p.add_argument("--detectors", nargs="+", default=["yunet", "opencv"], choices=("yunet", "opencv"))
-    p.add_argument("--yunet-weights", default=None, help="YuNet weights (default: $KORNIA_ILUM_YUNET_WEIGHTS, else the shared data's)")
+    p.add_argument("--yunet-weights", default=None, help="other YuNet weights (default: the package's)")
     p.add_argument("--yunet-thresholds", type=float, nargs="*", default=[], metavar="T",
                    help="also YuNet with these confidence thresholds, and their false faces on face-free photos")
     p.add_argument("--max-side", type=int, nargs="*", default=[], metavar="N",
@@ -189,9 +181,8 @@ def main(argv: list[str] | None = None) -> int:
     sampler = EnvironmentSampler(sources, seed=args.seed)
     detectors = {}
     for name in args.detectors:
-        weights = args.yunet_weights or default_yunet_weights()
-        kw = {"weights_path": weights} if name == "yunet" and weights else {}
-        for side in [None, *args.max_side]:  # the same detector on downscaled copies: speed against faces
+        kw = {"weights_path": args.yunet_weights} if name == "yunet" and args.yunet_weights else {}
+        for side in [None, *args.max_side]:  # full size, then the same detector on downscaled copies
             detectors[name if side is None else f"{name}@{side}"] = create_detector(name, max_side=side, **kw)
         for threshold in args.yunet_thresholds if name == "yunet" else []:
             detectors[f"yunet>={threshold:g}"] = create_detector(name, confidence_threshold=threshold, **kw)

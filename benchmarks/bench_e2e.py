@@ -20,7 +20,6 @@ divided by the baseline's. This is a benchmark, not a test: it asserts nothing.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -35,8 +34,6 @@ from kornia_ilum.bench import portrait_photo  # noqa: E402
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes  # noqa: E402
 from kornia_ilum.estimators import create_estimator  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_YUNET = Path(os.environ.get("KORNIA_ILUM_SHARED_DATA", ROOT / ".." / "shared" / "data")) / "weights" / "yunet_final.pth"
 
 
 def test_image() -> torch.Tensor:
@@ -49,15 +46,15 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     parser.add_argument("--repeats", type=int, default=10, help="timed runs per row (default 10)")
-    parser.add_argument("--yunet", type=Path, default=DEFAULT_YUNET, help="local yunet_final.pth")
+    parser.add_argument("--yunet", type=Path, default=None, help="other YuNet weights (default: the package's)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(args.threads)
 
     image = test_image()
     detectors = {"opencv": create_detector("opencv")}
-    if args.yunet.is_file():
-        detectors["yunet"] = create_detector("yunet", weights_path=args.yunet)
+    if args.yunet is None or args.yunet.is_file():
+        detectors["yunet"] = create_detector("yunet", max_side=None, **({"weights_path": args.yunet} if args.yunet else {}))
     else:
         print(f"(yunet skipped: no weights at {args.yunet})")
     estimators = {"uniform": create_estimator("uniform"), "ours": create_estimator("ours", pretrained=False).eval()}

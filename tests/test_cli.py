@@ -56,7 +56,7 @@ class TestEstimate:
         out = capsys.readouterr().out
         assert f"wrote {exr} (mirror ball 32x32, face 0 of astronaut" in out
         assert f"wrote {png} (preview 96x32" in out
-        assert "astronaut: 1 face (detector opencv, " in out and " ms" in out
+        assert "astronaut: 1 face (detector yunet, " in out and " ms" in out
         light = estimate_lighting(astronaut)
         torch.testing.assert_close(read_hdr(exr), light.mirror_ball[0])
         assert read_ldr(png).shape == (3, 32, 96)
@@ -100,9 +100,12 @@ class TestEstimate:
 
     def test_fallback(self, tmp_path, capsys):
         flat = _png(tmp_path / "flat.png", np.full((64, 96, 3), 100, np.uint8))
-        assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr")]) == 1
+        assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr"), "--detector", "opencv"]) == 1
         line = _error_line(capsys)
         assert "no face found in image" in line and "--fallback full_image" in line and "--detector yunet" in line
+        assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr")]) == 1  # the default: yunet
+        line = _error_line(capsys)
+        assert "by detector 'yunet'" in line and "--fallback full_image" in line and "--detector yunet" not in line
         assert "fallback='full_image'" not in line  # options, not the API's Python arguments
         assert main(["estimate", flat, "-o", str(tmp_path / "flat.exr"), "--fallback", "full_image"]) == 0
         assert "box [16, 0, 80, 64]" in capsys.readouterr().out

@@ -100,6 +100,31 @@ def test_a_cut_restarts_the_smoothing_and_detects_again() -> None:
     torch.testing.assert_close(cut.lighting.mirror_ball, alone.lighting.mirror_ball)
 
 
+def _two_people() -> np.ndarray:
+    """A 480 x 1280 strip: the astronaut (a face of about 90 pixels) on the left, the cameraman (65) on the right."""
+    strip = np.zeros((480, 1280, 3), np.uint8)
+    strip[:, 40:520] = cv2.resize(FACE, (480, 480), interpolation=cv2.INTER_AREA)
+    camera = cv2.resize(skimage.data.camera(), (480, 480), interpolation=cv2.INTER_AREA)
+    strip[:, 760:1240] = camera[..., None]
+    return strip
+
+
+def test_another_face_is_a_cut_not_a_jump() -> None:
+    """A pan over two people: when the tracked face leaves the frame and the detector takes the other one, the
+    new face's lighting starts afresh (a cut), however little the crop's thumbnail changed; the smoothing
+    does not carry the first face's light into it."""
+    strip = _two_people()
+    frames = [np.ascontiguousarray(strip[:, x : x + 640]) for x in range(0, 641, 40)]
+    tracker = LightingTracker(estimator="uniform", time_constant=8.0, detect_every=1, cut_above=1.0)
+    out = [tracker(f) for f in frames]
+    centres = [float(f.lighting.boxes[0, [0, 2]].mean()) + 40 * i for i, f in enumerate(out)]  # in the strip
+    switch = next(i for i, c in enumerate(centres) if c > 640)
+    assert all(c < 640 for c in centres[:switch]) and all(c > 640 for c in centres[switch:])
+    assert [f.cut for f in out] == [i == switch for i in range(len(out))]
+    fresh = LightingTracker(estimator="uniform")(frames[switch])
+    torch.testing.assert_close(out[switch].lighting.mirror_ball, fresh.lighting.mirror_ball)
+
+
 def test_faceless_frames() -> None:
     noise = np.random.default_rng(0).integers(0, 255, (120, 160, 3), dtype=np.uint8)
     with pytest.raises(NoFaceError, match="frame 0"):

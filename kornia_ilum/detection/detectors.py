@@ -62,7 +62,7 @@ YUNET_SHA256 = "ee0a3035c5cbfc9484a31332223c9fd9c0ddcdb7c46b6a19e558ed393b6f2c67
 #: The smallest side YuNet's network takes; a smaller image (or detection copy) is padded with black to it.
 YUNET_MIN_SIDE = 64
 #: SHA-256 of the packaged :data:`YUNET_WEIGHTS` (the same tensors as ``yunet_final.pth``).
-YUNET_SAFETENSORS_SHA256 = "9d0f84b3f75c6cd20ce9f890e733109cf1273ae88c366196658b9c12c391e92f"
+YUNET_SAFETENSORS_SHA256 = "4d7dd0394279cb4e5190630d1b3dea45a316dded92640e07efebf09bcec8091a"
 
 
 class FaceDetector(nn.Module):
@@ -315,15 +315,14 @@ class OpenCVFaceDetector(FaceDetector):
 
 
 # ----------------------------------------------------------------------------------------------- YuNet
-def _yunet_weight_candidates(weights_path: str | os.PathLike[str] | None) -> list[tuple[str, Path]]:
-    """Where the YuNet weights are looked for, in order: the argument, the environment, the package."""
+def _yunet_weights(weights_path: str | os.PathLike[str] | None) -> tuple[str, Path]:
+    """Which YuNet weights to read and why: the argument, else the environment's override, else the package's
+    (an override that names a missing file is an error, not a silent fall-back to the package's)."""
     if weights_path is not None:
-        return [("weights_path", Path(weights_path).expanduser())]
-    places = []
+        return "weights_path", Path(weights_path).expanduser()
     if os.environ.get(YUNET_WEIGHTS_ENV):
-        places.append((f"${YUNET_WEIGHTS_ENV}", Path(os.environ[YUNET_WEIGHTS_ENV]).expanduser()))
-    places.append(("the package", YUNET_WEIGHTS))
-    return places
+        return f"${YUNET_WEIGHTS_ENV}", Path(os.environ[YUNET_WEIGHTS_ENV]).expanduser()
+    return "the package", YUNET_WEIGHTS
 
 
 def _read_yunet_state(path: Path) -> dict[str, torch.Tensor]:
@@ -340,7 +339,7 @@ def convert_yunet_weights(source: str | os.PathLike[str], out: str | os.PathLike
     r"""Convert Kornia's ``yunet_final.pth`` to the safetensors file the package ships (:data:`YUNET_WEIGHTS`).
 
     The tensors are copied unchanged (float32, and batch norm's int64 counters); the file's metadata names the
-    source and its SHA-256. The output is written atomically and is the same, byte for byte, for the same source,
+    source and its SHA-256 (``"source"``). The output is written atomically and is the same, byte for byte, for the same source,
     so ``convert_yunet_weights("yunet_final.pth", "yunet.safetensors")`` remakes the packaged file exactly
     (``tests/detection/test_detectors.py``).
 
@@ -365,8 +364,8 @@ def convert_yunet_weights(source: str | os.PathLike[str], out: str | os.PathLike
         raise WeightsChecksumError(f"{str(source)!r} has SHA-256 {digest}, not that of Kornia's yunet_final.pth "
                                    f"({YUNET_SHA256})")
     state = {k: v.contiguous() for k, v in _read_yunet_state(source).items()}
-    atomic_write(out, lambda tmp: save_file(state, str(tmp), metadata={"source": "yunet_final.pth",
-                                                                        "source_sha256": digest}))
+    # one metadata entry: safetensors writes several in a random order, and the file must come out the same
+    atomic_write(out, lambda tmp: save_file(state, str(tmp), metadata={"source": f"yunet_final.pth sha256 {digest}"}))
     return sha256_file(out)
 
 
@@ -452,12 +451,10 @@ class YuNetFaceDetector(FaceDetector):
         for name, value in (("confidence_threshold", confidence_threshold), ("nms_threshold", nms_threshold)):
             if not (isinstance(value, (int, float)) and 0 <= value <= 1):
                 raise ValueCheckError(f"{name} must be in [0, 1], got {value!r}")
-        places = _yunet_weight_candidates(weights_path)
-        path = next((p for _, p in places if p.is_file()), None)
-        if path is None:
-            looked = "; ".join(f"{where}: {p}" for where, p in places)
+        where, path = _yunet_weights(weights_path)
+        if not path.is_file():
             raise MissingWeightsError(
-                f"YuNet weights not found; looked at {looked}. They are never downloaded: pass weights_path=... "
+                f"YuNet weights not found; looked at {where}: {path}. They are never downloaded: pass weights_path=... "
                 f"or set ${YUNET_WEIGHTS_ENV} to a .safetensors or yunet_final.pth file, or unset it to use the "
                 "weights that ship with kornia_ilum"
             )

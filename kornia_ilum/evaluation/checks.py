@@ -479,12 +479,12 @@ def exposure_equivariance(
 
 
 def default_photos() -> dict[str, np.ndarray]:
-    r"""The real photos the exposure check uses by default: those of scikit-image's sample data in which the
-    default detector (:data:`~kornia_ilum.detection.DEFAULT_DETECTOR`) finds a face.
+    r"""The real photos the exposure check uses by default: the colour photograph of a face among scikit-image's
+    sample data.
 
     That is the astronaut (Eileen Collins, :func:`skimage.data.astronaut`). The cameraman
-    (:func:`skimage.data.camera`) holds a face too, in grey, which only ``"yunet"`` finds; the other sample
-    images hold none (or a cat's).
+    (:func:`skimage.data.camera`) holds a face too, turned and in grey, which only ``"yunet"`` finds; it is left
+    out, so that the check is the same with either detector. The other sample images hold none (or a cat's).
 
     Returns:
         ``{name: (H, W, 3) uint8 array}``.

@@ -11,6 +11,7 @@ from kornia_ilum.detection import (
     FaceDetector,
     NoFaceDetector,
     OpenCVFaceDetector,
+    YuNetFaceDetector,
     create_detector,
     describe_detector,
     list_detectors,
@@ -46,7 +47,8 @@ class TestListDetectors:
 
 class TestCreateDetector:
     def test_smoke(self):
-        assert isinstance(create_detector(), OpenCVFaceDetector)
+        assert isinstance(create_detector(), YuNetFaceDetector) and create_detector().max_side == 240
+        assert isinstance(create_detector("opencv"), OpenCVFaceDetector)
         assert isinstance(create_detector("none"), NoFaceDetector)
 
     def test_kwargs_are_forwarded(self):
