@@ -236,12 +236,11 @@ FACE_FREE = ("chelsea", "horse", "stereo_motorcycle", "coffee", "rocket", "coins
              "immunohistochemistry")
 
 
-def false_faces(detectors: dict) -> str:
-    """For each detector, the face-free photographs of :data:`FACE_FREE` on which it finds a face, with the
-    highest score of each."""
-    import skimage.data  # lazy: only the false-face section reads scikit-image's photographs
+def face_free_photos() -> dict[str, torch.Tensor]:
+    """scikit-image's face-free photographs of :data:`FACE_FREE` as ``(1, 3, H, W)`` in ``[0, 1]`` (those this
+    scikit-image can give offline)."""
+    import skimage.data  # lazy: only the false-face sections read scikit-image's photographs
 
-    lines = ["false faces on scikit-image's face-free photographs (highest score):"]
     photos = {}
     for name in FACE_FREE:
         try:
@@ -251,7 +250,15 @@ def false_faces(detectors: dict) -> str:
         pixels = pixels[0] if isinstance(pixels, tuple) else pixels
         image = torch.from_numpy(pixels).float() / (1.0 if pixels.dtype == bool else 255.0)  # the horse: 0 / 1
         image = image[..., None].expand(-1, -1, 3) if image.dim() == 2 else image[..., :3]
-        photos[name] = image.permute(2, 0, 1)[None]
+        photos[name] = image.permute(2, 0, 1)[None].contiguous()
+    return photos
+
+
+def false_faces(detectors: dict) -> str:
+    """For each detector, the face-free photographs of :data:`FACE_FREE` on which it finds a face, with the
+    highest score of each."""
+    lines = ["false faces on scikit-image's face-free photographs (highest score):"]
+    photos = face_free_photos()
     for name, det in detectors.items():
         found = {p: float(det.detect(x)[0][:, 4].max()) for p, x in photos.items() if len(det.detect(x)[0])}
         listed = ", ".join(f"{p} {v:.2f}" for p, v in sorted(found.items(), key=lambda kv: -kv[1]))

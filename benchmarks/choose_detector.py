@@ -50,7 +50,7 @@ import torch
 import torch.nn.functional as F
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_detection import FACE_FREE, default_hdri, eval_entries, iou, is_hit  # noqa: E402
+from bench_detection import default_hdri, eval_entries, face_free_photos, iou, is_hit  # noqa: E402
 
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes  # noqa: E402
 from kornia_ilum.estimators import create_estimator  # noqa: E402
@@ -129,23 +129,6 @@ def people_photos() -> list[tuple[str, torch.Tensor, torch.Tensor]]:
                 out.append((f"{name} x{scale}{' mirrored' if mirrored else ''}", canvas.clamp(0, 1),
                             box + torch.tensor([left, top, left, top])))
     return out
-
-
-def face_free_photos() -> dict[str, torch.Tensor]:
-    """scikit-image's face-free photographs of :data:`bench_detection.FACE_FREE` as ``(1, 3, H, W)`` in ``[0, 1]``."""
-    import skimage.data
-
-    photos = {}
-    for name in FACE_FREE:
-        try:
-            pixels = getattr(skimage.data, name)()
-        except Exception:  # a photograph this scikit-image cannot give offline
-            continue
-        pixels = pixels[0] if isinstance(pixels, tuple) else pixels
-        image = torch.from_numpy(pixels).float() / (1.0 if pixels.dtype == bool else 255.0)
-        image = image[..., None].expand(-1, -1, 3) if image.dim() == 2 else image[..., :3]
-        photos[name] = image.permute(2, 0, 1)[None].contiguous()
-    return photos
 
 
 def pct(values: list[float], q: float) -> float:
