@@ -7,7 +7,7 @@ For ``--count`` renders (cycling over the caches' EVAL-split subject-views, :fun
 the field under an environment of :class:`EnvironmentSampler` (procedural skies and rooms plus the real maps
 of ``--hdri`` folders, default ``$KORNIA_ILUM_SHARED_DATA/{hdri,hdri_more}``; random rotation, flip, exposure
 and white balance), composites it over that environment seen through the view's camera, auto-exposes and
-encodes 8-bit sRGB (:func:`kornia_ilum.synth.lightstage.preview.compose_portrait`), upscales the frame to
+encodes 8-bit sRGB (:func:`kornia_ilum_lab.synth.lightstage.preview.compose_portrait`), upscales the frame to
 ``--upscale`` pixels (bilinear with antialiasing; 0 keeps it: Haar's smallest window is 30 px and YuNet was
 trained on larger faces, so 192-pixel frames with 96-pixel faces are upscaled by default), and runs YuNet and
 OpenCV's Haar cascade on the full frame. A detection counts when one of its boxes overlaps the true face box
@@ -35,13 +35,13 @@ import torch
 import torch.nn.functional as F
 
 from kornia_ilum.detection import create_detector
-from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-from kornia_ilum.synth.environments.real import HDRFolderSource
-from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache, read_field, read_manifest
-from kornia_ilum.synth.lightstage.preview import compose_portrait
-from kornia_ilum.synth.lightstage.settings import Auto
-from kornia_ilum.synth.lightstage.subjects import subject_split
-from kornia_ilum.synth.lightstage.subjects.makehuman import SWEPT_FRINGE_STYLES
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, default_sources
+from kornia_ilum_lab.synth.environments.real import HDRFolderSource
+from kornia_ilum_lab.synth.lightstage.cache import SampledViews, Workers, build_cache, read_field, read_manifest
+from kornia_ilum_lab.synth.lightstage.preview import compose_portrait
+from kornia_ilum_lab.synth.lightstage.settings import Auto
+from kornia_ilum_lab.synth.lightstage.subjects import subject_split
+from kornia_ilum_lab.synth.lightstage.subjects.makehuman import SWEPT_FRINGE_STYLES
 
 BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 35.01))
 

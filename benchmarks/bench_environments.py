@@ -4,10 +4,10 @@ Run: ``python benchmarks/bench_environments.py [--height H] [--samples N] [--fol
 [--threads 1]``
 
 - rotation of an ``H x 2H`` map by yaw 37, pitch 21 degrees:
-  :func:`~kornia_ilum.synth.environments.rotate_latlong` (the sampler's, energy-conserving, no tables)
+  :func:`~kornia_ilum_lab.synth.environments.rotate_latlong` (the sampler's, energy-conserving, no tables)
   against :func:`~kornia_ilum.geometry.rotate_lighting` (``layout="latlong"``, exact, its tables built per
   call; the baseline, once per repeat);
-- sampling: :class:`~kornia_ilum.synth.environments.EnvironmentSampler` (the default sources at height ``H``:
+- sampling: :class:`~kornia_ilum_lab.synth.environments.EnvironmentSampler` (the default sources at height ``H``:
   procedural skies and rooms, plus the real maps of ``--folder``; with augmentation unless ``--no-augment``),
   environments per second of CPU time over ``N`` fresh indices.
 
@@ -24,7 +24,7 @@ import torch
 from bench_ops import median_ms, row  # the benchmarks' one timer (run from benchmarks/)
 
 from kornia_ilum.geometry import rotate_lighting
-from kornia_ilum.synth.environments import (
+from kornia_ilum_lab.synth.environments import (
     EnvironmentSampler,
     default_sources,
     lighting_rotation,

@@ -2,8 +2,8 @@
 
 Run: ``python benchmarks/bench_filters.py [--quick] [--threads N] [--size S] [--lights N]``
 
-For :func:`~kornia_ilum.synth.lightstage.subsurface.subsurface_scatter` and
-:func:`~kornia_ilum.synth.lightstage.denoise.denoise_field` (default settings, and the denoiser with 3 a-trous
+For :func:`~kornia_ilum_lab.synth.lightstage.subsurface.subsurface_scatter` and
+:func:`~kornia_ilum_lab.synth.lightstage.denoise.denoise_field` (default settings, and the denoiser with 3 a-trous
 iterations) it prints the median of 3 of: building the sparse operator, applying it, and the whole call; and
 the direct per-light references (``_subsurface_reference``, ``_denoise_reference``: shifted whole images,
 weights recomputed per light) timed on a few lights in the same process, extrapolated to all lights, with the
@@ -26,9 +26,9 @@ from pathlib import Path
 
 import torch
 
-from kornia_ilum.synth.lightstage.denoise import _denoise_reference, denoise_field, denoise_operator
-from kornia_ilum.synth.lightstage.gbuffer import GBuffer
-from kornia_ilum.synth.lightstage.subsurface import (
+from kornia_ilum_lab.synth.lightstage.denoise import _denoise_reference, denoise_field, denoise_operator
+from kornia_ilum_lab.synth.lightstage.gbuffer import GBuffer
+from kornia_ilum_lab.synth.lightstage.subsurface import (
     _subsurface_reference,
     subsurface_operator,
     subsurface_scatter,

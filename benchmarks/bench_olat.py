@@ -3,7 +3,7 @@
 Run: ``python benchmarks/bench_olat.py [--source makehuman] [--seed 1] [--view 0] [--size 192] [--out bench_out/olat]``
 
 For one subject-view (``subject_source(--source).sample(--seed)``, view ``--view`` of
-:func:`~kornia_ilum.synth.lightstage.scene.sample_views` at ``--size``):
+:func:`~kornia_ilum_lab.synth.lightstage.scene.sample_views` at ``--size``):
 
 1. **Timing** of :func:`render_olat` (``OnePass()``, the default settings: :data:`ONEPASS_SPP` camera
    samples, 4 or 16 of them tracing the lights, subsurface on, denoise off) with one Dr.Jit thread and one
@@ -55,13 +55,13 @@ from kornia_ilum.color import linear_to_srgb
 from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_to_lights
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import relight
-from kornia_ilum.synth.lightstage.field import ReflectanceField
-from kornia_ilum.synth.lightstage.materials import select_mitsuba_variant
-from kornia_ilum.synth.lightstage.olat import render_olat
-from kornia_ilum.synth.lightstage.reference import render_lighting, render_olat_reference
-from kornia_ilum.synth.lightstage.scene import sample_views
-from kornia_ilum.synth.lightstage.settings import ONEPASS_SPP, OnePass, Reference
-from kornia_ilum.synth.lightstage.subjects import subject_source
+from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
+from kornia_ilum_lab.synth.lightstage.materials import select_mitsuba_variant
+from kornia_ilum_lab.synth.lightstage.olat import render_olat
+from kornia_ilum_lab.synth.lightstage.reference import render_lighting, render_olat_reference
+from kornia_ilum_lab.synth.lightstage.scene import sample_views
+from kornia_ilum_lab.synth.lightstage.settings import ONEPASS_SPP, OnePass, Reference
+from kornia_ilum_lab.synth.lightstage.subjects import subject_source
 
 HDRI = Path("/work/shared/data/hdri")
 SUN = HDRI / "pedestrian_overpass_1k.hdr"

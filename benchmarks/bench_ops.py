@@ -207,9 +207,9 @@ def bench_images(quick: bool) -> None:
     row("linear_to_srgb + quantize + round (baseline)", base, base)
     row("encode_srgb8 (65536-cell table)", median_ms(lambda: encode_srgb8(x), reps), base)
 
-    from kornia_ilum.synth.background import camera_rays, sample_latlong
-    from kornia_ilum.synth.lightstage import Camera
-    from kornia_ilum.synth.lightstage.portraits import frame_background
+    from kornia_ilum_lab.synth.background import camera_rays, sample_latlong
+    from kornia_ilum_lab.synth.lightstage import Camera
+    from kornia_ilum_lab.synth.lightstage.portraits import frame_background
 
     print("[images] background frames 192x192 of 16 lat-long maps 128x256 through a 30-degree camera")
     maps = torch.rand(16, 3, 128, 256)
@@ -221,7 +221,7 @@ def bench_images(quick: bool) -> None:
 
     from kornia.geometry.transform import crop_and_resize
 
-    from kornia_ilum.synth.lightstage.portraits import crop_images
+    from kornia_ilum_lab.synth.lightstage.portraits import crop_images
 
     print("[images] 8 square crops of 4 x 192 x 192 frames resized to 256 x 256")
     frames = torch.rand(8, 4, 192, 192)

@@ -12,11 +12,11 @@ sample: each sample pays for a whole read of its field and for a procedural envi
 
 ``--relight-eps EPS`` (with ``--cache`` and ``--max-fields``) also times the training draws relit sparsely
 (``PortraitConfig(relight_eps=EPS)``, from the fields' sidecars, written first where missing:
-:func:`kornia_ilum.synth.lightstage.write_sparse`), interleaved with the exact ones in the same run, and prints
+:func:`kornia_ilum_lab.synth.lightstage.write_sparse`), interleaved with the exact ones in the same run, and prints
 how far their 8-bit images are from the exact ones.
 
 ``--loader-workers N`` also times what a training loop sees: its own loader
-(:func:`kornia_ilum.train.data.batch_loader`, a :class:`~torch.utils.data.DataLoader` of the training portraits
+(:func:`kornia_ilum_lab.train.data.batch_loader`, a :class:`~torch.utils.data.DataLoader` of the training portraits
 with ``N`` worker processes of one torch thread each) and batches of 32, over 64 batches after 8.
 
 With ``--cache`` (a folder written by ``kornia-ilum synth subjects``) it uses the cached reflectance fields
@@ -43,25 +43,25 @@ from bench_ops import median_ms as _median_ms  # the benchmarks' one timer (run 
 from kornia_ilum.color import encode_srgb8
 from kornia_ilum.core.errors import HDRIOError
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.synth import camera_effects as fx
-from kornia_ilum.synth.camera_effects import CameraEffects
-from kornia_ilum.synth.environments import EnvironmentSampler, lighting_rotation
-from kornia_ilum.synth.lightstage import (
+from kornia_ilum_lab.synth import camera_effects as fx
+from kornia_ilum_lab.synth.camera_effects import CameraEffects
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, lighting_rotation
+from kornia_ilum_lab.synth.lightstage import (
     LANDMARK_NAMES,
     Camera,
     PortraitDataset,
     ReflectanceField,
     read_manifest,
 )
-from kornia_ilum.synth.lightstage import read_sparse, write_sparse
-from kornia_ilum.synth.lightstage.portraits import (
+from kornia_ilum_lab.synth.lightstage import read_sparse, write_sparse
+from kornia_ilum_lab.synth.lightstage.portraits import (
     PortraitConfig,
     background_pyramid,
     frame_background,
     frame_backgrounds,
     load_fields,
 )
-from kornia_ilum.train.data import TRAINING_PORTRAITS, batch_loader
+from kornia_ilum_lab.train.data import TRAINING_PORTRAITS, batch_loader
 
 
 def stand_in_fields(count: int = 4, size: int = 192, covered: int = 17116) -> list[ReflectanceField]:
@@ -267,7 +267,7 @@ def main() -> int:
         for _ in range(64):
             next(batches)
         loaded = 64 * 32 / (time.perf_counter() - start)
-        print(f"training loader (kornia_ilum.train.data.batch_loader), {args.loader_workers} workers, batches of 32:  "
+        print(f"training loader (kornia_ilum_lab.train.data.batch_loader), {args.loader_workers} workers, batches of 32:  "
               f"{loaded:7.1f} samples/s")
     return 0
 

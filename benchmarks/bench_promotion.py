@@ -55,7 +55,7 @@ from kornia_ilum.geometry import latlong_to_mirror_ball, mirror_ball_solid_angle
 from kornia_ilum.io import read_hdr
 from kornia_ilum.metrics import reconstruction_loss, relative_radiance
 from kornia_ilum.render import MIRROR_REFLECTIVITY, render_spheres
-from kornia_ilum.synth.promotion import (
+from kornia_ilum.promotion import (
     CLIP_THRESHOLD,
     _build_system,
     _fields,

@@ -2,12 +2,12 @@
 
 Run: ``python benchmarks/bench_train.py [--batch 32] [--threads 2] [--repeats 5]``, or
 ``python benchmarks/bench_train.py --recipes ours sh sipr --batch 8`` for the step of each trainable estimator
-(its recipe's :meth:`~kornia_ilum.train.recipes.Recipe.step`, at the training defaults), as a ratio to the
+(its recipe's :meth:`~kornia_ilum_lab.train.recipes.Recipe.step`, at the training defaults), as a ratio to the
 first, with the projected wall time of the shipped run (3600 steps of 32 samples) on this machine and the
 steps of 32 that sipr's budget (``BUDGET_H``) buys. Each recipe's step runs at its estimator's input size
 (``info.input_size``: sipr 128, the others 256), as its training data does.
 
-A step of ``ours`` is what :func:`kornia_ilum.train.train_step` does (through its recipe): the multi-scale
+A step of ``ours`` is what :func:`kornia_ilum_lab.train.train_step` does (through its recipe): the multi-scale
 generator forward, the rendering losses at 4-32 px, one discriminator step and one generator step (Adam), on
 random uint8 crops and lightings (no data pipeline). Prints the median step time of each variant and its ratio against float32 contiguous, measured in
 the same process, plus samples/s. The training defaults (``--bf16``, ``--channels-last``) follow these numbers.
@@ -21,7 +21,7 @@ import torch
 from bench_ops import median_ms  # the benchmarks' one timer (run from benchmarks/)
 
 from kornia_ilum.geometry import mirror_ball_valid
-from kornia_ilum.train import TrainConfig, get_recipe, resolve_runtime
+from kornia_ilum_lab.train import TrainConfig, get_recipe, resolve_runtime
 
 
 #: sipr's training budget on the project's 2 cores (issue 22), in hours: the steps of 32 it buys are printed.

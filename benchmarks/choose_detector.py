@@ -6,9 +6,9 @@ Run: ``python benchmarks/choose_detector.py --cache /work/cache/mh192_eval [--hd
 
 **The photos.** Each of ``--count`` eval subject-views of the caches (spread evenly over them, so every Monk
 tone, pose and accessory the eval split has is in) is relit under an environment of
-:class:`~kornia_ilum.synth.environments.EnvironmentSampler` (procedural skies and rooms and the real maps of
+:class:`~kornia_ilum_lab.synth.environments.EnvironmentSampler` (procedural skies and rooms and the real maps of
 ``--hdri``) over its background and encoded to 8-bit sRGB
-(:func:`~kornia_ilum.synth.lightstage.preview.compose_portrait`); the 192-pixel frame is resized to ``--frame``
+(:func:`~kornia_ilum_lab.synth.lightstage.preview.compose_portrait`); the 192-pixel frame is resized to ``--frame``
 pixels and centred on a black 640 x 480 canvas, as ``kornia-ilum bench`` builds its photo (a face of about half
 the frame's side, 120 pixels at the default). The same subject-view is also made under a second environment
 (another light) and shifted right by one pixel.
@@ -55,10 +55,10 @@ from bench_detection import default_hdri, eval_entries, face_free_photos, iou, i
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes  # noqa: E402
 from kornia_ilum.estimators import create_estimator  # noqa: E402
 from kornia_ilum.metrics import total_radiance  # noqa: E402
-from kornia_ilum.synth.environments import EnvironmentSampler, default_sources  # noqa: E402
-from kornia_ilum.synth.environments.real import HDRFolderSource  # noqa: E402
-from kornia_ilum.synth.lightstage.cache import read_field  # noqa: E402
-from kornia_ilum.synth.lightstage.preview import compose_portrait  # noqa: E402
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, default_sources  # noqa: E402
+from kornia_ilum_lab.synth.environments.real import HDRFolderSource  # noqa: E402
+from kornia_ilum_lab.synth.lightstage.cache import read_field  # noqa: E402
+from kornia_ilum_lab.synth.lightstage.preview import compose_portrait  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
 TONE_GROUPS = ((1, 3), (4, 6), (7, 8), (9, 10))

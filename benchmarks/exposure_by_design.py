@@ -6,7 +6,7 @@ Run: ``python benchmarks/exposure_by_design.py --cache EVAL_CACHE ... --hdri ../
 For each estimator, the shipped weights twice: as trained (``normalize_exposure=False``) and by design
 (``True``: the crop re-exposed to a metered 0.18, the estimate scaled back; the default since issue 39). Both
 are scored on the same eval portraits of ``kornia-ilum evaluate`` (``L_rec`` per sphere, and the paired
-difference with its 95 % interval, :func:`kornia_ilum.evaluation.paired_differences`), and on exposure
+difference with its 95 % interval, :func:`kornia_ilum_lab.evaluation.paired_differences`), and on exposure
 equivariance, ``E(k x) / (k E(x))`` at ``k = 0.5`` and ``0.25``, median over the eval crops and over the real
 photos of the evaluation (scikit-image's astronaut). The shipping rule of issue 39 lets a change through when
 diffuse and matte silver ``L_rec`` rise by at most 3 % (relative) and mirror by at most 10 %.
@@ -21,7 +21,7 @@ import argparse
 import torch
 
 from kornia_ilum.estimators import create_estimator
-from kornia_ilum.evaluation import (
+from kornia_ilum_lab.evaluation import (
     BRDF_NAMES,
     build_eval_set,
     default_photos,

@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kornia_ilum.evaluation import build_eval_set, lighting_energy, load_checkpoint, load_estimator
-from kornia_ilum.evaluation.cli import parse_weights
-from kornia_ilum.synth.lightstage import read_manifest
+from kornia_ilum_lab.evaluation import build_eval_set, lighting_energy, load_checkpoint, load_estimator
+from kornia_ilum_lab.evaluation.cli import parse_weights
+from kornia_ilum_lab.synth.lightstage import read_manifest
 
 FOLDS = 5
 

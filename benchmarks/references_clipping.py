@@ -22,8 +22,8 @@ import argparse
 
 import torch
 
-from kornia_ilum.evaluation import build_eval_set
-from kornia_ilum.synth.camera_effects import CameraEffects
+from kornia_ilum_lab.evaluation import build_eval_set
+from kornia_ilum_lab.synth.camera_effects import CameraEffects
 
 
 def clipped_shares(images: torch.Tensor, alpha: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -5,7 +5,7 @@ Run: ``python benchmarks/tones_on_training.py --cache TRAIN_CACHE ... --hdri ../
 
 ``kornia-ilum evaluate`` scores E with / true per Monk tone on held-out subjects. Where a tone reads too little
 light there, the network may fail to generalise to new faces, or fail to read the tone at all. This draws fresh
-portraits of the *training* subjects (the calibration stream of :mod:`kornia_ilum.train.calibration`: training
+portraits of the *training* subjects (the calibration stream of :mod:`kornia_ilum_lab.train.calibration`: training
 environments, lightings and crops that no training step drew) and prints, per weights file, the median of E /
 true per tone (``E`` the lighting's radiance summed over the sphere, averaged over R, G, B) and the tone spread
 (largest over smallest). Equal spreads on training and eval subjects say the network cannot read the tone even
@@ -24,9 +24,9 @@ import torch
 from kornia_ilum.estimators import OursEstimator
 from kornia_ilum.estimators.base import read_weights
 from kornia_ilum.metrics import total_radiance
-from kornia_ilum.train import TrainConfig
-from kornia_ilum.train.calibration import CALIBRATION_STREAM
-from kornia_ilum.train.data import collate, training_dataset
+from kornia_ilum_lab.train import TrainConfig
+from kornia_ilum_lab.train.calibration import CALIBRATION_STREAM
+from kornia_ilum_lab.train.data import collate, training_dataset
 
 
 def main() -> None:

@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=3)
     args = parser.parse_args(argv)
 
-    from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
+    from kornia_ilum_lab.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "OMP_NUM_THREADS": "1", "TMPDIR": tmp}  # the runs' own temporary files go here too

@@ -7,11 +7,11 @@ Subcommands:
   ships with scikit-image (:func:`skimage.data.astronaut`).
 - ``kornia-ilum list``: the registered estimators and face detectors, with their metadata.
 - ``kornia-ilum synth ...``: the light stage (environments, subject caches).
-- ``kornia-ilum train``: train an estimator on the light stage (:mod:`kornia_ilum.train`).
+- ``kornia-ilum train``: train an estimator on the light stage (:mod:`kornia_ilum_lab.train`).
 - ``kornia-ilum evaluate``: the paper's tables on the project's held-out split
-  (:mod:`kornia_ilum.evaluation`).
+  (:mod:`kornia_ilum_lab.evaluation`).
 - ``kornia-ilum ablate``: the paper's ablations, one training run per row, and their table
-  (:mod:`kornia_ilum.ablation`).
+  (:mod:`kornia_ilum_lab.ablation`).
 
 Errors print one line, ``kornia-ilum: error: ...``, on stderr, never a traceback (set
 ``KORNIA_ILUM_DEBUG=1`` to get one), and exit with status 2 for usage errors (bad options) or 1 for
@@ -29,6 +29,7 @@ import string
 import sys
 import time
 import warnings
+from importlib.metadata import entry_points
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -55,11 +56,6 @@ from kornia_ilum.estimators import (
     runtime_parity,
 )
 from kornia_ilum.io import check_ldr, read_ldr
-from kornia_ilum.synth.cli import (
-    add_synth_check_skin_parser,
-    add_synth_environments_parser,
-    add_synth_subjects_parser,
-)
 
 PROG = "kornia-ilum"
 _SAMPLE = "astronaut"
@@ -106,38 +102,39 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(f"{message} (see '{self.prog} --help')")
 
 
-def _add_train_parser(sub: argparse._SubParsersAction) -> None:
-    from kornia_ilum.train.cli import add_train_parser  # lazy: the training package loads the light stage
-
-    add_train_parser(sub)
-
-
-def _add_evaluate_parser(sub: argparse._SubParsersAction) -> None:
-    from kornia_ilum.evaluation.cli import add_evaluate_parser  # lazy: evaluation loads the light stage
-
-    add_evaluate_parser(sub)
-
-
 def _add_bench_parser(sub: argparse._SubParsersAction) -> None:
-    from kornia_ilum.bench.cli import add_bench_parser  # lazy: the bench loads the evaluation
+    from kornia_ilum.bench.cli import add_bench_parser  # lazy: the bench loads the estimators' runtimes
 
     add_bench_parser(sub)
 
 
-def _add_ablate_parser(sub: argparse._SubParsersAction) -> None:
-    from kornia_ilum.ablation import add_ablate_parser  # lazy: the ablations train and evaluate
+#: The entry-point group of sub-commands that other packages add to ``kornia-ilum``: each names an object with
+#: a ``help`` line and ``add_parser(subparsers)`` (the lab's :mod:`kornia_ilum_lab.commands`).
+COMMAND_ENTRY_POINT_GROUP = "kornia_ilum.commands"
+#: The lab's commands, named in ``--help`` even where the lab is not installed: name -> help line.
+LAB_COMMANDS = {
+    "synth": "synthesis: lighting environments and light-stage subjects",
+    "train": "train an estimator on the light stage",
+    "evaluate": "score the estimators and two oracles on the held-out eval set",
+    "ablate": "the paper's ablations: one training run per row, and the table",
+}
+#: The entry-point group of the lab's functions that a library command calls: ``write_training_probe``
+#: (``kornia-ilum export --probe``).
+LAB_ENTRY_POINT_GROUP = "kornia_ilum.lab"
+#: How to install the lab (kornia_ilum_lab, in this repository's plugins/lab).
+LAB_INSTALL = "pip install -c constraints.txt -e ./plugins/lab"
 
-    add_ablate_parser(sub)
+
+def plugin_commands() -> dict[str, Any]:
+    """The sub-commands that installed packages add (``kornia_ilum.commands`` entry points): name -> command
+    (its ``help`` line and ``add_parser``). Loading them imports only each package's light command module."""
+    return {ep.name: ep.load() for ep in entry_points(group=COMMAND_ENTRY_POINT_GROUP)}
 
 
-#: The sub-commands whose packages load the light stage when imported: name -> (adds the real parser, its
-#: help line). A command line that does not name one gets a placeholder with the same help line instead, so
-#: that ``estimate``, ``list`` and ``--help`` start without the light stage (``tests/test_cli.py`` checks that
-#: the help lines agree).
+#: The library's own sub-commands whose modules are imported only when named: name -> (adds the real parser,
+#: its help line). A command line that does not name one gets a placeholder with the same help line, so that
+#: ``estimate``, ``list`` and ``--help`` start light (``tests/test_cli.py`` checks that the help lines agree).
 LAZY_COMMANDS = {
-    "train": (_add_train_parser, "train an estimator on the light stage"),
-    "evaluate": (_add_evaluate_parser, "score the estimators and two oracles on the held-out eval set"),
-    "ablate": (_add_ablate_parser, "the paper's ablations: one training run per row, and the table"),
     "bench": (_add_bench_parser, "run time against error: every estimator and runtime, this machine"),
 }
 
@@ -261,11 +258,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      "passes its parity check, ONNX Runtime then bfloat16, exported once per machine into the "
                      "cache: video is where speed counts; int8 is left out, its estimates move more with the crop; "
                      "eager for PyTorch float32; docs/skipping.rst gives the frame rates)")
-    add_synth_environments_parser(sub)
-    add_synth_subjects_parser(sub)
-    add_synth_check_skin_parser(sub)
-    for name, (add_parser, help_line) in LAZY_COMMANDS.items():
-        if command is None or command == name:
+    plugins = plugin_commands()
+    commands = {name: (plugins[name].add_parser, plugins[name].help) for name in plugins}
+    commands |= {name: (None, f"{help_line} (needs the lab: {LAB_INSTALL})")
+                 for name, help_line in LAB_COMMANDS.items() if name not in plugins}
+    commands |= LAZY_COMMANDS
+    for name in (*LAB_COMMANDS, *sorted(set(commands) - set(LAB_COMMANDS))):
+        add_parser, help_line = commands[name]
+        if add_parser is not None and (command is None or command == name):
             add_parser(sub)
         else:
             sub.add_parser(name, help=help_line)
@@ -461,7 +461,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_export_probe(args: argparse.Namespace) -> int:
-    from kornia_ilum.train.data import write_training_probe  # lazy: the training data load the light stage
+    found = [ep for ep in entry_points(group=LAB_ENTRY_POINT_GROUP) if ep.name == "write_training_probe"]
+    if not found:
+        raise _UsageError(f"export --probe renders light-stage portraits, which needs the lab: {LAB_INSTALL}")
+    write_training_probe = found[0].load()  # the lab's kornia_ilum_lab.train.data.write_training_probe
 
     folder = Path(args.probe)
     if not folder.is_dir():
@@ -601,14 +604,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         2
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(next((a for a in argv if not a.startswith("-")), ""))
+    command = next((a for a in argv if not a.startswith("-")), "")
     debug = bool(os.environ.get("KORNIA_ILUM_DEBUG"))
     with warnings.catch_warnings():
         warnings.showwarning = _warn
         try:
-            args = parser.parse_args(argv)
+            if command in LAB_COMMANDS and command not in plugin_commands():
+                raise _UsageError(f"'{command}' is a command of the lab, which is not installed: {LAB_INSTALL}")
+            args = build_parser(command).parse_args(argv)
             args.command_line = shlex.join(["kornia-ilum", *argv])  # what figures record (core.provenance)
-            if args.command in ("synth", *LAZY_COMMANDS):
+            if getattr(args, "func", None) is not None:  # the lab's commands and the lazy ones
                 return args.func(args)
             if args.command == "export":
                 return _cmd_export(args)

@@ -97,7 +97,7 @@ def untrained_name():
 @pytest.fixture(scope="session")
 def tiny_cache(tmp_path_factory):
     """A tiny light-stage cache for the training tests: two train mannequins, one 48 px view each."""
-    from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
+    from kornia_ilum_lab.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     out = tmp_path_factory.mktemp("train_cache")
     build_cache("mannequin", [0, 2], out, renderer=Auto(spp=4), views=SampledViews(1, size=48),

@@ -29,6 +29,7 @@ from tests.conftest import SHARED_DATA
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
     "kornia_ilum": ROOT / "kornia_ilum",
+    "kornia_ilum_lab": ROOT / "plugins" / "lab" / "kornia_ilum_lab",
     "kornia_ilum_sh": ROOT / "plugins" / "sh" / "kornia_ilum_sh",
     "kornia_ilum_sipr": ROOT / "plugins" / "sipr" / "kornia_ilum_sipr",
     "kornia_ilum_uniform": ROOT / "plugins" / "uniform" / "kornia_ilum_uniform",
@@ -93,15 +94,30 @@ def test_the_contract_holds(contracts, graph) -> None:
     ("kornia_ilum.core.check", "kornia_ilum.cli"),           # the bottom layer reaching the top
     ("kornia_ilum.render.spheres", "kornia_ilum.metrics"),   # one layer up
     ("kornia_ilum.geometry.resample", "kornia_ilum.detection.crop"),  # between independent siblings
-    ("kornia_ilum.estimators.base", "kornia_ilum.synth"),    # models and data stay apart
+    ("kornia_ilum.estimators.base", "kornia_ilum.api"),      # the models never reach the one-call API
 ])
 def test_an_upward_import_breaks_the_layers(contracts, graph, importer, imported) -> None:
     assert "kornia_ilum layers" in _broken(contracts, _with_import(graph, importer, imported))
 
 
+@pytest.mark.parametrize("importer, imported", [
+    ("kornia_ilum.api", "kornia_ilum_lab.synth.lightstage"),      # the library reaching into the lab
+    ("kornia_ilum.bench.run", "kornia_ilum_lab.evaluation"),     # even where the bench wants the error
+    ("kornia_ilum_sh.estimator", "kornia_ilum_lab.train"),        # a plugin's estimator, too
+])
+def test_the_library_never_imports_the_lab(contracts, graph, importer, imported) -> None:
+    """The two houses: a deliberate import of the lab from the library breaks the contract (lint-imports in CI)."""
+    assert "the library never imports the lab" in _broken(contracts, _with_import(graph, importer, imported))
+
+
+def test_the_lab_has_its_layers(contracts, graph) -> None:
+    changed = _with_import(graph, "kornia_ilum_lab.synth.lightstage.olat", "kornia_ilum_lab.train.recipes")
+    assert "kornia_ilum_lab layers" in _broken(contracts, changed)
+
+
 def test_a_cycle_breaks_the_contract(contracts, graph) -> None:
     # the loop imports the recipes; the recipes importing the loop back closes a cycle
-    broken = _broken(contracts, _with_import(graph, "kornia_ilum.train.recipes", "kornia_ilum.train.loop"))
+    broken = _broken(contracts, _with_import(graph, "kornia_ilum_lab.train.recipes", "kornia_ilum_lab.train.loop"))
     assert any(name.startswith("no import cycles") for name in broken), broken
 
 
@@ -180,21 +196,24 @@ def test_docstrings_and_comments_quote_no_timings() -> None:
 #: Modules without a test module of their own, and why.
 _UNTESTED_ALONE = {
     "kornia_ilum/core/errors.py": "exception classes only; every error is raised and caught by the other tests",
-    "kornia_ilum/synth/lightstage/gbuffer.py": "a dataclass; its one property has a doctest",
+    "plugins/lab/kornia_ilum_lab/synth/lightstage/gbuffer.py": "a dataclass; its one property has a doctest",
 }
 
 
 def test_tests_mirror_the_package() -> None:
-    """``kornia_ilum/a/b.py`` is tested in ``tests/a/test_b.py`` (a private ``_b.py`` in ``test_b.py``); the
-    plugins, one package each, in ``tests/plugins/test_<plugin>.py``."""
+    """``kornia_ilum/a/b.py`` is tested in ``tests/a/test_b.py`` (a private ``_b.py`` in ``test_b.py``), the lab's
+    ``plugins/lab/kornia_ilum_lab/a/b.py`` in ``tests/lab/a/test_b.py``; the estimator plugins, one package each,
+    in ``tests/plugins/test_<plugin>.py``."""
     missing = []
-    for path in sorted((ROOT / "kornia_ilum").rglob("*.py")):
-        rel = path.relative_to(ROOT)
-        if path.stem in ("__init__", "__main__") or str(rel) in _UNTESTED_ALONE:
-            continue
-        test = ROOT / "tests" / rel.parent.relative_to("kornia_ilum") / f"test_{path.stem.lstrip('_')}.py"
-        if not test.is_file():
-            missing.append(f"{rel} -> {test.relative_to(ROOT)}")
+    for root, tests in ((ROOT / "kornia_ilum", ROOT / "tests"),
+                        (ROOT / "plugins" / "lab" / "kornia_ilum_lab", ROOT / "tests" / "lab")):
+        for path in sorted(root.rglob("*.py")):
+            rel = path.relative_to(ROOT)
+            if path.stem in ("__init__", "__main__") or str(rel) in _UNTESTED_ALONE:
+                continue
+            test = tests / path.parent.relative_to(root) / f"test_{path.stem.lstrip('_')}.py"
+            if not test.is_file():
+                missing.append(f"{rel} -> {test.relative_to(ROOT)}")
     missing += [f"plugins/{name} -> tests/plugins/test_{name}.py" for name in ("sh", "sipr", "uniform")
                 if not (ROOT / "tests" / "plugins" / f"test_{name}.py").is_file()]
     assert missing == []

@@ -14,7 +14,8 @@ import skimage.data
 import torch
 
 from kornia_ilum.api import estimate_lighting
-from kornia_ilum.cli import LAZY_COMMANDS, build_parser, main
+from kornia_ilum import cli as cli_module
+from kornia_ilum.cli import LAB_COMMANDS, LAZY_COMMANDS, build_parser, main
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
 
 REPO = Path(__file__).resolve().parents[1]
@@ -197,8 +198,30 @@ class TestErrors:
             return {c.dest: c.help for c in sub._choices_actions}
 
         full, light = help_lines(build_parser()), help_lines(build_parser(""))
-        assert light == full and set(LAZY_COMMANDS) <= set(full)
+        assert light == full and set(LAZY_COMMANDS) | set(LAB_COMMANDS) <= set(full)
         assert main(["train", "--help"]) == 0 and "--checkpoint-every" in capsys.readouterr().out
+
+    def test_the_labs_commands_come_from_its_entry_points(self):
+        """The lab adds synth, train, evaluate and ablate through the ``kornia_ilum.commands`` entry points, with the
+        help lines that ``--help`` shows without the lab."""
+        found = cli_module.plugin_commands()
+        assert set(LAB_COMMANDS) <= set(found)
+        assert {name: found[name].help for name in LAB_COMMANDS} == LAB_COMMANDS
+
+    def test_without_the_lab(self, capsys, monkeypatch):
+        """Without the lab installed, ``--help`` still names its commands with the install line, and running one
+        says how to install it (exit 2); the library's commands are unchanged."""
+        monkeypatch.setattr(cli_module, "plugin_commands", lambda: {})
+        assert main(["--help"]) == 0
+        out = capsys.readouterr().out
+        assert "train" in out and "needs the lab: pip install -c constraints.txt -e ./plugins/lab" in out
+        for name in LAB_COMMANDS:
+            assert main([name, "--anything"]) == 2
+            line = _error_line(capsys)
+            assert f"'{name}' is a command of the lab, which is not installed" in line and "./plugins/lab" in line
+        monkeypatch.setattr(cli_module, "entry_points", lambda group: [])
+        assert main(["export", "--probe", "."]) == 2
+        assert "needs the lab" in _error_line(capsys)
 
     @pytest.mark.slow  # subprocesses
     def test_subprocess(self, tmp_path):

@@ -12,7 +12,7 @@ Writes into ``docs/_static/``:
 - ``astronaut_preview.png``: the README quick start's preview, made by that very command
   (``kornia-ilum estimate -o astronaut.exr --preview astronaut.png``, on the embedded default);
 - ``ours22_curve.png``, ``sh22_curve.png``, ``sipr22_curve.png``: the learning curves of the issue-22 runs,
-  drawn from the committed ``*_curve.csv`` beside them (:func:`kornia_ilum.evaluation.curve.write_curve`);
+  drawn from the committed ``*_curve.csv`` beside them (:func:`kornia_ilum_lab.evaluation.curve.write_curve`);
 - ``bench/bench.png``: run time against error, drawn from the committed run's ``bench/bench.json``
   (:func:`kornia_ilum.bench.write_report`'s figure).
 
@@ -65,7 +65,7 @@ def preview() -> None:
 
 
 def curves() -> None:
-    from kornia_ilum.evaluation.curve import read_curve, write_curve
+    from kornia_ilum_lab.evaluation.curve import read_curve, write_curve
 
     for name in ("ours22", "sh22", "sipr22"):
         csv = STATIC / f"{name}_curve.csv"
@@ -75,7 +75,7 @@ def curves() -> None:
             write_curve(run, read_curve(csv))
             out = STATIC / f"{name}_curve.png"
             shutil.copyfile(run / "curve.png", out)
-        stamp_figure(out, command=SCRIPT + "curves", shows=["kornia_ilum.evaluation.curve"], inputs=[csv])
+        stamp_figure(out, command=SCRIPT + "curves", shows=["kornia_ilum_lab.evaluation.curve"], inputs=[csv])
         print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
 

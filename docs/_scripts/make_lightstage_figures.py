@@ -35,22 +35,22 @@ from kornia_ilum.core.provenance import stamp_figure
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
 from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
-from kornia_ilum.synth.environments import EnvironmentSampler, default_sources
-from kornia_ilum.synth.environments.real import HDRFolderSource
-from kornia_ilum.synth.lightstage.cache import SampledViews, Workers, build_cache
-from kornia_ilum.synth.lightstage.olat import render_olat
-from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, relight_portraits
-from kornia_ilum.synth.lightstage.preview import contact_sheet
-from kornia_ilum.synth.lightstage.scene import sample_views
-from kornia_ilum.synth.lightstage.settings import Auto, OnePass
-from kornia_ilum.synth.lightstage.subjects import subject_source, subject_split
-from kornia_ilum.synth.sheets import write_grid
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, default_sources
+from kornia_ilum_lab.synth.environments.real import HDRFolderSource
+from kornia_ilum_lab.synth.lightstage.cache import SampledViews, Workers, build_cache
+from kornia_ilum_lab.synth.lightstage.olat import render_olat
+from kornia_ilum_lab.synth.lightstage.portraits import PortraitConfig, PortraitDataset, relight_portraits
+from kornia_ilum_lab.synth.lightstage.preview import contact_sheet
+from kornia_ilum_lab.synth.lightstage.scene import sample_views
+from kornia_ilum_lab.synth.lightstage.settings import Auto, OnePass
+from kornia_ilum_lab.synth.lightstage.subjects import subject_source, subject_split
+from kornia_ilum_lab.synth.sheets import write_grid
 
 matplotlib.use("Agg")
 
 STATIC = Path(__file__).resolve().parents[1] / "_static"
 #: What the figures show: the light stage (and, for the portraits, everything the dataset draws).
-SHOWS = ("kornia_ilum.synth",)
+SHOWS = ("kornia_ilum_lab.synth",)
 #: The training subjects of the portraits' sheet: one view each of the training seeds among these.
 PORTRAIT_SEEDS = range(30)
 

@@ -19,7 +19,7 @@ import torch
 import kornia_ilum
 from kornia_ilum.color import linear_to_srgb, srgb_to_linear
 from kornia_ilum.geometry import latlong_for_tool
-from kornia_ilum.synth.lightstage.materials import import_mitsuba, select_mitsuba_variant
+from kornia_ilum_lab.synth.lightstage.materials import import_mitsuba, select_mitsuba_variant
 
 photo = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1).float() / 255
 estimate = kornia_ilum.estimate_lighting(photo)

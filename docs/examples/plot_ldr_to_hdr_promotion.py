@@ -3,12 +3,12 @@ Promote an LDR sphere photograph to HDR lighting
 ================================================
 
 The paper records its ground truth with three reference spheres (mirror, matte silver, diffuse) filmed by a
-phone: 8-bit, so the sun clips in the mirror ball. :func:`kornia_ilum.synth.promote_spheres` recovers the
+phone: 8-bit, so the sun clips in the mirror ball. :func:`kornia_ilum.promotion.promote_spheres` recovers the
 clipped energy from the two rougher spheres, which never clip, by non-negative least squares (LeGendre et al.
 2020, Eq. 1-3).
 
 Here the spheres are rendered from a procedural clear sky with a sun
-(:class:`kornia_ilum.synth.environments.SkySource`), exposed so that the sun clips, and encoded to 8 bits.
+(:class:`kornia_ilum_lab.synth.environments.SkySource`), exposed so that the sun clips, and encoded to 8 bits.
 """
 
 import matplotlib.pyplot as plt
@@ -16,8 +16,8 @@ import torch
 
 from kornia_ilum.color import gamma_encode, quantize
 from kornia_ilum.render import render_spheres
-from kornia_ilum.synth import promote_spheres
-from kornia_ilum.synth.environments import SkySource
+from kornia_ilum.promotion import promote_spheres
+from kornia_ilum_lab.synth.environments import SkySource
 
 env = SkySource().sample(torch.Generator().manual_seed(3))
 truth = env.mirror_ball[None]  # (1, 3, 32, 32), linear HDR with a sun

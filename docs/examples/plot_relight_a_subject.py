@@ -18,9 +18,9 @@ import matplotlib.pyplot as plt
 import torch
 
 from kornia_ilum.color import linear_to_srgb
-from kornia_ilum.synth.environments import IndoorSource, PortraitLightSource, SkySource
-from kornia_ilum.synth.lightstage import Auto, SampledViews, Workers, build_cache
-from kornia_ilum.synth.lightstage.portraits import load_fields, relight_portraits
+from kornia_ilum_lab.synth.environments import IndoorSource, PortraitLightSource, SkySource
+from kornia_ilum_lab.synth.lightstage import Auto, SampledViews, Workers, build_cache
+from kornia_ilum_lab.synth.lightstage.portraits import load_fields, relight_portraits
 
 with tempfile.TemporaryDirectory() as cache:
     build_cache("mannequin", [1], cache, renderer=Auto(spp=4), views=SampledViews(1, size=96),
@@ -31,7 +31,7 @@ print("reflectance field:", tuple(field.field.shape), field.field.dtype, "(chann
 # %%
 # One product per batch of lightings
 # ----------------------------------
-# :func:`~kornia_ilum.synth.lightstage.portraits.relight_portraits` takes mirror balls in the camera frame
+# :func:`~kornia_ilum_lab.synth.lightstage.portraits.relight_portraits` takes mirror balls in the camera frame
 # and returns the premultiplied subject and its matte.
 
 generator = torch.Generator().manual_seed(0)

@@ -12,22 +12,36 @@ import time
 
 import torch
 
+from importlib.metadata import entry_points
+from typing import Any
+
 from kornia_ilum.bench.report import format_bench, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
-from kornia_ilum.bench.skips import skip_rows
 from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import list_detectors
-from kornia_ilum.estimators.probe import CHECK
-from kornia_ilum.evaluation import build_eval_set, probe_eval_set
 
-__all__ = ["add_bench_parser", "run_bench_command"]
+__all__ = ["BENCH_ENTRY_POINT_GROUP", "add_bench_parser", "bench_error_part", "run_bench_command"]
+
+#: The entry-point group of the bench's error part: ``error`` names a class built with ``(cache, hdri, *,
+#: samples, quick)`` (the lab's :class:`kornia_ilum_lab.bench.error.BenchError`).
+BENCH_ENTRY_POINT_GROUP = "kornia_ilum.bench"
+#: How to install the lab, which the error part needs.
+LAB_INSTALL = "pip install -c constraints.txt -e ./plugins/lab"
+
+
+def bench_error_part() -> Any | None:
+    """The class of the bench's error part, from the ``kornia_ilum.bench`` entry point ``error`` (the lab's), or
+    ``None`` where no installed package provides one (the bench then times only)."""
+    found = [ep for ep in entry_points(group=BENCH_ENTRY_POINT_GROUP) if ep.name == "error"]
+    return found[0].load() if found else None
 
 _HELP = """\
 Time every registered estimator under every runtime that runs here (eager float32, bf16, ONNX Runtime float32
 and int8), at batch 1 and 32, against the machine's own limits measured in the same run (fp32, bf16 and int8
-matmul peaks, memory bandwidth); score each on the held-out eval split (--cache, as kornia-ilum evaluate builds
-it) or, without a cache, on the shipped probe's 256 light-stage training portraits (labelled so: no evidence of
-accuracy); and time one photo end to end (640x480 and 1280x720: read, check, detect, crop, estimate, write),
+matmul peaks, memory bandwidth); where the lab is installed, score each on the held-out eval split (--cache, as
+kornia-ilum evaluate builds it) or, without a cache, on the shipped probe's 256 light-stage training portraits
+(labelled so: no evidence of accuracy); and time one photo end to end (640x480 and 1280x720: read, check, detect, crop, estimate, write),
 today's path against the fast one. Writes OUT/bench.md, OUT/bench.json and OUT/bench.png (run time against
 error, the Pareto front outlined). --quick: batches 1 and 4, 3 timed calls, one photo size, 32 probe portraits:
 the same code path in seconds (CI).
@@ -120,19 +134,15 @@ def run_bench_command(args: argparse.Namespace) -> int:
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
-    if args.cache:
-        eval_set = build_eval_set(args.cache, args.hdri, args.samples)
-        what = (f"the held-out eval split ({len(eval_set)} portraits of {len(eval_set.description['subjects'])} "
-                f"eval subjects, kornia-ilum evaluate's set)")
-    else:
-        part = slice(CHECK.start, CHECK.start + 32) if args.quick else CHECK
-        eval_set = probe_eval_set(part)
-        what = (f"the shipped probe's check part ({len(eval_set)} light-stage TRAINING portraits: not the held-out "
-                "split, no evidence of accuracy; pass --cache for that)")
-    result = run_bench(eval_set, what, args.estimator, args.runtime or BENCH_RUNTIMES, quick=args.quick,
+    part = bench_error_part()
+    if part is None and args.cache:
+        raise ValueCheckError(f"--cache needs the lab, which scores the error on the eval split: {LAB_INSTALL}")
+    error = None if part is None else part(args.cache, args.hdri, samples=args.samples, quick=args.quick)
+    result = run_bench(error, args.estimator, runtimes=args.runtime or BENCH_RUNTIMES, quick=args.quick,
                        e2e_detectors=_detectors(args.detector), detect_side=args.detect_side, compile=args.compile)
-    if args.cache:
-        result["skips"], result["skips_what"] = skip_rows(args.cache, args.hdri, quick=args.quick)
+    skips = None if error is None else error.skips()
+    if skips is not None:
+        result["skips"], result["skips_what"] = skips
     print(format_bench(result))
     for path in write_bench(result, args.out):
         print(f"wrote {path}")

@@ -59,11 +59,11 @@ def pareto_front(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def format_skips(rows: list[dict[str, Any]], what: str) -> str:
-    """The ``skips`` section (:func:`~kornia_ilum.bench.skips.skip_rows`) as Markdown, or ``what`` alone when
+    """The ``skips`` section (:func:`~kornia_ilum_lab.bench.skips.skip_rows`) as Markdown, or ``what`` alone when
     nothing was measured.
 
     Args:
-        rows: the rows of :func:`~kornia_ilum.bench.skips.skip_rows`.
+        rows: the rows of :func:`~kornia_ilum_lab.bench.skips.skip_rows`.
         what: its line saying what they were measured on (or why nothing was).
 
     Returns:

@@ -8,8 +8,10 @@ r"""One bench run: every estimator under every runtime, timed and scored in the 
    reason): its speed at batch 1 and 32 (:func:`~kornia_ilum.bench.speed.estimator_speed`), the speed-up over
    its own eager row, and the rate of operations reached against the peak of the precision used; the runtime's parity
    check (:func:`~kornia_ilum.estimators.runtime_parity`) and what ``"auto"`` picks;
-3. the error of every row and of the oracles, by :func:`~kornia_ilum.evaluation.evaluate` on ``eval_set``
-   (the held-out split where a cache is given, else the probe's check part, labelled as such);
+3. where an ``error`` part is given (the lab's :class:`kornia_ilum_lab.bench.error.BenchError`, found by
+   ``kornia-ilum bench`` through the ``kornia_ilum.bench`` entry point ``error``), the error of every row and of
+   the oracles on what it scores (the held-out split where a cache is given, else the probe's check part,
+   labelled as such); without it, time only;
 4. one photo end to end per size of :data:`~kornia_ilum.bench.speed.E2E_SIZES` and detector: today's path
    (eager, detection at full resolution) first, then the fast runtime, then the fast runtime with detection on
    a copy of at most ``detect_side`` pixels.
@@ -43,7 +45,6 @@ from kornia_ilum.estimators import (
     runtime_parity,
     with_runtime,
 )
-from kornia_ilum.evaluation import ORACLES, EvalSet, oracle_predictions, predict, score, summarize
 
 __all__ = ["BENCH_RUNTIMES", "PEAK_OF", "run_bench"]
 
@@ -59,11 +60,10 @@ def _label(name: str, runtime: str) -> str:
 
 
 def run_bench(
-    eval_set: EvalSet,
-    error_what: str,
+    error: Any | None = None,
     estimators: Sequence[str] | None = None,
-    runtimes: Sequence[str] = BENCH_RUNTIMES,
     *,
+    runtimes: Sequence[str] = BENCH_RUNTIMES,
     quick: bool = False,
     e2e_detectors: Sequence[str] = (DEFAULT_DETECTOR,),
     detect_side: int = 320,
@@ -73,8 +73,8 @@ def run_bench(
     r"""Time and score the estimators under the runtimes (module docstring).
 
     Args:
-        eval_set: what the error is measured on.
-        error_what: one line saying what ``eval_set`` is (printed above the table).
+        error: the error part (an object with ``what`` and ``score(models, rows)``, the lab's
+            :class:`~kornia_ilum_lab.bench.error.BenchError`), or ``None`` to time only.
         estimators: registered names (default: all that ship weights).
         runtimes: of :data:`BENCH_RUNTIMES`; ``"eager"`` is always timed (the baseline of its speed-ups).
         quick: batches 1 and 4, 3 timed calls, one photo size: the same code path in seconds (CI).
@@ -95,8 +95,7 @@ def run_bench(
 
         >>> "eager" in BENCH_RUNTIMES and "auto" not in BENCH_RUNTIMES
         True
-        >>> from kornia_ilum.evaluation import probe_eval_set
-        >>> result = run_bench(probe_eval_set(), "the probe", ["uniform"], quick=True)  # doctest: +SKIP
+        >>> result = run_bench(None, ["uniform"], quick=True)  # doctest: +SKIP
         >>> result["rows"][0]["label"], result["rows"][0]["runtime"]  # doctest: +SKIP
         ('uniform', 'eager')
     """
@@ -173,19 +172,13 @@ def run_bench(
         passed = {r["runtime"] for r in rows if r["estimator"] == name and r.get("parity", {}).get("passed")}
         auto[name] = next((o for o in AUTO_ORDER if o in passed), "eager")  # with_runtime("auto")'s rule
 
-    say(f"error: {error_what}")
-    t0 = time.perf_counter()
-    results = _score(models, eval_set)
-    summary = summarize(results, eval_set, reference="__none__")
-    rows += [{"label": o, "estimator": o, "runtime": "oracle"} for o in ORACLES]
-    for r in rows:
-        t1 = summary["table1_l_rec"].get(r["label"])
-        if t1 is not None:
-            r["l_rec"] = t1["all"]
-            r["l_rec_groups"] = {g: t1[g] for g in ("indoor", "outdoor")}
-            r["relative_radiance"] = summary["table2_relative_radiance"][r["label"]]["all"]["mean"]
-    per_tone = {label: {t: v["diffuse"] for t, v in per.items()} for label, per in summary["per_skin_tone"].items()}
-    say(f"scored {len(results['methods'])} methods in {time.perf_counter() - t0:.0f} s")
+    per_tone, error_of = {}, {"what": "not measured (time only: the error needs the lab, kornia_ilum_lab)",
+                              "short": "not measured"}
+    if error is not None:
+        say(f"error: {error.what}")
+        scored = error.score(models, rows)
+        per_tone, error_of = scored["per_tone"], scored["error"]
+        say(f"scored {scored['methods']} methods in {scored['seconds']:.0f} s")
 
     e2e = []
     sizes = E2E_SIZES[:1] if quick else E2E_SIZES
@@ -217,20 +210,7 @@ def run_bench(
         "auto": auto,
         "per_tone": per_tone,
         "e2e": e2e,
-        "error": {"what": error_what, "short": eval_set.description.get("source", "eval split"),
-                  "eval_set": eval_set.description},
+        "error": error_of,
         "paper": PAPER,
         "notes": notes,
     }
-
-
-def _score(models: dict[str, Any], eval_set: EvalSet) -> dict[str, Any]:
-    """The scores of :func:`~kornia_ilum.evaluation.evaluate` for every timed model (as built) and the oracles."""
-    methods = {}
-    for label, model in models.items():
-        t0 = time.perf_counter()
-        methods[label] = {"scores": score(predict(model, eval_set.images), eval_set.mirror_ball),
-                          "seconds": round(time.perf_counter() - t0, 2)}
-    for label, pred in oracle_predictions(eval_set.mirror_ball).items():
-        methods[label] = {"scores": score(pred, eval_set.mirror_ball), "seconds": 0.0}
-    return {"methods": methods, "skipped": {}}

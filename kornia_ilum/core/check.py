@@ -61,7 +61,7 @@ def trusted() -> Iterator[None]:
     """Skip the input checks inside the block, in this thread (or asyncio task) only.
 
     For pipelines that validate their inputs once where they enter and then call public functions many
-    times on data they made themselves (:class:`~kornia_ilum.synth.lightstage.PortraitDataset`): a check scans
+    times on data they made themselves (:class:`~kornia_ilum_lab.synth.lightstage.PortraitDataset`): a check scans
     every value of a tensor, which is a large part of the cost of cheap operations on large images. Code that
     :func:`torch.compile` traces ignores it (compiled checks never scan values).
 

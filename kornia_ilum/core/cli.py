@@ -3,7 +3,7 @@
 Each is an ``argparse`` ``type=`` callable: it turns the option's text into a value or raises
 :class:`argparse.ArgumentTypeError`, which ``argparse`` reports as a usage error naming the option. The
 top-level command line (:mod:`kornia_ilum.cli`) and the sub-commands that live in their packages
-(:mod:`kornia_ilum.synth.cli`, :mod:`kornia_ilum.train.cli`, :mod:`kornia_ilum.evaluation.cli`) import them
+(:mod:`kornia_ilum_lab.synth.cli`, :mod:`kornia_ilum_lab.train.cli`, :mod:`kornia_ilum_lab.evaluation.cli`) import them
 from here, so that one option means the same everywhere and no sub-command imports the command line that
 imports it.
 """

@@ -65,7 +65,7 @@ def code_fingerprint(modules: Sequence[str]) -> str:
     docstrings (:func:`ast.dump`), in name order; a package stands for all its modules.
 
     Args:
-        modules: dotted module or package names (``"kornia_ilum.synth.lightstage"``).
+        modules: dotted module or package names (``"kornia_ilum_lab.synth.lightstage"``).
 
     Returns:
         64 hexadecimal digits.

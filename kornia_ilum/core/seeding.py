@@ -19,7 +19,7 @@ def hashed_seed(key: str) -> int:
         an integer in ``[0, 2^64)``.
 
     Examples:
-        >>> hashed_seed("kornia_ilum.synth:0:5") == hashed_seed("kornia_ilum.synth:0:5")
+        >>> hashed_seed("kornia_ilum_lab.synth:0:5") == hashed_seed("kornia_ilum_lab.synth:0:5")
         True
     """
     return int.from_bytes(hashlib.blake2b(key.encode(), digest_size=8).digest(), "little")

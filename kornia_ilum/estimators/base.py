@@ -597,7 +597,7 @@ def read_weights(
     r"""Read a ``.safetensors`` weight file onto the CPU after checking its SHA-256: the one way weights load.
 
     :meth:`LightingEstimator.from_pretrained` reads every shipped file through it, and so does
-    :func:`kornia_ilum.evaluation.load_estimator` for a checkpoint given by the user. The file is read
+    :func:`kornia_ilum_lab.evaluation.load_estimator` for a checkpoint given by the user. The file is read
     with :func:`safetensors.torch.load_file` (no pickle, no code execution), never with :func:`torch.load`.
 
     Args:

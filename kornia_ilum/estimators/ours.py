@@ -39,7 +39,7 @@ The spread of the strength (``spread_head=True``, our addition): one linear laye
 training portraits, the rest frozen (``--fit-spread``). It changes nothing else: the mirror ball is the
 decoder's. A weight file that has it turns it on when loaded.
 
-Training (:mod:`kornia_ilum.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
+Training (:mod:`kornia_ilum_lab.train`) adds side branches that turn the decoder's 4, 8 and 16 px feature maps
 (:meth:`OursEstimator.decode`) into 3-channel log lighting for the multi-scale losses; they belong to the
 training model, never run at inference and are not in the shipped weights.
 """
@@ -237,7 +237,7 @@ class OursEstimator(LightingEstimator):
         r"""The raw network: natural-log radiance at 32 px, the decoder's feature maps at 4, 8, 16 px, the log
         of the exposure factor and the spread head's ``log b``.
 
-        No input checks, no masking: this is the training path (:mod:`kornia_ilum.train`), whose side
+        No input checks, no masking: this is the training path (:mod:`kornia_ilum_lab.train`), whose side
         branches read the feature maps (and add ``log_scale`` to their log radiance). Inference goes through
         ``forward``.
 

@@ -4,7 +4,7 @@ A reduced-precision runtime (:mod:`~kornia_ilum.estimators.runtime`: ``"onnx-int
 estimate a little; whether it changes it too much is a question of ``L_rec`` against the truth, which needs
 portraits whose lighting is known. The probe is such a set, small enough to ship: :data:`PROBE_SAMPLES`
 portraits of the light stage's **train** subjects under **train** environments (never the eval split), written
-by ``kornia-ilum export --probe`` (:func:`kornia_ilum.train.data.write_training_probe`). Its first part calibrates
+by ``kornia-ilum export --probe`` (:func:`kornia_ilum_lab.train.data.write_training_probe`). Its first part calibrates
 the int8 quantisation (:data:`CALIBRATION`), the rest checks the runtime against eager float32 (:data:`CHECK`,
 :func:`probe_lrec_change`), so a runtime is never checked on the crops it was calibrated on.
 

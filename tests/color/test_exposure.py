@@ -16,7 +16,7 @@ from kornia_ilum.color import (
     srgb_to_linear,
 )
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
-from kornia_ilum.synth.lightstage.portraits.compose import auto_exposure
+from kornia_ilum_lab.synth.lightstage.portraits.compose import auto_exposure
 
 
 def test_weights_are_the_cameras():

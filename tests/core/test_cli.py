@@ -8,9 +8,9 @@ import pytest
 
 from kornia_ilum import cli
 from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
-from kornia_ilum.evaluation import cli as evaluation_cli
-from kornia_ilum.synth import cli as synth_cli
-from kornia_ilum.train import cli as train_cli
+from kornia_ilum_lab.evaluation import cli as evaluation_cli
+from kornia_ilum_lab.synth import cli as synth_cli
+from kornia_ilum_lab.train import cli as train_cli
 
 
 class TestPositiveInt:

@@ -17,8 +17,8 @@ from kornia_ilum.estimators.probe import (
     probe_lrec_change,
     write_probe,
 )
-from kornia_ilum.synth.environments.real import hdri_split
-from kornia_ilum.synth.lightstage.subjects import subject_split
+from kornia_ilum_lab.synth.environments.real import hdri_split
+from kornia_ilum_lab.synth.lightstage.subjects import subject_split
 
 
 def test_the_probe_holds_training_portraits_only_with_their_lighting() -> None:

@@ -19,7 +19,7 @@ from kornia_ilum.render import render_spheres
 def _mitsuba_diffuse(latlong: torch.Tensor, size: int = 32, spp: int = 256) -> torch.Tensor:
     """Mitsuba's render of a sphere of albedo 0.8 at the origin, seen orthographically along -Z from +Z, under
     ``latlong`` ``(1, 3, H, 2H)`` as an ``envmap`` emitter with Mitsuba's defaults: ``(1, 3, S, S)``."""
-    from kornia_ilum.synth.lightstage.materials import import_mitsuba, select_mitsuba_variant  # lazy: Mitsuba
+    from kornia_ilum_lab.synth.lightstage.materials import import_mitsuba, select_mitsuba_variant  # lazy: Mitsuba
 
     mi = import_mitsuba()
     select_mitsuba_variant()

@@ -25,8 +25,8 @@ from kornia_ilum.estimators import LightingEstimator, OursEstimator, create_esti
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_project, sh_reconstruct
-from kornia_ilum.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
-from kornia_ilum.train.recipes import get_recipe, list_recipes
+from kornia_ilum_lab.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
+from kornia_ilum_lab.train.recipes import get_recipe, list_recipes
 from tests.train.helpers import small_data
 
 VALID = mirror_ball_valid(32)
@@ -225,7 +225,7 @@ class TestSpreadHead:
         assert net.spread is not None and net(crops(1)).log_energy_spread is not None
 
     def test_the_training_model_carries_the_spread_for_the_likelihood(self):
-        from kornia_ilum.train.losses import energy_nll
+        from kornia_ilum_lab.train.losses import energy_nll
 
         model, disc = SHRecipe().build(spread_head=True)
         assert disc is None

@@ -29,12 +29,12 @@ from kornia_ilum_sipr import (
 from kornia_ilum.core.files import sha256_file
 from kornia_ilum.estimators import LightingEstimator, create_estimator, list_estimators
 from kornia_ilum.geometry import latlong_solid_angles, mirror_ball_solid_angles, mirror_ball_valid
-from kornia_ilum.synth.camera_effects import CameraEffects
-from kornia_ilum.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
-from kornia_ilum.train import TrainConfig, read_log, train
-from kornia_ilum.train.data import collate
-import kornia_ilum.train.recipes
-from kornia_ilum.train.recipes import get_recipe, list_recipes
+from kornia_ilum_lab.synth.camera_effects import CameraEffects
+from kornia_ilum_lab.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
+from kornia_ilum_lab.train import TrainConfig, read_log, train
+from kornia_ilum_lab.train.data import collate
+import kornia_ilum_lab.train.recipes
+from kornia_ilum_lab.train.recipes import get_recipe, list_recipes
 from tests.train.helpers import small_data
 
 
@@ -219,7 +219,7 @@ class TestData:
 class TestTraining:
     @pytest.mark.slow  # trains, on a cache that the tiny_cache fixture renders with Mitsuba
     def test_two_steps_end_to_end(self, tiny_cache, tmp_path, monkeypatch):
-        monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)  # the float16 probe: 4 crops, not 32
+        monkeypatch.setattr(kornia_ilum_lab.train.recipes, "PROBE_SIZE", 4)  # the float16 probe: 4 crops, not 32
         threads = torch.get_num_threads()
         data = small_data()
         config = TrainConfig(out=str(tmp_path / "run"), cache=(str(tiny_cache),), estimator="sipr", steps=2,
@@ -244,7 +244,7 @@ class TestTraining:
     def test_spread_fitted_at_export_leaves_the_lighting(self, tiny_cache, tmp_path, monkeypatch):
         """``--steps 0 --init W --model spread_head=True --fit-spread N``: no step, the spread head fitted on
         portraits at the estimator's input size, every other weight as in ``W``."""
-        monkeypatch.setattr(kornia_ilum.train.recipes, "PROBE_SIZE", 4)
+        monkeypatch.setattr(kornia_ilum_lab.train.recipes, "PROBE_SIZE", 4)
         torch.manual_seed(0)
         init = tmp_path / "init.safetensors"
         safetensors.torch.save_file(SIPREstimator().state_dict(), init)

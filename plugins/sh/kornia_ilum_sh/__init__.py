@@ -8,7 +8,7 @@ weights, see ``weights/MODEL_CARD.md``). Its training recipe, :class:`SHRecipe`,
 
 The training names (:mod:`kornia_ilum_sh.recipe`: :class:`SHRecipe`, :class:`MultiScaleSH`, ...) are
 importable from here too, but load on first use, so that creating the estimator for inference never imports
-the training code (:mod:`kornia_ilum.train`).
+the training code (:mod:`kornia_ilum_lab.train`).
 """
 
 from typing import Any
@@ -43,7 +43,7 @@ __all__ = [
 
 def __getattr__(name: str) -> Any:
     if name in _RECIPE_NAMES:
-        from kornia_ilum_sh import recipe  # lazy: the estimator alone must not import kornia_ilum.train
+        from kornia_ilum_sh import recipe  # lazy: the estimator alone must not import kornia_ilum_lab.train
 
         return getattr(recipe, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

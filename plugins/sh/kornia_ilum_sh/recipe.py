@@ -1,9 +1,9 @@
 r"""Training of ``sh``: the rendering loss of ``ours`` on the unclamped SH reconstruction, no discriminator.
 
 :class:`SHRecipe` is the plugin's entry point ``sh`` of the group ``kornia_ilum.recipes``, so
-``kornia-ilum train --estimator sh`` (:func:`kornia_ilum.train.train`) trains it: the same data, optimiser
+``kornia-ilum train --estimator sh`` (:func:`kornia_ilum_lab.train.train`) trains it: the same data, optimiser
 and multi-scale loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` as ``ours``
-(:func:`~kornia_ilum.train.losses.training_losses`), without the adversarial term (an order-2 function cannot
+(:func:`~kornia_ilum_lab.train.losses.training_losses`), without the adversarial term (an order-2 function cannot
 look like a real mirror ball, so there is nothing for a discriminator to teach).
 
 :class:`MultiScaleSH` gives the loop ``{size: lighting}`` for sizes 4, 8, 16, 32: the *unclamped*
@@ -36,8 +36,8 @@ from torch import Tensor, nn
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_reconstruct
-from kornia_ilum.train.models import MultiScaleLighting
-from kornia_ilum.train.recipes import Recipe
+from kornia_ilum_lab.train.models import MultiScaleLighting
+from kornia_ilum_lab.train.recipes import Recipe
 from kornia_ilum_sh.estimator import SHEstimator
 
 __all__ = ["NEGATIVE_PENALTY", "SCALES", "MultiScaleSH", "SHRecipe", "negative_penalty"]
@@ -74,7 +74,7 @@ class MultiScaleSH(nn.Module):
             :attr:`estimator` is what gets exported.
 
     Returns:
-        (``forward``) a :class:`~kornia_ilum.train.models.MultiScaleLighting`: ``{size: (B, 3, size, size)}`` float32
+        (``forward``) a :class:`~kornia_ilum_lab.train.models.MultiScaleLighting`: ``{size: (B, 3, size, size)}`` float32
         linear radiance, 0 off the ball, possibly negative (the order-2 function as it is), for :data:`SCALES`,
         and the spread head's ``log_spread`` (``None`` without it).
 

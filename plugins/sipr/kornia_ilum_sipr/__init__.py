@@ -7,7 +7,7 @@ recipe, :class:`SIPRRecipe`, is the entry point ``sipr = "kornia_ilum_sipr.recip
 
 The training names (:mod:`kornia_ilum_sipr.recipe`: :class:`SIPRRecipe`, :class:`SIPRTrainer`, ...) are
 importable from here too, but load on first use, so that creating the estimator for inference never imports
-the training code (:mod:`kornia_ilum.train`).
+the training code (:mod:`kornia_ilum_lab.train`).
 """
 
 from typing import Any
@@ -56,7 +56,7 @@ __all__ = [
 
 def __getattr__(name: str) -> Any:
     if name in _RECIPE_NAMES:
-        from kornia_ilum_sipr import recipe  # lazy: the estimator alone must not import kornia_ilum.train
+        from kornia_ilum_sipr import recipe  # lazy: the estimator alone must not import kornia_ilum_lab.train
 
         return getattr(recipe, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

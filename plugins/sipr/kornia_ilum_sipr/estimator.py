@@ -25,7 +25,7 @@ The spread of the strength (``spread_head=True``): one linear layer from the bot
 8 x 8 positions, to ``log b``, the scale of a Laplace distribution of the true lighting's log energy around the
 estimate's (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`). It is fitted after training
 with the rest of the network frozen (``kornia-ilum train --estimator sipr --fit-spread N``,
-:func:`kornia_ilum.train.calibration.fit_spread`), so the lighting is the trained network's, unchanged. A weight file that
+:func:`kornia_ilum_lab.train.calibration.fit_spread`), so the lighting is the trained network's, unchanged. A weight file that
 has it turns it on when loaded.
 """
 

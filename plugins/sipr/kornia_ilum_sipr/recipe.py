@@ -1,7 +1,7 @@
 r"""Training of ``sipr``: relight one portrait to another lighting, and estimate its own lighting.
 
 :class:`SIPRRecipe` is the plugin's entry point ``sipr`` of the group ``kornia_ilum.recipes``, so
-``kornia-ilum train --estimator sipr`` (:func:`kornia_ilum.train.train`) trains it with the loop, the
+``kornia-ilum train --estimator sipr`` (:func:`kornia_ilum_lab.train.train`) trains it with the loop, the
 optimiser (Adam at 1.5e-4), the batch (32) and the steps of ``ours``, on the same light-stage cache and
 environments. What differs is what SIPR needs (Sun et al. 2019; LeGendre et al. 2020, Sec. 4):
 
@@ -41,10 +41,10 @@ import torch
 from torch import Tensor, nn
 
 from kornia_ilum.core.errors import ValueCheckError
-from kornia_ilum.synth.lightstage.portraits import PortraitDataset
-from kornia_ilum.train.config import RuntimeSettings, TrainConfig
-from kornia_ilum.train.losses import training_losses
-from kornia_ilum.train.recipes import Recipe, batch_images
+from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
+from kornia_ilum_lab.train.losses import training_losses
+from kornia_ilum_lab.train.recipes import Recipe, batch_images
 from kornia_ilum_sipr.estimator import INPUT_SIZE, SIPREstimator
 from kornia_ilum_sipr.network import LIGHTING_SHAPE, RelightingDecoder, log_latlong_target, log_latlong_to_mirror_ball
 

@@ -1,0 +1,375 @@
+"""The on-the-fly portrait dataset (kornia_ilum_lab.synth.lightstage.portraits.dataset): samples, splits,
+reproducibility, variants, configuration and full-resolution backgrounds."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
+from kornia_ilum.filters import soft_clip
+from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, HDRFolderSource, SkySource, resize_latlong
+from kornia_ilum_lab.synth.lightstage import LANDMARK_NAMES, subject_split
+from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
+from kornia_ilum_lab.synth.lightstage.portraits import (
+    PortraitConfig,
+    PortraitDataset,
+    background_pyramid,
+    crop_images,
+    environment_background,
+    frame_backgrounds,
+    load_fields,
+    sphere_targets,
+)
+from kornia_ilum_lab.synth.lightstage.scene import Camera
+from tests.synth.lightstage.portraits.common import OFF, OUT, S, small, uniform_sampler
+from tests.synth.lightstage.spheres import ALBEDO
+
+@pytest.mark.slow
+class TestAnalytic:
+    def test_uniform_environment(self, sphere_field) -> None:
+        """A white Lambertian sphere under uniform radiance L over the matching background reads, exposed by g,
+        ``g L (a alpha + 1 - alpha)`` (alpha: the cropped matte), and its ground truth is ``g L``."""
+        data = small([sphere_field], split=None, environments=uniform_sampler(), camera=OFF,
+                     exposure_key=(0.18, 0.18), flip_probability=0.0, shuffle=1)
+        sample = data.chunk(0, 0)[0]
+        gain = float(sample["exposure"])
+        valid = mirror_ball_valid(S)
+        torch.testing.assert_close(sample["mirror_ball"][:, valid], torch.full((3, int(valid.sum())), gain),
+                                   rtol=1e-3, atol=0)  # resampling a constant map is exact to 4e-4
+        alpha = crop_images(sphere_field.alpha[None], sample["crop_box"][None], OUT)[0]
+        expected = gain * (ALBEDO * alpha + 1.0 - alpha)
+        measured = srgb_to_linear(sample["image"].float()[None] / 255.0)[0]
+        err = (measured - expected) / expected
+        assert err.mean().abs() < 0.01  # measured 0.1 % or less
+        assert err.abs().max() < 0.12  # Monte-Carlo noise of the 16-spp OLATs (measured 7 %) and 8-bit rounding
+        assert err[:, alpha[0] == 0].abs().max() < 0.01  # the background alone: 8-bit rounding (measured 0.7 %)
+        assert (alpha == 0).any() and (alpha == 1).any()  # the crop shows both the sphere and the background
+        # the diffuse reference sphere (albedo 0.8) of the ground truth: softclip(0.8 g L)^(1/2.2) at its centre
+        centre = sample["spheres"]["diffuse_8"][:, 3:5, 3:5]
+        expected_sphere = soft_clip(torch.tensor(0.8 * gain)) ** (1 / 2.2)
+        torch.testing.assert_close(centre, expected_sphere.expand_as(centre), rtol=2e-3, atol=0)
+
+    def test_exposure_meters_the_key(self, sphere_field) -> None:
+        data = small([sphere_field], split=None, environments=uniform_sampler(radiance=50.0), camera=OFF,
+                     exposure_key=(0.25, 0.25))
+        sample = data.chunk(0, 0)[0]
+        assert 0.25 / 50.0 < float(sample["exposure"]) < 0.25 / (50.0 * ALBEDO)
+
+    def test_flip_keeps_the_light_where_the_ground_truth_says(self, sphere_field) -> None:
+        """A mirrored sample is the mirrored subject under the true lighting: the (symmetric) sphere is lit on
+        the side where the ground truth has its light, whether the sample is mirrored or not."""
+        checked = 0
+        for p in (0.0, 1.0):
+            data = small([sphere_field], split=None, environments=uniform_sampler(radiance=0.05, left_light=40.0),
+                         background="black", camera=OFF, flip_probability=p, lightings_per_field=8, matte=True)
+            for sample in data.chunk(0, 0):
+                assert sample["flip"] == bool(p)
+                image = sample["image"].float().sum(0)
+                ball = sample["mirror_ball"].sum(0)  # the light's side in the truth: -X is the ball's left half
+                ball_left, ball_right = ball[:, : S // 2].sum(), ball[:, S // 2 :].sum()
+                if max(ball_left, ball_right) < 10 * min(ball_left, ball_right):
+                    continue  # the light was turned to the front or the back
+                # the lit side is the side of the sphere's centre (its matte's centroid, wherever the crop's
+                # jitter puts it) where the image's brightness lies
+                x = torch.arange(OUT, dtype=torch.float32)
+                alpha = sample["alpha"][0].float()
+                centre = (alpha.sum(0) * x).sum() / alpha.sum()
+                lit = (image * alpha).sum(0)
+                assert ((lit * x).sum() / lit.sum() < centre) == bool(ball_left > ball_right)
+                checked += 1
+        assert checked >= 8
+
+@pytest.mark.slow
+class TestDataset:
+    def test_sample_contents(self, cache) -> None:
+        data = small(cache)
+        sample = next(iter(data))
+        assert sample["image"].dtype == torch.uint8 and sample["image"].shape == (3, OUT, OUT)
+        assert sample["mirror_ball"].shape == (3, S, S) and sample["mirror_ball"].dtype == torch.float32
+        assert sorted(sample["spheres"]) == sorted(f"{b}_{s}" for b in ("diffuse", "matte_silver", "mirror")
+                                                   for s in (4, 8))
+        assert sample["subject_seed"] == 0 and subject_split(0) == "train"
+        assert sample["skin_tone"] in range(1, 11) and sample["view_index"] == 0
+        assert sample["label"] in ("indoor", "outdoor") and isinstance(sample["source"], str)
+        assert float(sample["exposure"]) > 0 and sample["crop_box"].shape == (4,)
+        valid = mirror_ball_valid(S)
+        assert (sample["mirror_ball"][:, ~valid] == 0).all() and (sample["mirror_ball"] >= 0).all()
+        # the ground-truth spheres are exactly what the loss compares: softclip(render)^(1/2.2)
+        torch.testing.assert_close(sample["spheres"]["mirror_8"], sphere_targets(sample["mirror_ball"][None],
+                                                                                 (8,))["mirror_8"][0])
+
+    def test_train_and_eval_subjects_are_disjoint(self, cache) -> None:
+        train = {f.subject_seed for f in load_fields(cache, "train")}
+        evaluation = {f.subject_seed for f in load_fields(cache, "eval")}
+        assert train == {0} and evaluation == {1} and not train & evaluation
+        assert {s["subject_seed"] for s in small(cache, split="eval", length=8)} == {1}
+        seeds = range(2000)
+        assert not {s for s in seeds if subject_split(s) == "train"} & {s for s in seeds if subject_split(s) == "eval"}
+
+    def test_each_seed_reproduces_exactly(self, cache) -> None:
+        a, b, c = small(cache, seed=3), small(cache, seed=3), small(cache, seed=4)
+        first = a.chunk(0, 2)
+        a.chunk(1, 5)  # other chunks and workers in between change nothing
+        for x, y in zip(first, b.chunk(0, 2), strict=True):
+            assert torch.equal(x["image"], y["image"]) and torch.equal(x["mirror_ball"], y["mirror_ball"])
+        assert torch.equal(first[0]["image"], a.chunk(0, 2)[0]["image"])
+        assert not torch.equal(first[0]["image"], c.chunk(0, 2)[0]["image"])
+        assert not torch.equal(first[0]["image"], a.chunk(1, 2)[0]["image"])  # workers draw different samples
+
+    def test_data_loader_workers_reproduce(self, cache) -> None:
+        def run() -> list[torch.Tensor]:
+            loader = DataLoader(small(cache, length=6), batch_size=None, num_workers=2)
+            return [s["image"] for s in loader]
+
+        first, second = run(), run()
+        assert len(first) == 12
+        assert all(torch.equal(x, y) for x, y in zip(first, second, strict=True))
+        assert not torch.equal(first[0], first[1])  # worker 0, then worker 1
+
+    def test_black_background(self, cache) -> None:
+        field = load_fields(cache, "train")[0]
+        for sample in small(cache, background="black", camera=OFF, length=4):
+            alpha = crop_images(field.alpha[None], sample["crop_box"][None], OUT,
+                                torch.tensor([sample["flip"]]))[0]
+            if sample["flip"]:  # crop_box is in the mirrored image
+                alpha = crop_images(field.alpha.flip(-1)[None], sample["crop_box"][None], OUT)[0]
+            assert (sample["image"][:, alpha[0] == 0] == 0).all()
+
+    def test_background_only(self, cache) -> None:
+        with_subject, without = (small(cache, subject=flag, camera=OFF).chunk(0, 0) for flag in (True, False))
+        for a, b in zip(with_subject, without, strict=True):
+            torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
+            assert not torch.equal(a["image"], b["image"])
+        image = without[0]["image"].float()
+        assert image.std() < 40  # a smooth background, no face
+
+    def test_random_crops_miss_the_face(self, cache) -> None:
+        for sample in small(cache, crop="random", length=8):
+            box, face = sample["crop_box"].double(), sample["face_box"].double()
+            w = (torch.minimum(box[2], face[2]) - torch.maximum(box[0], face[0])).clamp(min=0)
+            h = (torch.minimum(box[3], face[3]) - torch.maximum(box[1], face[1])).clamp(min=0)
+            assert w * h <= 0.2 * (face[2] - face[0]) * (face[3] - face[1]) + 1e-6
+
+    def test_pairs(self, cache) -> None:
+        for sample in small(cache, pairs=True, length=4):
+            pair = sample["pair"]
+            assert pair["image"].shape == sample["image"].shape and sorted(pair["spheres"]) == sorted(sample["spheres"])
+            assert not torch.equal(pair["mirror_ball"], sample["mirror_ball"])
+
+    def test_length_and_repr(self, cache) -> None:
+        data = small(cache, length=5)
+        assert len(list(data)) == 5
+        assert "2 fields of 2 subjects" in repr(small(cache, split=None))
+
+    @pytest.mark.parametrize(
+        ("kwargs", "error", "match"),
+        [
+            ({"background": "white"}, ValueCheckError, "background must be one of"),
+            ({"crop": "body"}, ValueCheckError, "crop must be one of"),
+            ({"split": "test"}, ValueCheckError, "split must be"),
+            ({"env_refresh": 9}, ValueCheckError, "must not exceed env_pool"),
+            ({"exposure_key": (0.0, 1.0)}, ValueCheckError, "exposure_key"),
+            ({"sphere_sizes": (16,)}, ValueCheckError, "exceed the lighting size"),
+            ({"seed": 1.5}, TypeCheckError, "seed must be an int"),
+            ({"environments": "sky"}, TypeCheckError, "EnvironmentSampler"),
+            ({"lightings_per_field": 0}, ValueCheckError, "lightings_per_field"),
+            ({"plain_background": 1.5}, ValueCheckError, "plain_background"),
+            ({"plain_level": (0.0, 1.0)}, ValueCheckError, "plain_level"),
+        ],
+    )
+    def test_errors(self, cache, kwargs, error, match) -> None:
+        with pytest.raises(error, match=match):
+            small(cache, **kwargs)
+
+    def test_no_fields(self, tmp_path, sphere_field) -> None:
+        with pytest.raises(ValueCheckError, match="no reflectance field"):
+            PortraitDataset([sphere_field], split="train")  # the sphere is an eval subject
+        with pytest.raises(TypeCheckError, match="sequence of ReflectanceField"):
+            load_fields([1, 2])
+
+@pytest.mark.slow
+class TestConfig:
+    def test_frozen_replace_and_overrides(self, cache) -> None:
+        config = PortraitConfig(size=OUT, sphere_sizes=(4, 8))
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            config.size = 32  # type: ignore[misc]
+        assert dataclasses.replace(config, crop="random").crop == "random" and config.crop == "face"
+        data = PortraitDataset(cache, config, seed=1, split=None, env_pool=4)
+        assert data.config.env_pool == 4 and data.config.size == OUT and data.seed == 1
+        with pytest.raises(TypeCheckError, match="PortraitConfig"):
+            PortraitDataset(cache, {"size": 32})
+        with pytest.raises(ValueCheckError, match="background_blur"):
+            PortraitConfig(background_blur=(3.0, 1.0))
+        with pytest.raises(TypeCheckError, match="CameraEffects"):
+            PortraitConfig(camera="phone")
+
+    def test_samples_record_the_effects(self, cache) -> None:
+        with_fx = small(cache).chunk(0, 0)
+        without = small(cache, camera=OFF, background_sharp_probability=1.0).chunk(0, 0)
+        assert all(s["background_blur"] == 0 for s in without)
+        assert any(s["background_blur"] > 0 for s in with_fx)
+        assert sorted(with_fx[0]["camera"]) == ["blur", "jpeg", "noise", "rolloff", "tone", "vignette"]
+        assert any(s["camera"]["jpeg"] > 0 for s in with_fx)
+        # the lighting and crops are drawn before the effects: the same with and without them (the exposure
+        # meters the blurred or sharp background, so it differs)
+        for a, b in zip(with_fx, without, strict=True):
+            torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
+            assert torch.equal(a["crop_box"], b["crop_box"])
+
+    def test_noise_windows_are_signed_views_of_the_bank(self, cache) -> None:
+        data = small(cache)
+        g1, g2 = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
+        views = data._noise(5, OUT, g1, True)
+        bank = data._noise_bank[0]
+        offsets = torch.randint(65, (5, 2), generator=g2).tolist()  # the draws of _noise, in its order
+        signs = torch.where(torch.rand(5, generator=g2) < 0.5, -1.0, 1.0)
+        for view, (i, j), sign in zip(views, offsets, signs, strict=True):
+            assert view.shape == (3, OUT, OUT)
+            assert view.untyped_storage().data_ptr() == bank.untyped_storage().data_ptr()  # a view, no copy
+            assert torch.equal(view, sign * bank[:, i : i + OUT, j : j + OUT])
+        assert data._noise(5, OUT, torch.Generator().manual_seed(3), False) is None
+        # the draws are the same whether the noise is needed or not
+        assert torch.equal(g1.get_state(), (data._noise(5, OUT, g2.manual_seed(3), False), g2)[1].get_state())
+
+class TestEnvironmentBackground:
+    def test_dataset_background_is_the_augmented_map_framed(self, shared_data) -> None:
+        """The dataset's pyramid (source map times the gains) and direction map frame what the augmented full map
+        of :func:`environment_background` frames: a real map, augmented (rotated, flipped, white-balanced)."""
+        sampler = EnvironmentSampler([HDRFolderSource(shared_data / "hdri", height=32)], seed=0)
+        env = next(e for e in map(sampler.sample, range(32)) if e.params["augment"]["flip"])
+        assert abs(env.params["augment"]["pitch_deg"]) > 5.0 and env.params["augment"]["gains"] != [1.0] * 3
+        data = PortraitDataset.__new__(PortraitDataset)  # only what _background needs
+        data.config = PortraitConfig(background_height=256)
+        data.environments, data._backgrounds = sampler, {}
+        pyramid, m = data._background(0, env)
+        torch.testing.assert_close(m, torch.tensor(env.params["augment"]["direction_map"], dtype=torch.float64))
+        camera = Camera(30.0, 1.0, 0.0, 0.0, size=48)
+        mirror, turn = torch.tensor([False, True]), torch.tensor([0.2, 0.6], dtype=torch.float64)
+        old = frame_backgrounds([background_pyramid(environment_background(env, sampler, height=256))] * 2, camera,
+                                mirror, turn)
+
+        def errors(view: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+            scale = old.abs().mean((1, 2, 3))
+            pooled = torch.nn.functional.avg_pool2d(view - old, 4).abs().mean((1, 2, 3)) / scale
+            return (view - old).abs().mean((1, 2, 3)) / scale, pooled, (view.mean((2, 3)) / old.mean((2, 3)) - 1).abs()
+
+        # a real map's sharp detail: bilinear twice (old) against once (new); measured 0.024 and 0.039, pooled over
+        # 4 x 4 pixels 0.009 and 0.015, mean colour 0.014
+        raw, pooled, colour = errors(frame_backgrounds([pyramid] * 2, camera, mirror, turn, rotation=m.expand(2, 3, 3)))
+        assert (raw < 0.1).all() and (pooled < 0.04).all() and (colour < 0.04).all(), (raw, pooled, colour)
+        _, pooled, _ = errors(frame_backgrounds([pyramid] * 2, camera, mirror, turn))  # without the rotation
+        assert (pooled > 0.2).all(), pooled
+
+    def test_environment_background_is_the_environment_at_higher_resolution(self) -> None:
+        sampler = EnvironmentSampler([SkySource(height=32)], seed=0)
+        env = sampler.sample(3)
+        full = environment_background(env, sampler, procedural_height=64)
+        assert full.shape == (3, 64, 128)
+        small_again = resize_latlong(full, 32)
+        err = (small_again - env.latlong).abs().mean() / env.latlong.abs().mean()
+        assert err < 0.15  # the same sky, turned and white-balanced alike (measured 0.03)
+        assert environment_background(env, sampler, procedural_height=32) is not None
+        torch.testing.assert_close(environment_background(env, sampler, procedural_height=16), env.latlong)
+
+    def test_real_map_background_at_full_resolution(self, shared_data) -> None:
+        sampler = EnvironmentSampler([HDRFolderSource(shared_data / "hdri", height=32)], seed=0)
+        env = sampler.sample(1)
+        full = environment_background(env, sampler, height=256)
+        assert full.shape == (3, 256, 512)
+        err = (resize_latlong(full, 32) - env.latlong).abs().mean() / env.latlong.abs().mean()
+        assert err < 0.15
+
+
+def _disc_field(seed: int = 7) -> ReflectanceField:
+    """A written-down 24 x 24 subject (no Mitsuba): a lit disc on black, with a ring of landmarks."""
+    n = 24
+    c = (torch.arange(n, dtype=torch.float64) + 0.5) / n * 2 - 1
+    y, x = torch.meshgrid(-c, c, indexing="ij")
+    alpha = ((x**2 + y**2) <= 0.6).float()[None]
+    field = (alpha.flatten()[None, :, None] * torch.full((3, 1, S * S), 1.0 / (S * S))).to(torch.bfloat16)
+    ring = torch.arange(len(LANDMARK_NAMES)) * 2 * math.pi / len(LANDMARK_NAMES)
+    landmarks = torch.stack([12 + 5 * ring.cos(), 13 + 6 * ring.sin()], -1)
+    camera = Camera(30.0, 1.0, 0.0, 0.0, size=n)
+    return ReflectanceField(field, alpha, torch.tensor([6.0, 6.0, 18.0, 18.0]), camera, seed,
+                            {"landmarks": landmarks.tolist(), "skin_tone": 3})
+
+
+class TestMatte:
+    def test_matte_adds_the_alpha_and_changes_nothing_else(self) -> None:
+        config = PortraitConfig(split=None, size=32, sphere_sizes=(4, 8), env_pool=4, env_refresh=2,
+                                fields_per_chunk=1, lightings_per_field=4, shuffle=1, length=8)
+        plain = list(PortraitDataset([_disc_field()], config, seed=2))
+        matte = list(PortraitDataset([_disc_field()], dataclasses.replace(config, matte=True), seed=2))
+        assert "alpha" not in plain[0] and "pair" not in matte[0]
+        for a, b in zip(plain, matte, strict=True):
+            assert set(b) == set(a) | {"alpha"}
+            for key, value in a.items():
+                if isinstance(value, torch.Tensor):
+                    assert torch.equal(value, b[key]), key
+                elif isinstance(value, dict):
+                    assert all(torch.equal(v, b[key][k]) for k, v in value.items()), key
+                else:
+                    assert value == b[key], key
+            alpha = b["alpha"]
+            assert alpha.dtype == torch.uint8 and alpha.shape == (1, 32, 32) and alpha.max() == 255
+            rf = _disc_field()  # the matte is the subject's coverage of the crop, as with pairs
+            source = rf.alpha.flip(-1) if b["flip"] else rf.alpha
+            expected = crop_images(source[None], b["crop_box"][None].double(), 32)[0]
+            assert (alpha.float() - 255 * expected).abs().max() <= 1.0
+
+
+class TestSecondCrop:
+    def test_drawn_last_inside_the_crop_and_only_when_asked(self) -> None:
+        base = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8))
+        with_second = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8,
+                                 second_crop=True))
+        assert all("second_crop" not in b for b in base)
+        for a, b in zip(base, with_second, strict=True):
+            assert torch.equal(a["image"], b["image"]) and torch.equal(a["mirror_ball"], b["mirror_ball"])
+            box = b["second_crop"]
+            assert box.shape == (4,) and bool((box >= 0).all() and (box <= 32).all())
+        sides = torch.stack([b["second_crop"][2] - b["second_crop"][0] for b in with_second])
+        assert sides.std() > 0  # jittered
+
+
+class TestPlainBackdrop:
+    def _data(self, **kw) -> list[dict]:
+        return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,
+                          crop_scale=2.5, length=8, **kw))
+
+    def test_backdrop_is_plain_and_scaled_by_the_subject(self) -> None:
+        """Behind every face a uniform colour, ``plain_level`` times the subject's mean linear luminance (times
+        a tint); the ground truth is the environment's, as without the backdrop."""
+        plain = self._data(plain_background=1.0, plain_level=(0.5, 0.5), matte=True)
+        scene = self._data(matte=True)
+        for p, s in zip(plain, scene, strict=True):
+            # the same lighting, in the units of a photo that the backdrop meters differently
+            torch.testing.assert_close(p["mirror_ball"] / p["exposure"], s["mirror_ball"] / s["exposure"],
+                                       rtol=1e-5, atol=0)
+            linear = srgb_to_linear(p["image"].float() / 255.0)
+            alpha = p["alpha"][0].float() / 255.0
+            inside = torch.zeros_like(alpha, dtype=torch.bool)
+            inside[4:-4, 4:-4] = True  # the crop reaches past the rendered frame at its rim
+            back, face = linear[:, (alpha == 0) & inside], linear[:, alpha == 1]
+            assert back.shape[1] > 20 and face.shape[1] > 20
+            assert (back - back.mean(1, keepdim=True)).abs().max() < 0.01  # one colour (8-bit rounding)
+            luminance = lambda rgb: 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]  # noqa: E731
+            ratio = float(luminance(back.mean(1)) / luminance(face.mean(1)))
+            assert 0.5 * math.exp(-0.35) < ratio < 0.5 * math.exp(0.35)  # the tint, exp(N(0, 0.1)) per channel
+            assert not torch.equal(p["image"], s["image"])
+
+    def test_off_by_default_and_a_fraction_when_asked(self) -> None:
+        base = self._data(matte=True)
+        none = self._data(matte=True, plain_background=0.0)
+        assert all(torch.equal(a["image"], b["image"]) for a, b in zip(base, none, strict=True))
+        half = self._data(matte=True, plain_background=0.5)
+        same = [torch.equal(h["image"], b["image"]) and torch.equal(h["mirror_ball"], b["mirror_ball"])
+                for h, b in zip(half, base, strict=True)]
+        assert 0 < sum(same) < len(same)  # the other draws are those of the scene: only the backdrop's samples change
