@@ -8,7 +8,7 @@ the training data's own :class:`~kornia_ilum_lab.synth.lightstage.portraits.Port
 per chunk (``env_pool = env_refresh = 1``): each chunk holds 8 subject views (drawn at random, so now and
 then one twice) under one environment, each turned about the vertical axis and auto-exposed on its own, as
 different faces of one photo would be placed and lit. Each portrait's estimate is scored by the log of its energy over the truth's,
-``r = log(E_est / E_true)`` (:func:`~kornia_ilum_lab.evaluation.checks.lighting_energy`), which the turn and the
+``r = log(E_est / E_true)`` (:func:`~kornia_ilum.metrics.lighting_energy`), which the turn and the
 exposure leave alone.
 
 It prints the standard deviation of ``r`` within a chunk (the spread between the faces of one photo), the
@@ -29,7 +29,7 @@ import torch
 
 from kornia_ilum.estimators import create_estimator
 from kornia_ilum.estimators.probe import fit_crops
-from kornia_ilum_lab.evaluation.checks import lighting_energy
+from kornia_ilum.metrics import lighting_energy
 from kornia_ilum_lab.evaluation.split import EVAL_SEED, eval_environment_sources, eval_fields
 from kornia_ilum_lab.synth.environments import EnvironmentSampler
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitConfig, PortraitDataset

@@ -8,19 +8,19 @@ Light-stage subject-views of ``CACHE`` (``--subjects`` of them, spread over the 
 ``--subject-split``; compact bfloat16 layout, as the training data relights them) are relit by every map of
 ``--hdri`` (default ``../shared/data/hdri``; ``--maps`` keeps one split of
 :func:`kornia_ilum_lab.synth.environments.hdri_split`, ``--sunny-outdoor`` only the sun-dominated outdoor maps).
-Each map is reduced as the bench's skips reduce it (:func:`kornia_ilum_lab.bench.skips.small_latlong`), resampled
+Each map is reduced as the bench's skips reduce it (:func:`kornia_ilum_lab.bench.maps.small_latlong`), resampled
 to a 32 x 32 mirror ball and turned to ``--batch`` yaws. It is relit once densely
 (:func:`kornia_ilum.render.relight_product`, the light stage's path) and once by
 :func:`kornia_ilum.render.relight_sparse` at each ``eps`` and each rank of ``--ranks``
 (:func:`kornia_ilum.render.prepare_sparse`). The ``skips`` section of ``kornia-ilum bench`` sums the same over
-the held-out maps (:func:`kornia_ilum_lab.bench.skips.relight_skips`).
+the held-out maps (:func:`kornia_ilum_lab.bench.relight.relight_skips`).
 
 Per subject, map and setting: the median time of ``--runs`` calls, timed in turns with dense (three rounds,
 each setting warm in its own block: :func:`kornia_ilum.bench.paired_median_seconds`; ``--runs 0``: errors
 only), and its ratio to dense; the lights kept per lighting (mean); the share of the map's energy in its
-brightest 1 % of directions (how sun-dominated it is, :func:`kornia_ilum_lab.bench.skips.top_share`); and two
+brightest 1 % of directions (how sun-dominated it is, :func:`kornia_ilum_lab.bench.relight.top_share`); and two
 errors of the relit image against dense: ``L1`` (relative, linear) and ``L_rec-like``
-(:func:`kornia_ilum_lab.bench.skips.lrec_like`: the paper's sphere loss applied to the portrait). A summary per
+(:func:`kornia_ilum_lab.bench.relight.lrec_like`: the paper's sphere loss applied to the portrait). A summary per
 setting follows: the mean and worst ``L_rec-like``, the share of (subject, map) pairs above 1 %, and the
 median ratio to dense. The target of issue 24: at least 5x faster on sun-dominated outdoor maps at 1 % of
 ``L_rec``.
@@ -41,7 +41,8 @@ from pathlib import Path
 import torch
 
 from kornia_ilum.bench import paired_median_seconds
-from kornia_ilum_lab.bench.skips import lrec_like, relight_groups, small_latlong, top_share, turned_lights
+from kornia_ilum_lab.bench.maps import small_latlong
+from kornia_ilum_lab.bench.relight import lrec_like, relight_groups, top_share, turned_lights
 from kornia_ilum.render import prepare_sparse, relight_product, relight_sparse, sparse_kept
 from kornia_ilum_lab.synth.environments.real import folder_splits
 from kornia_ilum_lab.synth.lightstage.portraits import load_fields

@@ -4,7 +4,7 @@ lag after a cut, per-frame estimation against :class:`kornia_ilum.video.Lighting
 Run: ``python benchmarks/bench_video.py --cache CACHE [--hdri DIR] [--maps A B] [--subject SEED] [--view V]
 [--frames 60 30] [--detect-every 10 5] [--runtimes eager onnx auto] [--threads 2]``
 
-The clip (:func:`kornia_ilum_lab.bench.skips.video_clip`): an eval subject-view of ``CACHE`` (the first, or
+The clip (:func:`kornia_ilum_lab.bench.video.video_clip`): an eval subject-view of ``CACHE`` (the first, or
 ``--subject`` and ``--view``) under a map turning by 2.8 degrees per frame for ``--frames[0]`` frames, then a cut
 to a second map for ``--frames[1]`` frames, 640 x 480. The maps are the first two held-out maps of ``--hdri``,
 or the two files of ``--maps`` (training maps make a tuning clip, on which settings may be chosen). The truth
@@ -40,7 +40,8 @@ from pathlib import Path
 
 import torch
 
-from kornia_ilum_lab.bench.skips import VIDEO_SETTINGS, flicker, held_out_maps, video_clip, video_rows
+from kornia_ilum_lab.bench.maps import held_out_maps
+from kornia_ilum_lab.bench.video import VIDEO_SETTINGS, flicker, video_clip, video_rows
 from kornia_ilum_lab.evaluation.split import eval_fields
 
 

@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kornia_ilum_lab.evaluation import build_eval_set, lighting_energy, load_checkpoint, load_estimator
+from kornia_ilum.metrics import lighting_energy
+from kornia_ilum_lab.evaluation import build_eval_set, load_checkpoint, load_estimator
 from kornia_ilum_lab.evaluation.cli import parse_weights
 from kornia_ilum_lab.synth.lightstage import read_manifest
 

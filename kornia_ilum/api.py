@@ -4,7 +4,9 @@ r"""End to end: a portrait in, HDR lighting out, in one call.
 detector from :mod:`kornia_ilum.detection`, crops each face as the paper does (a square centred on the
 face box, side 1.25 x max(w, h), zero padding outside the image, resized to the estimator's input size
 with antialiasing) and runs a lighting estimator from :mod:`kornia_ilum.estimators` once on the batch of
-all crops. The result is a :class:`~kornia_ilum.estimators.LightingEstimate` that can be saved as
+all crops. Its three steps are public, for a caller who wants one of them alone: :func:`find_faces` (detect and
+keep the faces), :func:`~kornia_ilum.detection.crop_faces` (cut the crops) and :func:`estimate_from_crops` (run
+the estimator and attach the boxes). The result is a :class:`~kornia_ilum.estimators.LightingEstimate` that can be saved as
 ``.exr``/``.hdr``, converted to lat-long, rendered on the reference spheres or previewed as a PNG.
 
 This is a pipeline, not a differentiable op, so it has no :class:`torch.nn.Module` twin: the estimators
@@ -20,6 +22,7 @@ import dataclasses
 import functools
 import os
 import time
+from collections.abc import Callable
 from typing import Any, Literal
 
 import numpy as np
@@ -47,7 +50,8 @@ from kornia_ilum.estimators import (
 )
 from kornia_ilum.io import read_ldr
 
-__all__ = ["cached_detector", "cached_estimator", "estimate_lighting", "full_image_box", "pick_faces"]
+__all__ = ["FoundFaces", "cached_detector", "cached_estimator", "estimate_from_crops", "estimate_lighting",
+           "find_faces", "full_image_box", "no_face_message", "pick_faces"]
 
 _FACES = ("largest", "all", "fused")
 _FALLBACKS = (None, "full_image")
@@ -279,9 +283,131 @@ def pick_faces(detections: torch.Tensor, faces: str) -> torch.Tensor:
     return found[order[:1]] if faces == "largest" else found[order]
 
 
+@dataclasses.dataclass(frozen=True)
+class FoundFaces:
+    r"""The faces of a batch of photographs that an estimate keeps (:func:`find_faces`), in image order, then face
+    order.
+
+    Attributes:
+        boxes: ``(N, 4)`` the face boxes ``(x0, y0, x1, y1)`` in the images' pixels (for the full-image fallback,
+            the square used).
+        crop_boxes: ``(N, 4)`` the squares the crops are cut from (:func:`~kornia_ilum.detection.square_crop_boxes`).
+        image_index: ``(N,)`` int64, the image each face belongs to.
+        scores: ``(N,)`` the detector's score of each face (1 for the fallback).
+    """
+
+    boxes: torch.Tensor
+    crop_boxes: torch.Tensor
+    image_index: torch.Tensor
+    scores: torch.Tensor
+
+
+def no_face_message(where: str, detector: str) -> str:
+    """The message of the :class:`~kornia_ilum.core.errors.NoFaceError` that :func:`find_faces` raises: where no
+    face was found, by which detector, and what to try (the Python arguments; the CLI names its options instead).
+
+    Examples:
+        >>> no_face_message("image", "opencv")
+        "no face found in image by detector 'opencv'; try detector='yunet' (a stronger detector), or \
+detector='none' if the image already is a face crop, or fallback='full_image' to estimate from the whole image"
+    """
+    hints = ["detector='yunet' (a stronger detector)"] if detector != "yunet" else []
+    hints += ["detector='none' if the image already is a face crop",
+              "fallback='full_image' to estimate from the whole image"]
+    return f"no face found in {where} by detector {detector!r}; try " + ", or ".join(hints)
+
+
+def find_faces(images: torch.Tensor, detector: str | FaceDetector = DEFAULT_DETECTOR, *,
+               faces: Literal["largest", "all", "fused"] = "largest", fallback: Literal["full_image"] | None = None,
+               name: str = "image", check_values: bool = True) -> FoundFaces:
+    r"""The first step of :func:`estimate_lighting`: detect the faces of each image and keep those an estimate
+    uses (the largest, or all of them largest first), with the square each crop is cut from.
+
+    Args:
+        images: ``(B, 3, H, W)`` sRGB in ``[0, 1]``.
+        detector: a registered detector name (created once per name and device) or a
+            :class:`~kornia_ilum.detection.FaceDetector`.
+        faces: ``"largest"``, or ``"all"`` / ``"fused"`` for every face.
+        fallback: ``"full_image"`` uses the largest centred square of an image without a face
+            (:func:`full_image_box`); ``None`` raises.
+        name: what the images are, for the error message (a file name).
+        check_values: scan the images' values (``False`` where the caller has).
+
+    Returns:
+        the :class:`FoundFaces`.
+
+    Raises:
+        NoFaceError: an image has no face and ``fallback`` is ``None`` (:func:`no_face_message`).
+
+    Examples:
+        >>> import skimage.data
+        >>> image = torch.from_numpy(skimage.data.astronaut()).permute(2, 0, 1)[None] / 255
+        >>> found = find_faces(image)
+        >>> found.boxes.shape, found.image_index.tolist()
+        (torch.Size([1, 4]), [0])
+    """
+    check_choice(faces, "faces", _FACES)
+    if fallback not in _FALLBACKS:
+        raise ValueCheckError(f"fallback must be None or 'full_image', got {fallback!r}")
+    dev = images.device
+    det = _resolve_detector(detector, dev)
+    height, width = images.shape[-2:]
+    crop_boxes, boxes, index, scores = [], [], [], []
+    for i, found in enumerate(det.detect(images, check_values=check_values)):
+        if found.shape[0] > 0:
+            picked = pick_faces(found, "all" if faces == "fused" else faces).to(dev)
+            kept = picked[:, :4]
+            scores.append(picked[:, 4])
+            crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
+        elif fallback == "full_image":
+            kept = full_image_box(height, width).to(dev)
+            scores.append(torch.ones(1, device=dev))
+            crop_boxes.append(kept)
+        else:
+            where = name if images.shape[0] == 1 else f"{name} {i} of the batch of {images.shape[0]}"
+            label = detector if isinstance(detector, str) else (det.name or type(detector).__name__)
+            raise NoFaceError(no_face_message(where, label))
+        boxes.append(kept)
+        index.append(torch.full((kept.shape[0],), i, dtype=torch.int64, device=dev))
+    return FoundFaces(torch.cat(boxes), torch.cat(crop_boxes), torch.cat(index), torch.cat(scores))
+
+
+def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: LightingEstimator, *,
+                        faces: Literal["largest", "all", "fused"] = "largest") -> LightingEstimate:
+    r"""The last step of :func:`estimate_lighting`: run ``estimator`` on the crops of the ``found`` faces (in eval
+    mode, under :func:`torch.inference_mode`, restored afterwards) and attach their boxes; with ``"fused"``, one
+    lighting per image (:func:`~kornia_ilum.estimators.fuse_faces`, weighed by score times the box's side).
+
+    Args:
+        crops: ``(N, 3, S, S)`` the faces' crops (:func:`~kornia_ilum.detection.crop_faces` of
+            ``found.crop_boxes``), in ``[0, 1]``.
+        found: the faces (:func:`find_faces`).
+        estimator: a :class:`~kornia_ilum.estimators.LightingEstimator`.
+        faces: ``"fused"`` fuses each image's faces; otherwise one entry per face.
+
+    Returns:
+        the :class:`~kornia_ilum.estimators.LightingEstimate` with ``boxes`` and ``image_index``.
+    """
+    was_training = estimator.training
+    estimator.eval()
+    try:
+        with torch.inference_mode():
+            # crops of a checked image are in [0, 1] (up to resampling round-off) and finite
+            result = estimator(crops.to(_module_dtype(estimator)), check_values=False)
+    finally:
+        estimator.train(was_training)
+    result = dataclasses.replace(result, boxes=found.boxes, image_index=found.image_index)
+    if faces == "fused":
+        kept = result.boxes
+        side = ((kept[:, 2] - kept[:, 0]) * (kept[:, 3] - kept[:, 1])).clamp(min=0).sqrt()
+        result = fuse_faces(result, found.scores.float() * side, found.image_index)
+    return result
+
+
 def estimate_lighting(
     image: torch.Tensor | np.ndarray | str | os.PathLike[str],
     estimator: str | LightingEstimator | None = None,
+    *,
     detector: str | FaceDetector = DEFAULT_DETECTOR,
     faces: Literal["largest", "all", "fused"] = "largest",
     fallback: Literal["full_image"] | None = None,
@@ -289,7 +415,7 @@ def estimate_lighting(
     device: str | torch.device | None = None,
     tta: int | None = None,
     runtime: str = "eager",
-    timings: dict[str, float] | None = None,
+    on_stage: Callable[[str, float], Any] | None = None,
 ) -> LightingEstimate:
     r"""Estimate HDR lighting from portrait photograph(s): detect the faces, crop them, run an estimator.
 
@@ -332,8 +458,9 @@ def estimate_lighting(
             :func:`~kornia_ilum.estimators.with_runtime`): ``"eager"`` (PyTorch float32, the default),
             ``"bf16"``, ``"onnx"``, ``"onnx-int8"`` or ``"auto"`` (the fastest that runs here and passes its
             parity check; ``kornia-ilum bench`` measures them).
-        timings: a dict that receives the milliseconds of each stage of this call: ``"check"`` (the input's
-            conversion and value scan), ``"detect"``, ``"crop"`` and ``"estimate"``.
+        on_stage: a timing hook, called as ``on_stage(stage, ms)`` after each stage of this call: ``"check"``
+            (the input's conversion and value scan), ``"detect"``, ``"crop"`` and ``"estimate"``
+            (``on_stage=timings.__setitem__`` fills a dict).
 
     Returns:
         A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``
@@ -400,8 +527,8 @@ def estimate_lighting(
 
     def lap(stage: str) -> None:
         clock.append(time.perf_counter())
-        if timings is not None:
-            timings[stage] = 1e3 * (clock[-1] - clock[-2])
+        if on_stage is not None:
+            on_stage(stage, 1e3 * (clock[-1] - clock[-2]))
 
     batch, what = _as_batch(image, bgr)
     dev = torch.device(device) if device is not None else batch.device
@@ -411,50 +538,12 @@ def estimate_lighting(
     lap("check")
     if tta is not None:
         est = TestTimeAugmented(est, jitters=tta)  # no state of its own: cheap to build per call
-    det = _resolve_detector(detector, dev)
-    size = est.info.input_size
-    height, width = batch.shape[-2:]
-
-    crop_boxes, boxes, index, scores = [], [], [], []
-    detections = det.detect(batch, check_values=False)  # checked once, in _as_batch
+    # the image was checked once, in _as_batch: the steps skip the value scan
+    found = find_faces(batch, detector, faces=faces, fallback=fallback, name=what, check_values=False)
     lap("detect")
-    for i, found in enumerate(detections):
-        if found.shape[0] > 0:
-            picked = pick_faces(found, "all" if faces == "fused" else faces).to(dev)
-            kept = picked[:, :4]
-            scores.append(picked[:, 4])
-            crop_boxes.append(square_crop_boxes(kept, scale=det.crop_scale))
-        elif fallback == "full_image":
-            kept = full_image_box(height, width).to(dev)
-            scores.append(torch.ones(1, device=dev))
-            crop_boxes.append(kept)
-        else:
-            where = what if batch.shape[0] == 1 else f"{what} {i} of the batch of {batch.shape[0]}"
-            name = detector if isinstance(detector, str) else (det.name or type(detector).__name__)
-            hints = ["detector='yunet' (a stronger detector)"] if name != "yunet" else []
-            hints += [
-                "detector='none' if the image already is a face crop",
-                "fallback='full_image' to estimate from the whole image",
-            ]
-            raise NoFaceError(f"no face found in {where} by detector {name!r}; try " + ", or ".join(hints))
-        boxes.append(kept)
-        index.append(torch.full((kept.shape[0],), i, dtype=torch.int64, device=dev))
-    index_all = torch.cat(index)
-    crops = crop_faces(batch, torch.cat(crop_boxes), size=size, index=index_all, check_values=False)
+    crops = crop_faces(batch, found.crop_boxes, size=est.info.input_size, index=found.image_index,
+                       check_values=False)
     lap("crop")
-
-    was_training = est.training
-    est.eval()
-    try:
-        with torch.inference_mode():
-            # crops of a checked image are in [0, 1] (up to resampling round-off) and finite
-            result = est(crops.to(_module_dtype(est)), check_values=False)
-    finally:
-        est.train(was_training)
+    result = estimate_from_crops(crops, found, est, faces=faces)
     lap("estimate")
-    result = dataclasses.replace(result, boxes=torch.cat(boxes), image_index=index_all)
-    if faces == "fused":
-        kept = result.boxes
-        side = ((kept[:, 2] - kept[:, 0]) * (kept[:, 3] - kept[:, 1])).clamp(min=0).sqrt()
-        result = fuse_faces(result, torch.cat(scores).float() * side, index_all)
     return result

@@ -534,7 +534,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         try:
             light = estimate_lighting(
                 image, estimator=estimator, detector=detector, faces=args.faces, fallback=args.fallback,
-                device=device, tta=args.tta, runtime=args.runtime, timings=stages,
+                device=device, tta=args.tta, runtime=args.runtime, on_stage=stages.__setitem__,
             )
         except NoFaceError as e:  # the API's hints name Python arguments; here they are options
             raise NoFaceError(_as_options(str(e))) from None

@@ -196,7 +196,7 @@ class TestEstimateLighting:
 
     def test_runtime_and_stage_timings(self, astronaut, astronaut_estimate):
         timings = {}
-        fast = estimate_lighting(astronaut, runtime="onnx", timings=timings)
+        fast = estimate_lighting(astronaut, runtime="onnx", on_stage=timings.__setitem__)
         assert list(timings) == ["check", "detect", "crop", "estimate"] and all(v >= 0 for v in timings.values())
         a, b = torch.log1p(fast.mirror_ball), torch.log1p(astronaut_estimate.mirror_ball)
         assert float((a - b).abs().amax()) <= PARITY_ATOL

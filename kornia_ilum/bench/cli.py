@@ -18,7 +18,7 @@ from typing import Any
 from kornia_ilum.bench.report import format_bench, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
 from kornia_ilum.core.cli import positive_int
-from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.core.errors import UnknownNameError, ValueCheckError
 from kornia_ilum.detection import list_detectors
 
 __all__ = ["BENCH_ENTRY_POINT_GROUP", "add_bench_parser", "bench_error_part", "run_bench_command"]
@@ -102,7 +102,8 @@ def _detectors(asked: list[str] | None) -> list[str]:
     if asked:
         unknown = [d for d in asked if d not in list_detectors()]
         if unknown:
-            raise ValueError(f"unknown detector {unknown[0]!r}; registered detectors: {', '.join(list_detectors())}")
+            raise UnknownNameError(f"unknown detector {unknown[0]!r}; registered detectors: "
+                                   f"{', '.join(list_detectors())}")
         return asked
     return list(E2E_DETECTORS)
 
@@ -120,7 +121,7 @@ def run_bench_command(args: argparse.Namespace) -> int:
         the exit status, 0 (a failure raises).
 
     Raises:
-        ValueError: a ``--detector`` that is not registered.
+        UnknownNameError: a ``--detector`` that is not registered.
 
     Examples:
         A bench run times every estimator and runtime, so it is not run here:

@@ -7,7 +7,7 @@ r"""Run time of the estimators and of the whole photo-to-file path, as ``kornia-
   on the eager estimator), to turn a time into a rate against the machine's peak;
 - :func:`end_to_end`: one photograph from its file to the written ``.exr``: read, check, detect, crop,
   estimate, write, each stage's median and the median of the whole, as :func:`~kornia_ilum.estimate_lighting`
-  reports its stages (``timings=``).
+  reports its stages (``on_stage=``).
 """
 
 from __future__ import annotations
@@ -162,7 +162,7 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
             t0 = time.perf_counter()
             image = read_ldr(src)
             times = {"read": 1e3 * (time.perf_counter() - t0)}
-            light = estimate_lighting(image, estimator=estimator, detector=detector, timings=times)
+            light = estimate_lighting(image, estimator=estimator, detector=detector, on_stage=times.__setitem__)
             t1 = time.perf_counter()
             light.save(dst)
             t2 = time.perf_counter()

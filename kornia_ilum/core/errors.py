@@ -19,6 +19,7 @@ __all__ = [
     "IlumError",
     "HDRIOError",
     "TruncatedImageError",
+    "UnknownNameError",
     "MissingWeightsError",
     "WeightsChecksumError",
     "NoFaceError",
@@ -78,6 +79,18 @@ class TruncatedImageError(HDRIOError):
     Examples:
         >>> issubclass(TruncatedImageError, HDRIOError), issubclass(TruncatedImageError, OSError)
         (True, True)
+    """
+
+
+class UnknownNameError(IlumError, ValueError):
+    """A name that no registry holds (an estimator, a detector, a training recipe); the message lists the
+    registered names. A :class:`ValueError`, as an unknown value is.
+
+    Examples:
+        >>> raise UnknownNameError("unknown estimator 'x'. Valid names: ours")
+        Traceback (most recent call last):
+        ...
+        kornia_ilum.core.errors.UnknownNameError: unknown estimator 'x'. Valid names: ours
     """
 
 

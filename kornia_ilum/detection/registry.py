@@ -14,7 +14,7 @@ from types import MappingProxyType
 from typing import Any, Literal
 
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.core.errors import TypeCheckError
+from kornia_ilum.core.errors import TypeCheckError, UnknownNameError, ValueCheckError
 from kornia_ilum.detection.detectors import (
     FaceDetector,
     NoFaceDetector,
@@ -48,7 +48,7 @@ def _factory(name: str) -> Callable[..., FaceDetector]:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise ValueError(
+        raise UnknownNameError(
             f"unknown detector {name!r}; registered detectors: {', '.join(list_detectors())}"
         ) from None
 
@@ -90,7 +90,7 @@ def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None | Lite
         the detector, a :class:`~kornia_ilum.detection.FaceDetector` with ``max_side`` set.
 
     Raises:
-        ValueError: ``name`` is not registered; the message lists the registered names.
+        UnknownNameError: ``name`` is not registered (a ``ValueError``); the message lists the registered names.
         TypeCheckError: the factory did not return a :class:`~kornia_ilum.detection.FaceDetector`.
         MissingWeightsError: ``"yunet"`` found no local weights (the message says where it looked).
 
@@ -100,7 +100,7 @@ def create_detector(name: str = DEFAULT_DETECTOR, *, max_side: int | None | Lite
         >>> create_detector("haar")
         Traceback (most recent call last):
         ...
-        ValueError: unknown detector 'haar'; registered detectors: none, opencv, yunet
+        kornia_ilum.core.errors.UnknownNameError: unknown detector 'haar'; registered detectors: none, opencv, yunet
     """
     if max_side is not None and max_side != "auto":
         check_positive_int(max_side, "max_side")
@@ -128,7 +128,7 @@ def register_detector(
 
     Raises:
         TypeCheckError: ``name`` is not a non-empty str or ``factory`` is not callable.
-        ValueError: ``name`` is registered already and ``clobber`` is False.
+        ValueCheckError: ``name`` is registered already and ``clobber`` is False.
 
     Examples:
         >>> class Centre(NoFaceDetector):
@@ -139,7 +139,7 @@ def register_detector(
         >>> _ = register_detector("centre", Centre)
         Traceback (most recent call last):
         ...
-        ValueError: detector 'centre' is already registered; pass clobber=True to replace it
+        kornia.core.exceptions.ValueCheckError: detector 'centre' is already registered; pass clobber=True to replace it
         >>> del _REGISTRY["centre"]  # tidy up the doctest
     """
     if not isinstance(name, str) or not name:
@@ -149,7 +149,7 @@ def register_detector(
             f"factory must be callable (a FaceDetector subclass), got {type(factory).__name__}"
         )
     if name in _REGISTRY and not clobber:
-        raise ValueError(f"detector {name!r} is already registered; pass clobber=True to replace it")
+        raise ValueCheckError(f"detector {name!r} is already registered; pass clobber=True to replace it")
     _REGISTRY[name] = factory
     return factory
 
@@ -166,7 +166,7 @@ def describe_detector(name: str) -> str:
         the description, one line; empty when the factory has neither.
 
     Raises:
-        ValueError: ``name`` is not registered; the message lists the registered names.
+        UnknownNameError: ``name`` is not registered (a ``ValueError``); the message lists the registered names.
 
     Examples:
         >>> describe_detector("none")

@@ -47,7 +47,6 @@ from kornia_ilum.core.errors import (
     WeightsChecksumError,
 )
 from kornia_ilum.core.files import sha256_file
-from kornia_ilum.estimators.pretrained import pretrained_names
 from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
 from kornia_ilum.io import write_hdr, write_ldr
 from kornia_ilum.render import PREVIEW_SUPERSAMPLES, SPHERE_SIZES, render_spheres
@@ -638,11 +637,8 @@ def read_weights(
 
 
 def _no_weights_message(info: EstimatorInfo) -> str:
-    ready = ", ".join(pretrained_names()) or "none installed (pip install ./plugins/uniform)"
-    return (
-        f"'{info.name}' is registered but ships no trained weights yet; "
-        f"pass pretrained=False for an untrained model or pick one of: {ready}"
-    )
+    return (f"'{info.name}' ships no trained weights yet; pass pretrained=False for an untrained model "
+            "(kornia_ilum.estimators.create_estimator names the registered estimators that ship weights)")
 
 
 def adopt_spread_head(module: nn.Module, state_dict: dict[str, Any], prefix: str, in_features: int) -> None:

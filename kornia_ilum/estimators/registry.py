@@ -35,9 +35,8 @@ import warnings
 from types import MappingProxyType
 from typing import Any
 
-from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.core.errors import MissingWeightsError, UnknownNameError, ValueCheckError
 from kornia_ilum.estimators.base import EstimatorInfo, LightingEstimator
-from kornia_ilum.estimators.pretrained import set_pretrained_lookup
 from kornia_ilum.estimators.runtime import RUNTIMES, with_runtime
 
 __all__ = [
@@ -55,12 +54,6 @@ ENTRY_POINT_GROUP = "kornia_ilum.estimators"
 #: The estimator used when none is named: ``"ours"``, with its shipped weights.
 DEFAULT_ESTIMATOR = "ours"
 
-#: Estimators that live in plugin packages of this project: the install hint for an unknown name.
-_KNOWN_PLUGINS = {
-    name: f"it is provided by the plugin package kornia_ilum_{name}: pip install ./plugins/{name} "
-    "(from the kornia_ilum source tree)"
-    for name in ("uniform", "sh", "sipr")
-}
 
 _lock = threading.RLock()
 _plugins: dict[str, type[LightingEstimator]] | None = None  # from entry points; None until discovered
@@ -143,9 +136,7 @@ def _resolve(name: str) -> type[LightingEstimator]:
     with _lock:
         target = _runtime.get(name, (_plugins or {}).get(name))
         if target is None:
-            hint = f"; {_KNOWN_PLUGINS[name]}" if name in _KNOWN_PLUGINS else ""
-            valid = ", ".join(_names()) or "none"
-            raise ValueError(f"unknown estimator {name!r}{hint}. Valid names: {valid}")
+            raise UnknownNameError(unknown_estimator_message(name))
         if isinstance(target, str):
             module, _, attr = target.partition(":")
             obj: Any = importlib.import_module(module)
@@ -173,7 +164,27 @@ def _pretrained_names() -> list[str]:
     return ready
 
 
-set_pretrained_lookup(_pretrained_names)
+def unknown_estimator_message(name: str) -> str:
+    """The message of the :class:`~kornia_ilum.core.errors.UnknownNameError` for an estimator ``name`` that no
+    installed package registers: the registered names, and where estimators come from.
+
+    Examples:
+        >>> unknown_estimator_message("nope")  # doctest: +ELLIPSIS
+        "unknown estimator 'nope'. Valid names: ...; an estimator plugin registers its estimators in the \
+entry-point group 'kornia_ilum.estimators' (this repository's plugins/ holds some: pip install ./plugins/NAME)"
+    """
+    valid = ", ".join(_names()) or "none"
+    return (f"unknown estimator {name!r}. Valid names: {valid}; an estimator plugin registers its estimators in "
+            f"the entry-point group {ENTRY_POINT_GROUP!r} (this repository's plugins/ holds some: pip install "
+            "./plugins/NAME)")
+
+
+def missing_weights_message(name: str) -> str:
+    """The message of the :class:`~kornia_ilum.core.errors.MissingWeightsError` for a registered estimator
+    ``name`` that ships no trained weights: ``pretrained=False``, or the registered estimators that do."""
+    ready = ", ".join(_pretrained_names()) or "none installed"
+    return (f"{name!r} is registered but ships no trained weights yet; pass pretrained=False for an untrained model "
+            f"or pick one of: {ready}")
 
 
 def list_estimators(pattern: str = "*") -> list[str]:
@@ -229,7 +240,7 @@ def estimator_info(name: str) -> EstimatorInfo:
         built and no weights are read.
 
     Raises:
-        ValueError: unknown name; the message lists the valid names.
+        UnknownNameError: unknown name (a ``ValueError``); the message lists the valid names.
 
     Examples:
         >>> estimator_info("ours").input_size
@@ -257,7 +268,7 @@ def create_estimator(name: str, pretrained: bool = True, runtime: str = "eager",
         the estimator module (in ``eval()`` mode when pretrained).
 
     Raises:
-        ValueError: unknown name; the message lists the valid names.
+        UnknownNameError: unknown name (a ``ValueError``); the message lists the valid names.
         ValueCheckError: unknown runtime, or one that cannot run here (the message says why).
         MissingWeightsError: ``pretrained=True`` for an estimator that ships no trained weights yet, or
             whose weight file is missing.
@@ -271,6 +282,8 @@ def create_estimator(name: str, pretrained: bool = True, runtime: str = "eager",
     cls = _resolve(name)
     if runtime not in RUNTIMES:  # before the weights are read
         raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    if pretrained and cls.info.needs_weights and not cls.info.weights:
+        raise MissingWeightsError(missing_weights_message(name))
     model = cls.from_pretrained(**kw) if pretrained else cls(**kw)
     return with_runtime(model, runtime)
 
@@ -288,7 +301,7 @@ def register_estimator(name: str, target: type[LightingEstimator] | str, clobber
         None; :func:`create_estimator` and :func:`list_estimators` know ``name`` from now on, in this process.
 
     Raises:
-        ValueError: ``name`` is taken and ``clobber`` is ``False``, or ``target`` is a malformed string.
+        ValueCheckError: ``name`` is taken and ``clobber`` is ``False``, or ``target`` is a malformed string.
         TypeError: ``target`` is not an estimator class (with an :class:`EstimatorInfo`) nor a string.
 
     Examples:
@@ -299,16 +312,16 @@ def register_estimator(name: str, target: type[LightingEstimator] | str, clobber
         >>> register_estimator("ours_alias", OursEstimator)  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        ValueError: estimator 'ours_alias' is already registered (OursEstimator); pass clobber=True ...
+        kornia.core.exceptions.ValueCheckError: estimator 'ours_alias' is already registered (OursEstimator); pass clobber=True ...
         >>> register_estimator("ours_alias", "kornia_ilum.estimators.ours:OursEstimator", clobber=True)
         >>> _reset()  # doctest cleanup: forget the runtime registrations
     """
     if not isinstance(name, str) or not name:
-        raise ValueError(f"name must be a non-empty string, got {name!r}")
+        raise ValueCheckError(f"name must be a non-empty string, got {name!r}")
     if isinstance(target, str):
         module, sep, attr = target.partition(":")
         if not (sep and module and attr):
-            raise ValueError(f"target must be a class or a 'module:attr' string, got {target!r}")
+            raise ValueCheckError(f"target must be a class or a 'module:attr' string, got {target!r}")
     else:
         target = _check_class(target, f"target for estimator {name!r}")
     _ensure_discovered()
@@ -316,7 +329,7 @@ def register_estimator(name: str, target: type[LightingEstimator] | str, clobber
         current = _runtime.get(name, (_plugins or {}).get(name))
         if current is not None and not clobber:
             shown = current if isinstance(current, str) else current.__qualname__
-            raise ValueError(
+            raise ValueCheckError(
                 f"estimator {name!r} is already registered ({shown}); pass clobber=True to replace it"
             )
         _runtime[name] = target

@@ -1,11 +1,14 @@
-"""Lighting errors: the sphere-render loss ``L_rec``, relative radiance, and the three-sphere protocol."""
+"""Lighting errors: the sphere-render loss ``L_rec``, relative radiance, the lighting's energy, and the
+three-sphere protocol."""
 
 from kornia_ilum.metrics.lighting import (
+    LightingEnergy,
     MultiscaleReconstructionLoss,
     ReconstructionLoss,
     RelativeRadiance,
     TotalRadiance,
     check_lighting_pair,
+    lighting_energy,
     multiscale_reconstruction_loss,
     reconstruction_loss,
     relative_radiance,
@@ -21,6 +24,7 @@ from kornia_ilum.metrics.protocol import (
 
 __all__ = [
     "METRICS",
+    "LightingEnergy",
     "MultiscaleReconstructionLoss",
     "ReconstructionLoss",
     "RelativeRadiance",
@@ -28,6 +32,7 @@ __all__ = [
     "TonemapStylelight",
     "TotalRadiance",
     "check_lighting_pair",
+    "lighting_energy",
     "multiscale_reconstruction_loss",
     "reconstruction_loss",
     "relative_radiance",

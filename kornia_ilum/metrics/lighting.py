@@ -32,11 +32,13 @@ from kornia_ilum.render.spheres import (
 )
 
 __all__ = [
+    "LightingEnergy",
     "MultiscaleReconstructionLoss",
     "ReconstructionLoss",
     "RelativeRadiance",
     "TotalRadiance",
     "check_lighting_pair",
+    "lighting_energy",
     "multiscale_reconstruction_loss",
     "reconstruction_loss",
     "relative_radiance",
@@ -277,6 +279,40 @@ def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) 
     return (mirror_ball.to(work) * omega).sum((-2, -1))
 
 
+def lighting_energy(mirror_ball: torch.Tensor) -> torch.Tensor:
+    r"""The lighting's energy: the integral over the sphere of the mean over R, G, B (the scalar of
+    :func:`total_radiance`: its mean over the channels).
+
+    :math:`E = \sum_p \Omega_p \tfrac{1}{3}(L_r + L_g + L_b)_p` over the valid pixels, with the exact solid
+    angles of :func:`~kornia_ilum.geometry.mirror_ball_solid_angles` (they sum to :math:`4\pi`): a uniform
+    lighting of radiance 1 has :math:`E = 4\pi`.
+
+    Args:
+        mirror_ball: linear lighting (docs/conventions.rst, "Mirror ball").
+
+    Returns:
+        ``(B,)`` energies, in the lighting's units times steradians.
+
+    Shape:
+        - mirror_ball: :math:`(B, 3, S, S)`
+        - Output: :math:`(B,)`
+
+    Convention:
+        docs/conventions.rst, "Mirror ball" (the solid angles, summing to 4 pi) and "Units of lighting".
+
+    Examples:
+        >>> import math
+        >>> from kornia_ilum.geometry import mirror_ball_valid
+        >>> E = lighting_energy(torch.ones(2, 3, 32, 32) * mirror_ball_valid(32))
+        >>> bool(torch.allclose(E, torch.full((2,), 4 * math.pi)))
+        True
+    """
+    check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"])
+    s = mirror_ball.shape[-1]
+    omega = mirror_ball_solid_angles(s, device=mirror_ball.device, dtype=mirror_ball.dtype)
+    return (mirror_ball.mean(1) * omega).sum((-2, -1))  # omega is 0 on the invalid pixels
+
+
 def relative_radiance(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     r"""Relative radiance error per channel: ``(sum(L_gt) - sum(L_pred)) / sum(L_gt)``.
 
@@ -454,6 +490,22 @@ class RelativeRadiance(nn.Module):
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return relative_radiance(pred, target)
+
+
+class LightingEnergy(nn.Module):
+    r"""Module twin of :func:`lighting_energy`.
+
+    Shape:
+        - Input: :math:`(B, 3, S, S)`
+        - Output: :math:`(B,)`
+
+    Examples:
+        >>> LightingEnergy()(torch.ones(2, 3, 32, 32)).shape
+        torch.Size([2])
+    """
+
+    def forward(self, mirror_ball: torch.Tensor) -> torch.Tensor:
+        return lighting_energy(mirror_ball)
 
 
 class TotalRadiance(nn.Module):

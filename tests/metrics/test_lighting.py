@@ -273,3 +273,11 @@ class TestTotalRadiance:
         x = hdr_lighting(2, seed=3)
         torch.testing.assert_close(TotalRadiance(dtype)(x), total_radiance(x, dtype), rtol=0.0, atol=0.0)
         assert TotalRadiance(dtype)(x.half()).dtype == (torch.float16 if dtype is None else dtype)
+
+
+def test_lighting_energy_is_the_mean_of_total_radiance_and_has_a_twin() -> None:
+    from kornia_ilum.metrics import LightingEnergy, lighting_energy, total_radiance
+
+    x = torch.rand(4, 3, 32, 32, dtype=torch.float64)
+    torch.testing.assert_close(lighting_energy(x), total_radiance(x).mean(-1))
+    assert torch.equal(LightingEnergy()(x), lighting_energy(x))

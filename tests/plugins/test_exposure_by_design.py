@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from kornia_ilum.estimators import create_estimator
-from kornia_ilum_lab.evaluation import darken, lighting_energy
+from kornia_ilum.metrics import lighting_energy
+from kornia_ilum_lab.evaluation import darken
 
 
 @pytest.mark.parametrize("name", ["sh", "sipr"])

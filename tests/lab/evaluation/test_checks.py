@@ -28,7 +28,6 @@ from kornia_ilum_lab.evaluation import (
     exposure_equivariance,
     face_crops,
     jitter_boxes,
-    lighting_energy,
     run_checks,
     spread_calibration,
     transfer_check,
@@ -36,6 +35,7 @@ from kornia_ilum_lab.evaluation import (
 from kornia_ilum.estimators import LightingEstimate
 from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_valid, uv_to_pixel
 from kornia_ilum.io import write_ldr
+from kornia_ilum.metrics import lighting_energy
 
 VALID = mirror_ball_valid(32).float()
 

@@ -58,6 +58,7 @@ from kornia_ilum_lab.evaluation.bootstrap import ratio_interval, subject_interva
 from kornia_ilum_lab.evaluation.evaluate import EvalSet, fit_crops
 from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
 from kornia_ilum.io import read_ldr
+from kornia_ilum.metrics import lighting_energy
 from kornia_ilum_lab.synth.lightstage.portraits import crop_images
 
 __all__ = [
@@ -75,7 +76,6 @@ __all__ = [
     "exposure_equivariance",
     "face_crops",
     "jitter_boxes",
-    "lighting_energy",
     "run_checks",
     "spread_calibration",
     "transfer_check",
@@ -98,38 +98,6 @@ Estimator = Callable[[torch.Tensor], Any]
 
 # ----------------------------------------------------------------------------------------------
 # energy and direction
-
-
-def lighting_energy(mirror_ball: torch.Tensor) -> torch.Tensor:
-    r"""The lighting's energy: the integral over the sphere of the mean over R, G, B.
-
-    :math:`E = \sum_p \Omega_p \tfrac{1}{3}(L_r + L_g + L_b)_p` over the valid pixels, with the exact solid
-    angles of :func:`~kornia_ilum.geometry.mirror_ball_solid_angles` (they sum to :math:`4\pi`): a uniform
-    lighting of radiance 1 has :math:`E = 4\pi`.
-
-    Args:
-        mirror_ball: linear lighting (docs/conventions.rst, "Mirror ball").
-
-    Returns:
-        ``(B,)`` energies, in the lighting's units times steradians.
-
-    Shape:
-        - mirror_ball: :math:`(B, 3, S, S)`
-        - Output: :math:`(B,)`
-
-    Convention:
-        docs/conventions.rst, "Mirror ball" (the solid angles, summing to 4 pi) and "Units of lighting".
-
-    Examples:
-        >>> from kornia_ilum.geometry import mirror_ball_valid
-        >>> E = lighting_energy(torch.ones(2, 3, 32, 32) * mirror_ball_valid(32))
-        >>> bool(torch.allclose(E, torch.full((2,), 4 * math.pi)))
-        True
-    """
-    check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"])
-    s = mirror_ball.shape[-1]
-    omega = mirror_ball_solid_angles(s, device=mirror_ball.device, dtype=mirror_ball.dtype)
-    return (mirror_ball.mean(1) * omega).sum((-2, -1))  # omega is 0 on the invalid pixels
 
 
 def dominant_direction(mirror_ball: torch.Tensor) -> torch.Tensor:
