@@ -124,7 +124,7 @@ def render_missing_eval(args: argparse.Namespace, have: set[int]) -> None:
         s += 1
     print(f"rendering eval seeds {seeds} into {args.cache[0]} ({args.views} views, {args.size} px, spp {args.spp}, "
           f"lighting {args.lighting_size})")
-    build_cache(args.source, seeds, args.cache[0],
+    build_cache(args.source, seeds, out_dir=args.cache[0],
                 renderer=Auto(spp=args.spp, lighting_size=args.lighting_size),
                 views=SampledViews(args.views, size=args.size), workers=Workers(processes=args.workers),
                 summary=True)

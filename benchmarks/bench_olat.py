@@ -75,7 +75,7 @@ def subject_view(source: str, seed: int, view: int, size: int):
     src = subject_source(source, "/work/shared/data/makehuman") if source == "makehuman" else subject_source(source)
     subj = src.sample(seed)
     build = time.perf_counter() - t0
-    cam = sample_views(seed, 4, size, landmarks=subj.face_landmarks)[view]
+    cam = sample_views(seed, 4, size=size, landmarks=subj.face_landmarks)[view]
     return subj, cam, build
 
 
@@ -89,7 +89,8 @@ def cached_reference(out: Path, source: str, seed: int, view: int, subj, cam, sp
                                 d["light_index"])
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    rf = render_olat_reference(subj, cam, Reference(spp=spp, max_depth=max_depth), threads=1).to_compact()
+    rf = render_olat_reference(subj, cam, settings=Reference(spp=spp, max_depth=max_depth),
+                               threads=1).to_compact()
     print(f"  reference rendered in {time.perf_counter() - t0:.0f} s -> {path}", flush=True)
     torch.save({"field": rf.field, "alpha": rf.alpha, "face_box": rf.face_box, "meta": rf.meta,
                 "pixel_index": rf.pixel_index, "light_index": rf.light_index}, path.with_suffix(".tmp"))
@@ -106,7 +107,7 @@ def cached_onepass(out: Path, source: str, seed: int, view: int, subj, cam, spp:
         return ReflectanceField(d["field"], d["alpha"], d["face_box"], cam, seed, d["meta"])
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    rf = render_olat(subj, cam, OnePass(spp=spp, shade_spp=spp, demodulate=False, subsurface=False,
+    rf = render_olat(subj, cam, settings=OnePass(spp=spp, shade_spp=spp, demodulate=False, subsurface=False,
                                         seed=render_seed), threads=1)
     print(f"  one-pass reference ({spp} spp, seed {render_seed}) rendered in {time.perf_counter() - t0:.0f} s "
           f"-> {path}", flush=True)
@@ -206,14 +207,15 @@ def main() -> int:
     else:  # one render under each map (the OLAT basis weighted by the map: the same envmap, importance-sampled)
         ref_img = {}
         for k, ball in balls.items():
-            img, alpha = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1, seed=7)
+            img, alpha = render_lighting(subj, cam, lighting=ball, spp=args.direct_spp, max_depth=2,
+                                         threads=1, seed=7)
             ref_img[k] = img.reshape(3, -1)
         alpha_ref = alpha.flatten()
 
     if not args.skip_timing:
         runs = []
         for _ in range(args.repeats):
-            rf = render_olat(subj, cam, OnePass(), threads=1)
+            rf = render_olat(subj, cam, settings=OnePass(), threads=1)
             runs.append(rf.meta["timings"] | {"render": rf.meta["render_seconds"]})
         med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
         print(f"\none-pass at the defaults (spp {ONEPASS_SPP}, shade_spp {rf.meta['shade_spp']}, edge_spp "
@@ -250,7 +252,8 @@ def main() -> int:
               f"noise is about 6 dB below that)", flush=True)
         if args.check_direct:
             for k, ball in balls.items():
-                img, alpha = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1, seed=7)
+                img, alpha = render_lighting(subj, cam, lighting=ball, spp=args.direct_spp, max_depth=2,
+                                             threads=1, seed=7)
                 m = (alpha_ref > 0) | (alpha.flatten() > 0)
                 direct8 = to_srgb8(img.reshape(3, -1), exposure[k])
                 print(f"  {k}: render_lighting {args.direct_spp} spp vs the one-pass reference "
@@ -266,7 +269,7 @@ def main() -> int:
             times, rf = [], None
             for _ in range(args.repeats):
                 settings = OnePass(spp=c, shade_spp=t, edge_spp=e, subsurface=False)
-                rf = render_olat(subj, cam, settings, threads=1)
+                rf = render_olat(subj, cam, settings=settings, threads=1)
                 times.append((rf.meta["render_seconds"], rf.meta["timings"]["lights"]))
             sc = scores(rf)
             reg = region_scores({k: relit(rf, v) for k, v in maps.items()}, rf.alpha.flatten())
@@ -281,13 +284,13 @@ def main() -> int:
     for spp in args.spps:
         on = None
         for dn in (False, True):
-            rf = render_olat(subj, cam, OnePass(spp=spp, subsurface=False, denoise=dn), threads=1)
+            rf = render_olat(subj, cam, settings=OnePass(spp=spp, subsurface=False, denoise=dn), threads=1)
             sc = scores(rf)
             print(f"{spp:>4} {str(dn):>8} {'off':>4} {sc['sun']:>8.2f} {sc['overcast']:>12.2f} "
                   f"{rf.meta['render_seconds']:>9.1f}", flush=True)
             if dn:
                 on = rf
-        rs = render_olat(subj, cam, OnePass(spp=spp, subsurface=True, denoise=True), threads=1)
+        rs = render_olat(subj, cam, settings=OnePass(spp=spp, subsurface=True, denoise=True), threads=1)
         sc = scores(rs)
         # the subsurface's own change: PSNR of (sss on) against (sss off), both denoised, same spp and seed
         mask = (alpha_ref > 0) | (rs.alpha.flatten() > 0)
@@ -305,9 +308,11 @@ def main() -> int:
         for k in maps:
             ball = balls[k]
             t0 = time.perf_counter()
-            d2, _ = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1)
-            d4, a4 = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=4, threads=1, seed=1)
-            d2b, _ = render_lighting(subj, cam, ball, spp=args.direct_spp, max_depth=2, threads=1, seed=1)
+            d2, _ = render_lighting(subj, cam, lighting=ball, spp=args.direct_spp, max_depth=2, threads=1)
+            d4, a4 = render_lighting(subj, cam, lighting=ball, spp=args.direct_spp, max_depth=4, threads=1,
+                                     seed=1)
+            d2b, _ = render_lighting(subj, cam, lighting=ball, spp=args.direct_spp, max_depth=2, threads=1,
+                                     seed=1)
             mask = (alpha_ref > 0) | (a4.flatten() > 0)
             e8 = {n: to_srgb8(x.reshape(3, -1), exposure[k]) for n, x in (("d2", d2), ("d4", d4), ("d2b", d2b))}
             print(f"  {k}: depth 4 vs depth 2 {psnr8(e8['d4'], e8['d2b'], mask):.2f} dB (same seed); "

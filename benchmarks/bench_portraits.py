@@ -147,11 +147,13 @@ def effect_costs(repeats: int) -> None:
     print(f"  {'frame_background, 128-row maps (before)':44s} {median_ms(lambda: frame_background(small, camera), repeats) / 16:6.3f}")
     for sigma in (0.0, 0.8, 2.0, 8.0):
         blur = torch.full((16,), sigma)
-        ms = median_ms(lambda blur=blur: frame_backgrounds(pyramids, camera, None, turn, blur), repeats)
+        ms = median_ms(lambda blur=blur: frame_backgrounds(pyramids, camera, mirror=None, turn=turn,
+                                                           sigma=blur), repeats)
         print(f"  {f'frame_backgrounds, 256-row map, sigma {sigma:g}':44s} {ms / 16:6.3f}")
     flip = torch.diag(torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64))
     rotation = (flip @ lighting_rotation(37.0, 21.0)).expand(16, 3, 3)  # an augment's pitch, yaw and flip
-    ms = median_ms(lambda: frame_backgrounds(pyramids, camera, None, turn, None, rotation), repeats)
+    ms = median_ms(lambda: frame_backgrounds(pyramids, camera, mirror=None, turn=turn, sigma=None,
+                                             rotation=rotation), repeats)
     print(f"  {'frame_backgrounds, 256-row map, rotated':44s} {ms / 16:6.3f}")
     print(f"  {'background_pyramid (per environment)':44s} {median_ms(lambda: background_pyramid(big), repeats):6.3f}")
 

@@ -177,7 +177,7 @@ def evaluate(truth: torch.Tensor, size: int, noise: float = 0.0) -> dict[str, li
         p, t = pred[keep], truth[keep]
         rel = relative_radiance(p, t).abs().mean(1)
         lrec = [
-            reconstruction_loss(p, t, b, size, reduction="none") * 1e3
+            reconstruction_loss(p, t, brdf=b, size=size, reduction="none") * 1e3
             for b in ("diffuse", "matte_silver", "mirror")
         ]
         hue = hue_error(p, t, out.clipped[keep])
@@ -199,7 +199,14 @@ def systems(truth: torch.Tensor, size: int):
     keep = clipped.any(1)
     fields = _fields(size, torch.device("cpu"))
     system = _build_system(
-        fields, enc[:, keep], lin[:, keep], base[keep], clipped[keep], thr, 0.5, "residual"
+        fields,
+        enc[:, keep],
+        lin=lin[:, keep],
+        base=base[keep],
+        clipped=clipped[keep],
+        thr_enc=thr,
+        lam=0.5,
+        balance="residual",
     )
     return args, system
 

@@ -45,7 +45,7 @@ def main() -> None:
     print("| c | " + " | ".join(BRDFS) + " |")
     print("|---:|" + "---:|" * len(BRDFS))
     for c in FACTORS:
-        row = [float(reconstruction_loss(c * truth, truth, b, size=32).mean()) for b in BRDFS]
+        row = [float(reconstruction_loss(c * truth, truth, brdf=b, size=32).mean()) for b in BRDFS]
         print(f"| {c} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
 
 

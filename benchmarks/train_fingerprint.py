@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "OMP_NUM_THREADS": "1", "TMPDIR": tmp}  # the runs' own temporary files go here too
         cache = Path(tmp) / "cache"
-        build_cache("mannequin", [0, 2], cache, renderer=Auto(spp=4), views=SampledViews(1, size=48),
+        build_cache("mannequin", [0, 2], out_dir=cache, renderer=Auto(spp=4), views=SampledViews(1, size=48),
                     workers=Workers(processes=1), progress=False)
         for name in args.estimators:
             out = Path(tmp) / name

@@ -298,7 +298,7 @@ def _check_pattern(pattern: str, option: str) -> set[str]:
 class _Namer:
     """Turns -o / --preview into one file name per (image stem, face index), following the --help rules."""
 
-    def __init__(self, pattern: str | None, option: str, exts: tuple[str, ...], *, several: bool,
+    def __init__(self, pattern: str | None, *, option: str, exts: tuple[str, ...], several: bool,
                  faces_all: bool, forced_ext: str | None = None) -> None:
         if pattern is None:
             pattern = "{stem}"
@@ -358,7 +358,7 @@ def _cmd_list() -> int:
     return 0
 
 
-def _write_main_light(path: Path, light: Any, face: int, stem: str, estimator: str) -> Path:
+def _write_main_light(path: Path, light: Any, *, face: int, stem: str, estimator: str) -> Path:
     """Write face ``face``'s main light and ambient (:meth:`LightingEstimate.dominant_light`) as JSON, atomically,
     with the image, the face box and the estimator it came from."""
     spread = light.log_energy_spread
@@ -472,7 +472,7 @@ def _cmd_export_probe(args: argparse.Namespace) -> int:
     if not args.cache:
         raise _UsageError("--probe needs --cache DIR ... (light-stage caches with train subjects)")
     t0 = time.perf_counter()
-    meta = write_training_probe(folder, args.cache, args.hdri)
+    meta = write_training_probe(folder, args.cache, hdri=args.hdri)
     print(f"wrote {folder / 'probe.jpg'} and {folder / 'probe.safetensors'} ({meta['samples']} training portraits "
           f"of {len(meta['subjects'])} subjects, skin tones {meta['skin_tones']}; {_ms(t0)})")
     return 0
@@ -494,11 +494,12 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     several = len(args.images) > 1
     faces_all = args.faces == "all"
     forced = f".{args.format}" if args.format else None
-    out = _Namer(args.output, "-o", (".exr", ".hdr"), several=several, faces_all=faces_all, forced_ext=forced)
+    out = _Namer(args.output, option="-o", exts=(".exr", ".hdr"), several=several, faces_all=faces_all,
+                 forced_ext=forced)
     if args.half and out.ext != ".exr":
         raise _UsageError("--half applies to .exr files only")
     preview = (
-        _Namer(args.preview, "--preview", (".png",), several=several, faces_all=faces_all)
+        _Namer(args.preview, option="--preview", exts=(".png",), several=several, faces_all=faces_all)
         if args.preview is not None else None
     )
     estimator = args.estimator or DEFAULT_ESTIMATOR
@@ -553,7 +554,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
                 t1 = time.perf_counter()
                 if kind == "lighting":
                     light.save(target, index=face, latlong_height=args.latlong, half=args.half)
-                    main_light = _write_main_light(target.with_suffix(".json"), light, face, stem, estimator)
+                    main_light = _write_main_light(target.with_suffix(".json"), light, face=face, stem=stem,
+                                                   estimator=estimator)
                     what = (
                         f"lat-long {args.latlong}x{2 * args.latlong}" if args.latlong else "mirror ball 32x32"
                     )
@@ -612,7 +614,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if command in LAB_COMMANDS and command not in plugin_commands():
                 raise _UsageError(f"'{command}' is a command of the lab, which is not installed: {LAB_INSTALL}")
             args = build_parser(command).parse_args(argv)
-            args.command_line = shlex.join(["kornia-ilum", *argv])  # what figures record (core.provenance)
+            args.command_line = shlex.join(["kornia-ilum", *argv])  # what the lab's figures record
             if getattr(args, "func", None) is not None:  # the lab's commands and the lazy ones
                 return args.func(args)
             if args.command == "export":

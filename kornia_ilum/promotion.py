@@ -163,6 +163,7 @@ def _check_args(
     mirror_ldr: torch.Tensor,
     diffuse_ldr: torch.Tensor,
     matte_ldr: torch.Tensor,
+    *,
     lam: float,
     gamma: float,
     clip_threshold: float,
@@ -186,10 +187,10 @@ def _check_args(
             raise ValueCheckError(
                 f"{name} must be on the device of mirror_ldr ({mirror_ldr.device}), got {x.device}"
             )
-    _check_params(lam, gamma, clip_threshold, method, balance)
+    _check_params(lam=lam, gamma=gamma, clip_threshold=clip_threshold, method=method, balance=balance)
 
 
-def _check_params(lam: float, gamma: float, clip_threshold: float, method: str, balance: str) -> None:
+def _check_params(*, lam: float, gamma: float, clip_threshold: float, method: str, balance: str) -> None:
     for name, value in (("lam", lam), ("gamma", gamma), ("clip_threshold", clip_threshold)):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise TypeCheckError(f"{name} must be a float, got {type(value).__name__}")
@@ -245,6 +246,7 @@ def _colour_balance(
 def _build_system(
     fields: torch.Tensor,
     enc: torch.Tensor,
+    *,
     lin: torch.Tensor,
     base: torch.Tensor,
     clipped: torch.Tensor,
@@ -416,6 +418,7 @@ def _prepare(
     mirror_ldr: torch.Tensor,
     diffuse_ldr: torch.Tensor,
     matte_ldr: torch.Tensor,
+    *,
     gamma: float,
     threshold: float,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, float]:
@@ -440,6 +443,7 @@ def _promote(
     mirror_ldr: torch.Tensor,
     diffuse_ldr: torch.Tensor,
     matte_ldr: torch.Tensor,
+    *,
     fields: torch.Tensor,
     lam: float,
     gamma: float,
@@ -450,14 +454,23 @@ def _promote(
     bsz, _, s, _ = mirror_ldr.shape
     device = mirror_ldr.device
     out_dtype = mirror_ldr.dtype if mirror_ldr.is_floating_point() else torch.get_default_dtype()
-    enc, lin, clipped, base, thr_enc = _prepare(mirror_ldr, diffuse_ldr, matte_ldr, gamma, clip_threshold)
+    enc, lin, clipped, base, thr_enc = _prepare(
+        mirror_ldr, diffuse_ldr, matte_ldr, gamma=gamma, threshold=clip_threshold
+    )
     residual = torch.zeros_like(base)
     solved = clipped.any(1)
     todo = solved.nonzero().squeeze(1)
     todo = todo[torch.argsort(clipped[todo].sum(1), stable=True)]  # similar sizes share a chunk: less padding
     for idx in todo.split(_CHUNK) if todo.numel() else ():
         system = _build_system(
-            fields, enc[:, idx], lin[:, idx], base[idx], clipped[idx], thr_enc, lam, balance
+            fields,
+            enc[:, idx],
+            lin=lin[:, idx],
+            base=base[idx],
+            clipped=clipped[idx],
+            thr_enc=thr_enc,
+            lam=lam,
+            balance=balance,
         )
         k_max = system.order.shape[1]
         u = _solve(system, method).view(-1, 3, k_max)  # U >= 0, 0 where not free
@@ -475,7 +488,12 @@ def _promote(
 @functools.lru_cache(maxsize=8)
 def _fields(size: int, device: torch.device) -> torch.Tensor:
     """The solve's sphere fields ``(2, S^2, S^2)`` float64, stacked once per size and device (read-only)."""
-    return torch.stack([shared_sphere_field(k, size, size, device, torch.float64) for k in _SOLVE_SPHERES])
+    return torch.stack(
+        [
+            shared_sphere_field(k, size, lighting_size=size, device=device, dtype=torch.float64)
+            for k in _SOLVE_SPHERES
+        ]
+    )
 
 
 def promote_spheres(
@@ -550,18 +568,27 @@ def promote_spheres(
         >>> [round(v, -1) for v in out.lighting[0, :, 5, 9].tolist()]  # the sun, from 8-bit spheres
         [400.0, 250.0, 120.0]
     """
-    _check_args(mirror_ldr, diffuse_ldr, matte_ldr, lam, gamma, clip_threshold, method, balance)
+    _check_args(
+        mirror_ldr,
+        diffuse_ldr,
+        matte_ldr,
+        lam=lam,
+        gamma=gamma,
+        clip_threshold=clip_threshold,
+        method=method,
+        balance=balance,
+    )
     fields = _fields(mirror_ldr.shape[-1], mirror_ldr.device)
     return _promote(
         mirror_ldr,
         diffuse_ldr,
         matte_ldr,
-        fields,
-        float(lam),
-        float(gamma),
-        float(clip_threshold),
-        method,
-        balance,
+        fields=fields,
+        lam=float(lam),
+        gamma=float(gamma),
+        clip_threshold=float(clip_threshold),
+        method=method,
+        balance=balance,
     )
 
 
@@ -586,6 +613,7 @@ class PromoteSpheres(nn.Module):
     def __init__(
         self,
         size: int = 32,
+        *,
         lam: float = 0.5,
         gamma: float = 2.2,
         clip_threshold: float = CLIP_THRESHOLD,
@@ -594,7 +622,7 @@ class PromoteSpheres(nn.Module):
     ) -> None:
         super().__init__()
         check_positive_int(size, "size", allowed=SPHERE_SIZES)
-        _check_params(lam, gamma, clip_threshold, method, balance)
+        _check_params(lam=lam, gamma=gamma, clip_threshold=clip_threshold, method=method, balance=balance)
         self.size, self.lam, self.gamma, self.clip_threshold = (
             size,
             float(lam),
@@ -607,10 +635,16 @@ class PromoteSpheres(nn.Module):
     def forward(
         self, mirror_ldr: torch.Tensor, diffuse_ldr: torch.Tensor, matte_ldr: torch.Tensor
     ) -> PromotionResult:
-        args = (self.lam, self.gamma, self.clip_threshold, self.method, self.balance)
-        _check_args(mirror_ldr, diffuse_ldr, matte_ldr, *args, self.size)
+        params = {
+            "lam": self.lam,
+            "gamma": self.gamma,
+            "clip_threshold": self.clip_threshold,
+            "method": self.method,
+            "balance": self.balance,
+        }
+        _check_args(mirror_ldr, diffuse_ldr, matte_ldr, **params, size=self.size)
         fields = self.fields.to(device=mirror_ldr.device, dtype=torch.float64)
-        return _promote(mirror_ldr, diffuse_ldr, matte_ldr, fields, *args)
+        return _promote(mirror_ldr, diffuse_ldr, matte_ldr, fields=fields, **params)
 
     def extra_repr(self) -> str:
         return (

@@ -100,7 +100,7 @@ def tiny_cache(tmp_path_factory):
     from kornia_ilum_lab.synth.lightstage import Auto, SampledViews, Workers, build_cache
 
     out = tmp_path_factory.mktemp("train_cache")
-    build_cache("mannequin", [0, 2], out, renderer=Auto(spp=4), views=SampledViews(1, size=48),
+    build_cache("mannequin", [0, 2], out_dir=out, renderer=Auto(spp=4), views=SampledViews(1, size=48),
                 workers=Workers(processes=1), progress=False)
     return out
 

@@ -349,7 +349,7 @@ class TestChecksOnce:
         bright = torch.full((1, 3, 256, 256), 1.5)
         assert len(create_detector("none").detect(bright, check_values=False)) == 1
         box = torch.tensor([[0.0, 0.0, 8.0, 8.0]])
-        assert crop_faces(bright, box, 4, check_values=False).shape == (1, 3, 4, 4)
+        assert crop_faces(bright, box, size=4, check_values=False).shape == (1, 3, 4, 4)
         assert [s for s in scans if s[-2:] == (256, 256)] == []  # only the (1, 4) boxes are scanned
         with pytest.raises(ShapeError):
             create_detector("none").detect(torch.rand(1, 4, 8, 8), check_values=False)

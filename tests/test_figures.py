@@ -1,5 +1,5 @@
 """Figures that cannot go stale: every figure of the docs and the README carries a provenance stamp
-(:mod:`kornia_ilum.core.provenance`), and the code and data it shows are those of this commit."""
+(:mod:`kornia_ilum_lab.provenance`), and the code and data it shows are those of this commit."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from kornia_ilum.core.provenance import figure_problems, read_stamp
+from kornia_ilum_lab.provenance import figure_problems, read_stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"

@@ -223,7 +223,14 @@ class TestPromoteSpheres:
         truth[0, :, 3, 7] = 300.0
         enc, lin, clipped, base, thr = _prepare(*encode(truth), 2.2, CLIP_THRESHOLD)
         system = _build_system(
-            _fields(16, torch.device("cpu")), enc, lin, base, clipped, thr, 0.5, "residual"
+            _fields(16, torch.device("cpu")),
+            enc,
+            lin=lin,
+            base=base,
+            clipped=clipped,
+            thr_enc=thr,
+            lam=0.5,
+            balance="residual",
         )
         a, b = _stacked_rows(system, 0)
         torch.testing.assert_close(system.gram[0], a.T @ a, rtol=1e-10, atol=1e-14)

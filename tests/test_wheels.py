@@ -1,6 +1,7 @@
-"""The wheels: ``python -m build`` makes one for the library and one for each plugin, with their weights and
-licences inside; installed into a clean virtual environment (the package index and the pinned CPU torch of
-``constraints.txt``, nothing else), ``kornia-ilum list`` and ``kornia-ilum estimate`` run."""
+"""The wheels: ``python -m build`` makes one for the library, one for the lab and one for each plugin, with their
+weights and licences inside; installed into a clean virtual environment (the package index and the pinned CPU
+torch of ``constraints.txt``, nothing else) without the lab, ``kornia-ilum list`` and ``kornia-ilum estimate`` run
+and the lab's commands say how to install it; with the lab, they run."""
 
 from __future__ import annotations
 
@@ -20,12 +21,15 @@ PACKAGES = {
     "kornia_ilum": (ROOT, "kornia_ilum", ["kornia_ilum/estimators/weights/ours.safetensors",
                                           "kornia_ilum/estimators/weights/probe.safetensors",
                                           "kornia_ilum/estimators/weights/probe.jpg",
-                                          "kornia_ilum/estimators/weights/MODEL_CARD.md"]),
+                                          "kornia_ilum/estimators/weights/MODEL_CARD.md",
+                                          "kornia_ilum/detection/weights/yunet.safetensors",
+                                          "kornia_ilum/detection/weights/LICENSE-yunet.txt"]),
     "kornia_ilum_sh": (ROOT / "plugins/sh", "kornia_ilum_sh", ["kornia_ilum_sh/weights/sh.safetensors",
                                                                 "kornia_ilum_sh/weights/MODEL_CARD.md"]),
     "kornia_ilum_sipr": (ROOT / "plugins/sipr", "kornia_ilum_sipr", ["kornia_ilum_sipr/weights/sipr.safetensors",
                                                                       "kornia_ilum_sipr/weights/MODEL_CARD.md"]),
     "kornia_ilum_uniform": (ROOT / "plugins/uniform", "kornia_ilum_uniform", []),
+    "kornia_ilum_lab": (ROOT / "plugins/lab", "kornia_ilum_lab", []),
 }
 
 
@@ -60,11 +64,18 @@ def test_wheels_build_install_and_run_in_a_clean_venv(tmp_path) -> None:
         assert not missing, f"{wheel.name} lacks {missing}"
         licences = {n.rsplit("/", 1)[-1] for n in names if ".dist-info/licenses/" in n}
         assert "LICENSE" in licences and (name != "kornia_ilum" or "ASSETS.md" in licences), sorted(licences)
+        if name != "kornia_ilum_lab":  # the library and the estimator plugins hold none of the lab's modules
+            assert not any(n.startswith("kornia_ilum_lab/") or "/synth/" in n or "/train/" in n for n in names)
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", str(venv)], tmp_path)
     python, cli = venv / "bin" / "python", venv / "bin" / "kornia-ilum"
-    wheels = sorted(str(p) for p in dist.glob("*.whl"))
+    wheels = sorted(str(p) for p in dist.glob("*.whl") if not p.name.startswith("kornia_ilum_lab-"))
     _run([str(python), "-m", "pip", "install", "-q", "-c", str(ROOT / "constraints.txt"), *wheels], tmp_path)
+    # the library without the lab: it estimates, and names the lab's commands with the line that installs it
+    assert "kornia_ilum_lab" not in _run([str(python), "-m", "pip", "list"], tmp_path).stdout
+    assert "needs the lab" in _run([str(cli), "--help"], tmp_path).stdout
+    missing = subprocess.run([str(cli), "train", "--help"], capture_output=True, text=True, timeout=300, check=False)
+    assert missing.returncode == 2 and "-e ./plugins/lab" in missing.stderr
     probe = _run([str(python), "-c", "import torch, kornia_ilum, kornia_ilum_sipr; "
                   "print(torch.__version__, torch.version.cuda, kornia_ilum.__file__)"], tmp_path).stdout
     version, cuda, where = probe.split()
@@ -74,3 +85,7 @@ def test_wheels_build_install_and_run_in_a_clean_venv(tmp_path) -> None:
     out = tmp_path / "out"
     _run([str(cli), "estimate", "-o", f"{out}/"], tmp_path)
     assert sorted(p.name for p in out.iterdir()) == ["astronaut.exr", "astronaut.json"]
+    # then the lab: its commands join kornia-ilum
+    lab = next(str(p) for p in dist.glob("kornia_ilum_lab-*.whl"))
+    _run([str(python), "-m", "pip", "install", "-q", "-c", str(ROOT / "constraints.txt"), lab], tmp_path)
+    assert "--checkpoint-every" in _run([str(cli), "train", "--help"], tmp_path).stdout

@@ -1,5 +1,5 @@
 """Make the docs' figures that need no light-stage render again, each stamped with where it comes from
-(:mod:`kornia_ilum.core.provenance`; ``tests/test_figures.py`` fails on a figure that another version of the code
+(:mod:`kornia_ilum_lab.provenance`; ``tests/test_figures.py`` fails on a figure that another version of the code
 made). Run from anywhere; needs matplotlib.
 
     python docs/_scripts/make_figures.py [--only mappings preview curves bench]
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import matplotlib
 
-from kornia_ilum.core.provenance import stamp_figure
+from kornia_ilum_lab.provenance import stamp_figure
 
 matplotlib.use("Agg")
 

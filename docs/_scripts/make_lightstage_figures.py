@@ -1,6 +1,6 @@
 """Make the light-stage figures of ``docs/lightstage.rst`` again from today's light stage (needs the MakeHuman
 assets and Mitsuba; about 10 minutes on 2 cores), each stamped with the code it shows
-(:mod:`kornia_ilum.core.provenance`; ``tests/test_figures.py`` fails when the light stage has changed since).
+(:mod:`kornia_ilum_lab.provenance`; ``tests/test_figures.py`` fails when the light stage has changed since).
 
     python docs/_scripts/make_lightstage_figures.py --assets ../shared/data/makehuman \
         --hdri ../shared/data/hdri ../shared/data/hdri_more
@@ -31,7 +31,7 @@ from PIL import Image
 from skimage import data
 
 from kornia_ilum.color import linear_to_srgb
-from kornia_ilum.core.provenance import stamp_figure
+from kornia_ilum_lab.provenance import stamp_figure
 from kornia_ilum.detection import create_detector, crop_faces, square_crop_boxes
 from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
@@ -78,15 +78,16 @@ def _relit_face(field, lighting: torch.Tensor) -> torch.Tensor:
 
 def subsurface_pair(assets: str, hdri: str, seed: int = 3) -> None:
     subject = subject_source("makehuman", assets).sample(seed)
-    camera = dataclasses.replace(sample_views(seed, 4, 256)[1], yaw_deg=20.0, pitch_deg=0.0, roll_deg=0.0)
+    camera = dataclasses.replace(sample_views(seed, 4, size=256)[1], yaw_deg=20.0, pitch_deg=0.0,
+                                 roll_deg=0.0)
     latlong = read_hdr(hdri).clamp(min=0)
     lighting = latlong_to_mirror_ball(latlong[None], 32).clamp(min=0)
-    tiles = [_relit_face(render_olat(subject, camera, OnePass(subsurface=flag)), lighting)
+    tiles = [_relit_face(render_olat(subject, camera, settings=OnePass(subsurface=flag)), lighting)
              for flag in (False, True)]
     out = STATIC / "subsurface_pair.png"
     write_grid(tiles, ["without subsurface", "with subsurface (screen-space diffusion)"],
-               f"MakeHuman subject {seed} relit by {Path(hdri).name}", out, columns=2, cell=(3.0, 3.1),
-               fontsize=8, dpi=100, palette=True)
+               title=f"MakeHuman subject {seed} relit by {Path(hdri).name}", path=out, columns=2,
+               cell=(3.0, 3.1), fontsize=8, dpi=100, palette=True)
     stamp_figure(out, command=COMMAND + " --only subsurface", shows=SHOWS)
     print(f"wrote {out} ({out.stat().st_size // 1024} KiB)")
 
@@ -116,8 +117,9 @@ def portraits_sheet(cache: str, hdri: list[str], count: int = 65, columns: int =
         captions.append(f"s{s['subject_seed']} MST {s['skin_tone']} {s['label']}")
     tiles[0] = torch.cat([tiles[0], torch.ones(3, 6 + tiles[1].shape[1] - 262, 256)], dim=1)
     png = STATIC / "lightstage_contact_sheet.png"
-    write_grid(tiles, captions, "training portraits as PortraitDataset yields them | ground truth: diffuse, "
-               "matte silver, mirror", png, columns=columns,
+    write_grid(tiles, captions,
+               title="training portraits as PortraitDataset yields them | ground truth: diffuse, "
+               "matte silver, mirror", path=png, columns=columns,
                cell=(1.45, 1.45 * tiles[1].shape[1] / 256 + 0.2), fontsize=5.0, dpi=72, palette=False)
     # 64 portraits do not fit a 300 KB PNG; the portraits are JPEG-compressed photographs anyway
     out = png.with_suffix(".jpg")
@@ -135,7 +137,8 @@ def fresh_cache(assets: str, folder: Path) -> str:
     """One view of each training subject of :data:`PORTRAIT_SEEDS`, rendered by today's light stage into
     ``folder``."""
     seeds = [s for s in PORTRAIT_SEEDS if subject_split(s) == "train"]
-    build_cache(subject_source("makehuman", assets), seeds, folder, renderer=Auto(), views=SampledViews(1, size=192),
+    build_cache(subject_source("makehuman", assets), seeds, out_dir=folder, renderer=Auto(),
+                views=SampledViews(1, size=192),
                 workers=Workers(processes=2), progress=True)
     return str(folder)
 

@@ -23,7 +23,7 @@ from kornia_ilum_lab.synth.lightstage import Auto, SampledViews, Workers, build_
 from kornia_ilum_lab.synth.lightstage.portraits import load_fields, relight_portraits
 
 with tempfile.TemporaryDirectory() as cache:
-    build_cache("mannequin", [1], cache, renderer=Auto(spp=4), views=SampledViews(1, size=96),
+    build_cache("mannequin", [1], out_dir=cache, renderer=Auto(spp=4), views=SampledViews(1, size=96),
                 workers=Workers(processes=1), progress=False)
     field = load_fields(cache)[0]
 print("reflectance field:", tuple(field.field.shape), field.field.dtype, "(channels, pixels, lights)")

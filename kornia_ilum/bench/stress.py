@@ -77,7 +77,7 @@ OPS: dict[str, tuple[str, Callable[[torch.Tensor], torch.Tensor | dict[str, torc
     "resize_mirror_ball": ("mirror_ball", lambda x: resize_mirror_ball(x, 16)),
     "rotate_lighting": ("mirror_ball", lambda x: rotate_lighting(x, _rotation().to(x.device))),
     "render_spheres": ("mirror_ball", lambda x: render_spheres(x, 32)),
-    "reconstruction_loss": ("mirror_ball", lambda x: reconstruction_loss(x, 0.5 * x, "diffuse")),
+    "reconstruction_loss": ("mirror_ball", lambda x: reconstruction_loss(x, 0.5 * x, brdf="diffuse")),
     "total_radiance": ("mirror_ball", total_radiance),
     "relative_radiance": ("mirror_ball", lambda x: relative_radiance(0.5 * x, x)),
     "sh_project": ("mirror_ball", sh_project),

@@ -46,7 +46,7 @@ _DARKEST = 1e-6  # metered luminance below this counts as this (a black crop): t
 
 
 def centre_weights(
-    height: int, width: int, sigma: float = METERING_SIGMA, *, device: torch.device | None = None,
+    height: int, width: int, *, sigma: float = METERING_SIGMA, device: torch.device | None = None,
     dtype: torch.dtype = torch.float64,
 ) -> torch.Tensor:
     r"""Centre-weighted metering weights ``(height, width)``, summing to 1: a Gaussian of ``sigma`` x the side.
@@ -121,7 +121,7 @@ def _metering_map(height: int, width: int, sigma: float) -> torch.Tensor:
     float64 ``exp`` cost a third of :func:`normalize_exposure`'s time when it was built per call)."""
     with torch.inference_mode(False):  # a normal tensor even when first built under inference_mode: autograd
         lum = torch.tensor(LUMINANCE, dtype=torch.float64)  # may save it for backward later
-        return lum[:, None, None] * centre_weights(height, width, sigma)
+        return lum[:, None, None] * centre_weights(height, width, sigma=sigma)
 
 
 def normalize_exposure(

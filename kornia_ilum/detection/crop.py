@@ -125,7 +125,7 @@ def _pixel_region(box: list[float]) -> tuple[int, int, int, int]:
     return x0, y0, x0 + w, y0 + h
 
 
-def _crop_padded(image: torch.Tensor, x0: int, y0: int, x1: int, y1: int) -> torch.Tensor:
+def _crop_padded(image: torch.Tensor, *, x0: int, y0: int, x1: int, y1: int) -> torch.Tensor:
     """``image[:, y0:y1, x0:x1]`` of a ``(C, H, W)`` image, with zeros where the region leaves the image."""
     _, height, width = image.shape
     if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:  # no overlap: all padding
@@ -137,9 +137,9 @@ def _crop_padded(image: torch.Tensor, x0: int, y0: int, x1: int, y1: int) -> tor
 def crop_faces(
     image: torch.Tensor,
     boxes: torch.Tensor,
+    *,
     size: int = CROP_SIZE,
     index: torch.Tensor | None = None,
-    *,
     check_values: bool = True,
 ) -> torch.Tensor:
     r"""Cut box regions out of an image, zero-padded outside it, and resize them with antialiasing.
@@ -224,7 +224,8 @@ def crop_faces(
     work = batch.float() if batch.dtype in (torch.float16, torch.bfloat16) else batch
     crops = []
     for i, box in zip(index_list, boxes.detach().tolist(), strict=True):
-        patch = _crop_padded(work[i], *_pixel_region(box))
+        x0, y0, x1, y1 = _pixel_region(box)
+        patch = _crop_padded(work[i], x0=x0, y0=y0, x1=x1, y1=y1)
         if patch.shape[-2:] != (size, size):
             patch = F.interpolate(
                 patch[None], size=(size, size), mode="bilinear", antialias=True, align_corners=False
@@ -254,7 +255,7 @@ class CropFaces(nn.Module):
     def forward(
         self, image: torch.Tensor, boxes: torch.Tensor, index: torch.Tensor | None = None
     ) -> torch.Tensor:
-        return crop_faces(image, boxes, self.size, index)
+        return crop_faces(image, boxes, size=self.size, index=index)
 
     def extra_repr(self) -> str:
         return f"size={self.size}"

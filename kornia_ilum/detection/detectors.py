@@ -243,6 +243,7 @@ class OpenCVFaceDetector(FaceDetector):
     def __init__(
         self,
         cascade: str | os.PathLike[str] = "haarcascade_frontalface_alt2.xml",
+        *,
         scale_factor: float = 1.1,
         min_neighbors: int = 5,
         min_face: float = 0.05,
@@ -441,6 +442,7 @@ class YuNetFaceDetector(FaceDetector):
     def __init__(
         self,
         weights_path: str | os.PathLike[str] | None = None,
+        *,
         sha256: str | Sequence[str] | None = (YUNET_SAFETENSORS_SHA256, YUNET_SHA256),
         confidence_threshold: float = 0.93,
         nms_threshold: float = 0.3,

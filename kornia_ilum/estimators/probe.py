@@ -220,7 +220,8 @@ def fit_crops(estimator: Any, crops: Tensor) -> Tensor:
         return crops
     n, _, h, w = crops.shape
     whole = torch.tensor([[0.0, 0.0, w, h]], device=crops.device).expand(n, 4)  # each whole crop: a resize
-    resized = crop_faces(crops, whole, size, torch.arange(n, device=crops.device), check_values=False)
+    resized = crop_faces(crops, whole, size=size, index=torch.arange(n, device=crops.device),
+                         check_values=False)
     return resized.clamp_(0.0, 1.0)
 
 
@@ -248,7 +249,7 @@ def probe_lrec(estimator: Any, probe: Probe, batch_size: int = 16) -> dict[str, 
         for i in range(0, len(probe), batch_size):
             preds.append(estimator(fit_crops(estimator, probe.crops[i : i + batch_size])).mirror_ball.float())
     pred = torch.cat(preds)
-    return {b: float(reconstruction_loss(pred, probe.mirror_ball, b, size=32)) for b in _BRDFS}
+    return {b: float(reconstruction_loss(pred, probe.mirror_ball, brdf=b, size=32)) for b in _BRDFS}
 
 
 def probe_lrec_change(reference: Any, candidate: Any, probe: Probe | None = None) -> float:

@@ -362,6 +362,7 @@ class TestTimeAugmented(LightingEstimator):
     def __init__(
         self,
         estimator: LightingEstimator,
+        *,
         jitters: int = 4,
         mirror: bool = True,
         zoom: float = DEFAULT_ZOOM,

@@ -242,7 +242,7 @@ def _subcells(
 # overlap tables (also used by kornia_ilum.geometry.transform and kornia_ilum.render.pyramid)
 
 
-def _merge(s: torch.Tensor, t: torch.Tensor, w: torch.Tensor, n_tgt: int, group: int = 0):
+def _merge(s: torch.Tensor, t: torch.Tensor, *, w: torch.Tensor, n_tgt: int, group: int = 0):
     """Sum the weights of repeated ``(s, t)`` pairs; the result is sorted by ``s * n_tgt + t``."""
     key = s * n_tgt + t
     if group > 0:  # pixels in order with `group` sub-cells each: sorting inside each pixel sorts all
@@ -257,6 +257,7 @@ def _merge(s: torch.Tensor, t: torch.Tensor, w: torch.Tensor, n_tgt: int, group:
 def grid_overlaps(
     src: tuple[str, int],
     tgt: tuple[str, int],
+    *,
     rotation: torch.Tensor | None = None,
     merge: bool = True,
     quality: tuple[int, int] = _CACHED,
@@ -306,14 +307,14 @@ def grid_overlaps(
     for d, s, w, group in _subcells(*src, k_s):
         t = _owner(*tgt, d if rotation is None else d @ rotation.T)
         w = w * (q_t[t] / (q_s[s] + q_t[t]))
-        parts.append(_merge(s, t, w, om_t.numel(), group) if merge else (s, t, w))
+        parts.append(_merge(s, t, w=w, n_tgt=om_t.numel(), group=group) if merge else (s, t, w))
     for d, t, w, _ in _subcells(*tgt, k_t):
         s = _owner(*src, d if rotation is None else d @ rotation)
         w = w * (q_s[s] / (q_s[s] + q_t[t]))
         parts.append((s, t, w))
     s, t, a = (torch.cat(p) for p in zip(*parts, strict=True))
     if merge:
-        s, t, a = _merge(s, t, a, om_t.numel())
+        s, t, a = _merge(s, t, w=a, n_tgt=om_t.numel())
     for _ in range(rounds):
         a = a * (om_t / torch.zeros_like(om_t).index_add_(0, t, a).clamp(min=1e-300))[t]
         a = a * (om_s / torch.zeros_like(om_s).index_add_(0, s, a).clamp(min=1e-300))[s]
@@ -531,7 +532,7 @@ _CONSTANTS: dict[tuple, tuple] = {}
 
 @compiler_disable
 def _constants(
-    src: tuple[str, int], tgt: tuple[str, int], mode: str, dtype: torch.dtype, device: torch.device
+    src: tuple[str, int], tgt: tuple[str, int], *, mode: str, dtype: torch.dtype, device: torch.device
 ):
     """``(mode, tensors, target mask)`` for a resampling, cached per (grids, mode, dtype, device).
 
@@ -563,7 +564,7 @@ def _constants(
 def _resample(x: torch.Tensor, src: tuple[str, int], tgt: tuple[str, int], mode: str) -> torch.Tensor:
     """Resample checked lighting ``x`` from grid ``src`` to grid ``tgt`` (half dtypes run in float32)."""
     work = x.float() if x.dtype in (torch.float16, torch.bfloat16) else x
-    mode, tensors, mask = _constants(src, tgt, mode, work.dtype, work.device)
+    mode, tensors, mask = _constants(src, tgt, mode=mode, dtype=work.dtype, device=work.device)
     if src == tgt:
         out = work
     elif mode == "area" and torch.compiler.is_exporting():  # CSR has no export path: the same table, dense

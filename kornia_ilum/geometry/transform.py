@@ -55,7 +55,7 @@ def _check_rotation(rotation: torch.Tensor, batch: int | None = None) -> None:
 
 
 def _splat(
-    x: torch.Tensor, s: torch.Tensor, t: torch.Tensor, weight: torch.Tensor, n_tgt: int
+    x: torch.Tensor, *, s: torch.Tensor, t: torch.Tensor, weight: torch.Tensor, n_tgt: int
 ) -> torch.Tensor:
     """``out[b, :, t] = sum_m weight[b, m] x[b, :, s[b, m]]`` over entries ``m`` with ``t[b, m] = t``.
 
@@ -83,7 +83,7 @@ def _rotation_tables(
     """Per-rotation ``(s, t, weight)`` tables ``(B_R, M)`` for :func:`_splat`."""
     rot = rotation.detach().to(device="cpu", dtype=torch.float64).reshape(-1, 3, 3)
     om = grid_solid_angles(*grid)
-    tables = [grid_overlaps(grid, grid, r, merge=False, quality=_PER_CALL) for r in rot]
+    tables = [grid_overlaps(grid, grid, rotation=r, merge=False, quality=_PER_CALL) for r in rot]
     s, t, a = (torch.stack(p) for p in zip(*tables, strict=True))
     return s.to(device), t.to(device), (a / om[t]).to(device=device, dtype=dtype)
 
@@ -151,7 +151,7 @@ def rotate_lighting(
     work = lighting.float() if lighting.dtype in (torch.float16, torch.bfloat16) else lighting
     grid = (layout, lighting.shape[-2])
     s, t, w = _rotation_tables(grid, rotation, work.dtype, work.device)
-    out = _splat(work.flatten(2), s, t, w, lighting.shape[-2] * lighting.shape[-1])
+    out = _splat(work.flatten(2), s=s, t=t, weight=w, n_tgt=lighting.shape[-2] * lighting.shape[-1])
     return out.reshape(lighting.shape).to(lighting.dtype)
 
 

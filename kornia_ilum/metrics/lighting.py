@@ -101,7 +101,7 @@ def _reduce(x: torch.Tensor, reduction: str) -> torch.Tensor:
 
 
 def _l_rec(
-    plan: SpherePlan, counts: tuple[int, ...], pred: torch.Tensor, target: torch.Tensor, knee: float
+    plan: SpherePlan, counts: tuple[int, ...], *, pred: torch.Tensor, target: torch.Tensor, knee: float
 ) -> torch.Tensor:
     """Per-item ``L_rec`` averaged over the scales, ``(B,)``, from a render plan of one sphere at all scales.
 
@@ -125,10 +125,10 @@ def _counts(sizes: tuple[int, ...]) -> tuple[int, ...]:
 def reconstruction_loss(
     pred: torch.Tensor,
     target: torch.Tensor,
+    *,
     brdf: str,
     size: int = 32,
     reduction: str = "mean",
-    *,
     gamma: str = "exact",
 ) -> torch.Tensor:
     r"""The sphere-render loss ``L_rec`` of LeGendre et al. 2020 for one reference sphere.
@@ -179,17 +179,17 @@ def reconstruction_loss(
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_reduction(reduction)
     knee = gamma_knee(gamma)
-    plan = sphere_plan((brdf,), (size,), s_l, pred.device, pred.dtype)
-    return _reduce(_l_rec(plan, _counts((size,)), pred, target, knee), reduction)
+    plan = sphere_plan((brdf,), (size,), lighting_size=s_l, device=pred.device, dtype=pred.dtype)
+    return _reduce(_l_rec(plan, _counts((size,)), pred=pred, target=target, knee=knee), reduction)
 
 
 def multiscale_reconstruction_loss(
     pred: torch.Tensor,
     target: torch.Tensor,
+    *,
     brdf: str,
     sizes: Sequence[int] = (4, 8, 16, 32),
     reduction: str = "mean",
-    *,
     gamma: str = "exact",
 ) -> torch.Tensor:
     r"""``L_rec`` averaged over several sphere resolutions.
@@ -235,8 +235,8 @@ def multiscale_reconstruction_loss(
     sizes = check_sphere_sizes(sizes)
     _check_reduction(reduction)
     knee = gamma_knee(gamma)
-    plan = sphere_plan((brdf,), sizes, s_l, pred.device, pred.dtype)
-    return _reduce(_l_rec(plan, _counts(sizes), pred, target, knee), reduction)
+    plan = sphere_plan((brdf,), sizes, lighting_size=s_l, device=pred.device, dtype=pred.dtype)
+    return _reduce(_l_rec(plan, _counts(sizes), pred=pred, target=target, knee=knee), reduction)
 
 
 def total_radiance(mirror_ball: torch.Tensor, dtype: torch.dtype | None = None) -> torch.Tensor:
@@ -359,7 +359,9 @@ class _PlanBuffers(nn.Module):
     """Holds a render plan of one sphere at several scales as non-persistent buffers."""
 
     def _register_plan(self, brdf: str, sizes: tuple[int, ...], lighting_size: int) -> None:
-        plan = sphere_plan((brdf,), sizes, lighting_size, torch.device("cpu"), torch.float32)
+        plan = sphere_plan(
+            (brdf,), sizes, lighting_size=lighting_size, device=torch.device("cpu"), dtype=torch.float32
+        )
         self.register_buffer("field", plan.field.clone(), persistent=False)
         self.register_buffer("index", plan.index.clone(), persistent=False)
         self.register_buffer("order", None if plan.order is None else plan.order.clone(), persistent=False)
@@ -368,7 +370,13 @@ class _PlanBuffers(nn.Module):
 
     def _plan(self, dtype: torch.dtype) -> SpherePlan:
         if dtype == torch.float64:  # the float64 field, not the float32 buffer rounded up (class docstrings)
-            return sphere_plan((self.brdf,), self._plan_sizes, self.lighting_size, self.field.device, dtype)
+            return sphere_plan(
+                (self.brdf,),
+                self._plan_sizes,
+                lighting_size=self.lighting_size,
+                device=self.field.device,
+                dtype=dtype,
+            )
         return SpherePlan(self.field.to(dtype), self.index, self.order)
 
 
@@ -396,10 +404,10 @@ class ReconstructionLoss(_PlanBuffers):
     def __init__(
         self,
         brdf: str,
+        *,
         size: int = 32,
         reduction: str = "mean",
         lighting_size: int = 32,
-        *,
         gamma: str = "exact",
     ) -> None:
         super().__init__()
@@ -419,7 +427,10 @@ class ReconstructionLoss(_PlanBuffers):
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         check_lighting_pair(pred, target, self.lighting_size)
-        return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
+        return _reduce(
+            _l_rec(self._plan(pred.dtype), self.counts, pred=pred, target=target, knee=self.knee),
+            self.reduction,
+        )
 
     def extra_repr(self) -> str:
         return f"brdf={self.brdf!r}, size={self.size}, reduction={self.reduction!r}, gamma={self.gamma!r}"
@@ -448,10 +459,10 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
     def __init__(
         self,
         brdf: str,
+        *,
         sizes: Sequence[int] = (4, 8, 16, 32),
         reduction: str = "mean",
         lighting_size: int = 32,
-        *,
         gamma: str = "exact",
     ) -> None:
         super().__init__()
@@ -470,7 +481,10 @@ class MultiscaleReconstructionLoss(_PlanBuffers):
 
     def forward(self, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         check_lighting_pair(pred, target, self.lighting_size)
-        return _reduce(_l_rec(self._plan(pred.dtype), self.counts, pred, target, self.knee), self.reduction)
+        return _reduce(
+            _l_rec(self._plan(pred.dtype), self.counts, pred=pred, target=target, knee=self.knee),
+            self.reduction,
+        )
 
     def extra_repr(self) -> str:
         return f"brdf={self.brdf!r}, sizes={self.sizes}, reduction={self.reduction!r}, gamma={self.gamma!r}"

@@ -184,7 +184,12 @@ def three_sphere_metrics(
     check_positive_int(size, "size", allowed=SPHERE_SIZES)
     _check_tonemap(tonemap)
     work = torch.float32 if pred.dtype in _HALF else pred.dtype
-    fields = {b: shared_sphere_field(b, size, s_l, pred.device, work, True, multiscale=True) for b in BRDFS}
+    fields = {
+        b: shared_sphere_field(
+            b, size, lighting_size=s_l, device=pred.device, dtype=work, on_sphere=True, multiscale=True
+        )
+        for b in BRDFS
+    }
     return _three_sphere(fields, pred, target, tonemap)
 
 
@@ -213,7 +218,7 @@ class ThreeSphereMetrics(nn.Module):
         _check_tonemap(tonemap)
         self.size, self.tonemap, self.lighting_size = size, tonemap, lighting_size
         for b in BRDFS:
-            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)
+            field = sphere_reflectance_field(b, size, lighting_size=lighting_size, multiscale=True)
             field = field[mirror_ball_valid(size).flatten()]
             self.register_buffer(f"field_{b}", field, persistent=False)
 

@@ -232,8 +232,8 @@ def _field_f64(brdf: str, size: int, lighting_size: int, supersamples: int = _SU
 def sphere_reflectance_field(
     brdf: str,
     size: int,
-    lighting_size: int = 32,
     *,
+    lighting_size: int = 32,
     multiscale: bool = False,
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
@@ -339,6 +339,7 @@ def _multiscale_f64(brdf: str, size: int, lighting_size: int, supersamples: int 
 def shared_sphere_field(
     brdf: str,
     size: int,
+    *,
     lighting_size: int,
     device: torch.device,
     dtype: torch.dtype,
@@ -412,6 +413,7 @@ class SpherePlan(NamedTuple):
 def sphere_plan(
     brdfs: tuple[str, ...],
     sizes: tuple[int, ...],
+    *,
     lighting_size: int,
     device: torch.device,
     dtype: torch.dtype,
@@ -685,7 +687,8 @@ def render_spheres(
     lights = mirror_ball_to_lights(lighting)
     return {
         b: relight(
-            shared_sphere_field(b, size, s_l, lighting.device, lighting.dtype, multiscale=True,
+            shared_sphere_field(b, size, lighting_size=s_l, device=lighting.device, dtype=lighting.dtype,
+                                multiscale=True,
                                 supersamples=supersamples), lights, size
         )
         for b in names
@@ -714,6 +717,7 @@ def _scatter_on_sphere(
 
 def sphere_pyramid(
     lighting: torch.Tensor,
+    *,
     sizes: Sequence[int] = (4, 8, 16, 32),
     brdfs: Sequence[str] = BRDFS,
     encode: bool = True,
@@ -759,7 +763,7 @@ def sphere_pyramid(
     sizes = check_sphere_sizes(sizes)
     names = _check_brdfs(brdfs)
     knee = gamma_knee(gamma)
-    plan = sphere_plan(names, sizes, s_l, lighting.device, lighting.dtype)
+    plan = sphere_plan(names, sizes, lighting_size=s_l, device=lighting.device, dtype=lighting.dtype)
     values = render_plan(plan, mirror_ball_to_lights(lighting), knee=knee if encode else None)
     return _scatter_on_sphere(values, names, sizes)
 
@@ -794,7 +798,7 @@ class RenderSpheres(nn.Module):
         self.lighting_size = lighting_size
         self.brdfs = _check_brdfs(brdfs)
         for b in self.brdfs:
-            field = sphere_reflectance_field(b, size, lighting_size, multiscale=True)
+            field = sphere_reflectance_field(b, size, lighting_size=lighting_size, multiscale=True)
             self.register_buffer(f"field_{b}", field, persistent=False)
 
     def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -863,7 +867,8 @@ class SpherePyramid(nn.Module):
         self.encode, self.gamma = encode, gamma
 
     def forward(self, lighting: torch.Tensor) -> dict[str, torch.Tensor]:
-        return sphere_pyramid(lighting, self.sizes, self.brdfs, self.encode, self.gamma)
+        return sphere_pyramid(lighting, sizes=self.sizes, brdfs=self.brdfs, encode=self.encode,
+                              gamma=self.gamma)
 
     def extra_repr(self) -> str:
         return f"sizes={self.sizes}, brdfs={self.brdfs}, encode={self.encode}, gamma={self.gamma!r}"

@@ -263,7 +263,7 @@ def sh_project(lighting: torch.Tensor, layout: str = "mirror_ball") -> torch.Ten
 
 
 def _reconstruct(
-    sh: torch.Tensor, basis: torch.Tensor, height: int, width: int, clamp_negative: bool
+    sh: torch.Tensor, basis: torch.Tensor, *, height: int, width: int, clamp_negative: bool
 ) -> torch.Tensor:
     work = _work_dtype(sh.dtype)
     b = basis.to(device=sh.device, dtype=work)
@@ -321,7 +321,8 @@ def sh_reconstruct(
     check_tensor(sh, "sh", ["B", "9", "3"])
     check_positive_int(size, "size")
     basis, _ = _grid_f64(layout, size)
-    return _reconstruct(sh, basis, *_grid_shape(layout, size), clamp_negative)
+    height, width = _grid_shape(layout, size)
+    return _reconstruct(sh, basis, height=height, width=width, clamp_negative=clamp_negative)
 
 
 def sh_irradiance(sh: torch.Tensor) -> torch.Tensor:
@@ -489,9 +490,9 @@ class SHReconstruct(nn.Module):
     def __init__(
         self,
         size: int = 32,
+        *,
         layout: str = "mirror_ball",
         clamp_negative: bool = False,
-        *,
         device: torch.device | str | None = None,
         dtype: torch.dtype | None = None,
     ) -> None:
@@ -506,7 +507,8 @@ class SHReconstruct(nn.Module):
 
     def forward(self, sh: torch.Tensor) -> torch.Tensor:
         check_tensor(sh, "sh", ["B", "9", "3"])
-        return _reconstruct(sh, self.basis, *_grid_shape(self.layout, self.size), self.clamp_negative)
+        height, width = _grid_shape(self.layout, self.size)
+        return _reconstruct(sh, self.basis, height=height, width=width, clamp_negative=self.clamp_negative)
 
     def extra_repr(self) -> str:
         return f"size={self.size}, layout={self.layout!r}, clamp_negative={self.clamp_negative}"

@@ -254,25 +254,25 @@ class TestCropFaces:
         """check_values=False skips the scan of the image's values, not the checks of shapes and boxes."""
         image, box = torch.full((3, 16, 16), float("nan")), torch.tensor([[2.0, 2.0, 10.0, 10.0]])
         with pytest.raises(NonFiniteError, match="image must be finite"):
-            crop_faces(image, box, 4)
+            crop_faces(image, box, size=4)
         scans, real = [], torch.aminmax
         monkeypatch.setattr(torch, "aminmax", lambda x, *a, **k: scans.append(x.shape) or real(x, *a, **k))
-        assert crop_faces(image, box, 4, check_values=False).shape == (1, 3, 4, 4)
+        assert crop_faces(image, box, size=4, check_values=False).shape == (1, 3, 4, 4)
         assert scans == [box.shape]  # the boxes are still checked
         with pytest.raises(ValueCheckError, match="x1 > x0"):
-            crop_faces(image, torch.tensor([[5.0, 2.0, 1.0, 10.0]]), 4, check_values=False)
+            crop_faces(image, torch.tensor([[5.0, 2.0, 1.0, 10.0]]), size=4, check_values=False)
         with pytest.raises(ShapeError):
-            crop_faces(torch.rand(16, 16), box, 4, check_values=False)
+            crop_faces(torch.rand(16, 16), box, size=4, check_values=False)
 
     @pytest.mark.parametrize("size", [3, 9])  # downsampled (antialiased) and upsampled
     def test_gradcheck(self, size):
         image = torch.rand(1, 2, 6, 7, dtype=F64, requires_grad=True)
         boxes = torch.tensor([[-1.2, 0.6, 5.1, 6.9], [1.0, 1.0, 8.0, 8.0]], dtype=F64)
-        assert torch.autograd.gradcheck(lambda x: crop_faces(x, boxes, size), (image,))
+        assert torch.autograd.gradcheck(lambda x: crop_faces(x, boxes, size=size), (image,))
 
     def test_module_matches_functional(self):
         image, boxes = torch.rand(3, 20, 20), torch.tensor([[-3.0, 2.0, 15.0, 20.0]])
-        torch.testing.assert_close(CropFaces(size=12)(image, boxes), crop_faces(image, boxes, 12))
+        torch.testing.assert_close(CropFaces(size=12)(image, boxes), crop_faces(image, boxes, size=12))
         assert "size=12" in repr(CropFaces(12))
         with pytest.raises(ValueCheckError, match="size must be positive"):
             CropFaces(-1)
@@ -289,4 +289,4 @@ class TestCropFaces:
     def test_compile(self):
         image, boxes = torch.rand(3, 16, 16), torch.tensor([[-2.0, 1.0, 14.0, 17.0]])
         compiled = torch.compile(crop_faces)
-        torch.testing.assert_close(compiled(image, boxes, 8), crop_faces(image, boxes, 8))
+        torch.testing.assert_close(compiled(image, boxes, 8), crop_faces(image, boxes, size=8))

@@ -246,7 +246,9 @@ class TestTestTimeAugmented:
         assert torch.equal(got.log_mirror_ball, ref.log_mirror_ball)
         probe = Probe()
         x = _crops(2)
-        assert torch.equal(TestTimeAugmented(probe, 1, mirror=False)(x).mirror_ball, probe(x).mirror_ball)
+        assert torch.equal(
+            TestTimeAugmented(probe, jitters=1, mirror=False)(x).mirror_ball, probe(x).mirror_ball
+        )
 
     def test_is_the_mean_of_the_views(self):
         probe = Probe()

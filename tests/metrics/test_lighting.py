@@ -38,17 +38,17 @@ def _l_rec_reference(pred, target, brdf, size):
 def test_loss_modules_keep_float64_exact():
     """float64 inputs are not rounded through the modules' float32 buffers (issue 24)."""
     pred, target = hdr_lighting(2, seed=1, dtype=F64), hdr_lighting(2, seed=2, dtype=F64)
-    expected = reconstruction_loss(pred, target, "mirror", 16).item()
-    assert ReconstructionLoss("mirror", 16)(pred, target).item() == expected
+    expected = reconstruction_loss(pred, target, brdf="mirror", size=16).item()
+    assert ReconstructionLoss("mirror", size=16)(pred, target).item() == expected
     assert (MultiscaleReconstructionLoss("diffuse")(pred, target).item()
-            == multiscale_reconstruction_loss(pred, target, "diffuse").item())
+            == multiscale_reconstruction_loss(pred, target, brdf="diffuse").item())
 
 
 class TestReconstructionLoss:
     def test_smoke(self, device, dtype):
         pred = hdr_lighting(seed=1, dtype=dtype).to(device)
         target = hdr_lighting(seed=2, dtype=dtype).to(device)
-        loss = reconstruction_loss(pred, target, "diffuse")
+        loss = reconstruction_loss(pred, target, brdf="diffuse")
         assert loss.shape == () and loss.dtype == dtype and loss.device == pred.device
         assert loss.item() > 0
 
@@ -56,32 +56,34 @@ class TestReconstructionLoss:
     @pytest.mark.parametrize("size", [4, 16, 32])
     def test_cardinality(self, brdf, size):
         pred, target = hdr_lighting(3, seed=1, dtype=F64), hdr_lighting(3, seed=2, dtype=F64)
-        per_item = reconstruction_loss(pred, target, brdf, size, reduction="none")
+        per_item = reconstruction_loss(pred, target, brdf=brdf, size=size, reduction="none")
         assert per_item.shape == (3,)
         torch.testing.assert_close(per_item, _l_rec_reference(pred, target, brdf, size))
-        torch.testing.assert_close(reconstruction_loss(pred, target, brdf, size), per_item.mean())
-        torch.testing.assert_close(reconstruction_loss(pred, target, brdf, size, "sum"), per_item.sum())
+        torch.testing.assert_close(reconstruction_loss(pred, target, brdf=brdf, size=size), per_item.mean())
+        torch.testing.assert_close(
+            reconstruction_loss(pred, target, brdf=brdf, size=size, reduction="sum"), per_item.sum()
+        )
 
     def test_other_lighting_sizes(self):
         pred, target = hdr_lighting(s=16, seed=1), hdr_lighting(s=16, seed=2)
-        assert reconstruction_loss(pred, target, "mirror", 8).item() > 0
+        assert reconstruction_loss(pred, target, brdf="mirror", size=8).item() > 0
 
     def test_exception(self):
         pred = hdr_lighting()
         with pytest.raises(ShapeError, match=r"pred and target must have the same shape"):
-            reconstruction_loss(pred, pred[:1], "diffuse")
+            reconstruction_loss(pred, pred[:1], brdf="diffuse")
         with pytest.raises(ShapeError, match=r"target must have shape \(B, 3, S, S\)"):
-            reconstruction_loss(pred, pred[:, :1], "diffuse")
+            reconstruction_loss(pred, pred[:, :1], brdf="diffuse")
         with pytest.raises(ValueCheckError, match="brdf must be one of"):
-            reconstruction_loss(pred, pred, "velvet")
+            reconstruction_loss(pred, pred, brdf="velvet")
         with pytest.raises(ValueCheckError, match=r"reduction must be one of \('mean', 'sum', 'none'\)"):
-            reconstruction_loss(pred, pred, "diffuse", reduction="max")
+            reconstruction_loss(pred, pred, brdf="diffuse", reduction="max")
         with pytest.raises(ValueCheckError, match="size must be one of"):
-            reconstruction_loss(pred, pred, "diffuse", size=33)
+            reconstruction_loss(pred, pred, brdf="diffuse", size=33)
         with pytest.raises(NonFiniteError, match="pred must be finite"):
-            reconstruction_loss(pred.log() * 0 + float("inf"), pred, "diffuse")
+            reconstruction_loss(pred.log() * 0 + float("inf"), pred, brdf="diffuse")
         with pytest.raises(TypeCheckError, match="target must be a floating-point tensor"):
-            reconstruction_loss(pred, pred.long(), "diffuse")
+            reconstruction_loss(pred, pred.long(), brdf="diffuse")
         with pytest.raises(ShapeError, match=r"pred must have shape \(B, 3, 32, 32\), got \(2, 3, 16, 16\)"):
             ReconstructionLoss("diffuse")(pred[..., :16, :16], pred[..., :16, :16])
 
@@ -89,29 +91,33 @@ class TestReconstructionLoss:
         pred = (hdr_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
         target = hdr_lighting(1, s=4, seed=2, dtype=F64)
         for brdf in BRDFS:
-            assert torch.autograd.gradcheck(lambda p, b=brdf: reconstruction_loss(p, target, b, 4), (pred,))
+            assert torch.autograd.gradcheck(
+                lambda p, b=brdf: reconstruction_loss(p, target, brdf=b, size=4), (pred,)
+            )
 
     def test_finite_gradient_on_black(self):
         """The training form ("safe") has a useful gradient at black; the metric's ("exact") is finite too."""
         pred = torch.zeros(1, 3, 32, 32, requires_grad=True)
-        reconstruction_loss(pred, hdr_lighting(1), "matte_silver", gamma="safe").backward()
+        reconstruction_loss(pred, hdr_lighting(1), brdf="matte_silver", gamma="safe").backward()
         assert torch.isfinite(pred.grad).all() and pred.grad.abs().sum() > 0
         pred.grad = None
-        reconstruction_loss(pred, hdr_lighting(1), "matte_silver").backward()
+        reconstruction_loss(pred, hdr_lighting(1), brdf="matte_silver").backward()
         assert torch.isfinite(pred.grad).all()
 
     @pytest.mark.parametrize("brdf", BRDFS)
     def test_module_matches_functional(self, brdf):
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
-        module = ReconstructionLoss(brdf, 16, reduction="none")
-        torch.testing.assert_close(module(pred, target), reconstruction_loss(pred, target, brdf, 16, "none"))
+        module = ReconstructionLoss(brdf, size=16, reduction="none")
+        torch.testing.assert_close(
+            module(pred, target), reconstruction_loss(pred, target, brdf=brdf, size=16, reduction="none")
+        )
         assert not module.state_dict()
 
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
         pred, target = hdr_lighting(seed=1, dtype=F64), hdr_lighting(seed=2, dtype=F64)
-        expected = reconstruction_loss(pred, target, "matte_silver", reduction="none")
-        out = reconstruction_loss(pred.to(dt), target.to(dt), "matte_silver", reduction="none")
+        expected = reconstruction_loss(pred, target, brdf="matte_silver", reduction="none")
+        out = reconstruction_loss(pred.to(dt), target.to(dt), brdf="matte_silver", reduction="none")
         assert out.dtype == dt
         assert_close_dtype(out, expected, dt)
         module = ReconstructionLoss("matte_silver", reduction="none").to(dt)
@@ -121,77 +127,79 @@ class TestReconstructionLoss:
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         compiled = torch.compile(reconstruction_loss)
         torch.testing.assert_close(
-            compiled(pred, target, "diffuse", 8), reconstruction_loss(pred, target, "diffuse", 8)
+            compiled(pred, target, "diffuse", 8), reconstruction_loss(pred, target, brdf="diffuse", size=8)
         )
 
     @given(st.integers(0, 2**16), st.sampled_from(BRDFS), st.sampled_from([4, 8, 32]))
     def test_zero_for_identical_lightings(self, seed, brdf, size):
         x = hdr_lighting(2, seed=seed)
-        assert reconstruction_loss(x, x, brdf, size).item() == 0.0
+        assert reconstruction_loss(x, x, brdf=brdf, size=size).item() == 0.0
 
     @given(st.integers(0, 2**16), st.sampled_from(BRDFS))
     def test_symmetric_and_bounded(self, seed, brdf):
         """|a - b| of values in [0, 1]: symmetric, in [0, 1]."""
         a, b = hdr_lighting(2, s=8, seed=seed, dtype=F64), hdr_lighting(2, s=8, seed=seed + 1, dtype=F64)
-        ab = reconstruction_loss(a, b, brdf, 8, "none")
-        torch.testing.assert_close(ab, reconstruction_loss(b, a, brdf, 8, "none"))
+        ab = reconstruction_loss(a, b, brdf=brdf, size=8, reduction="none")
+        torch.testing.assert_close(ab, reconstruction_loss(b, a, brdf=brdf, size=8, reduction="none"))
         assert (ab >= 0).all() and (ab <= 1).all()
 
 
 class TestMultiscaleReconstructionLoss:
     def test_smoke(self):
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
-        loss = multiscale_reconstruction_loss(pred, target, "diffuse")
+        loss = multiscale_reconstruction_loss(pred, target, brdf="diffuse")
         assert loss.shape == () and loss.item() > 0
 
     @pytest.mark.parametrize("sizes", [(4, 8, 16, 32), (32,), (8, 64)])
     def test_cardinality(self, sizes):
         pred, target = hdr_lighting(3, seed=1, dtype=F64), hdr_lighting(3, seed=2, dtype=F64)
-        out = multiscale_reconstruction_loss(pred, target, "mirror", sizes, reduction="none")
+        out = multiscale_reconstruction_loss(pred, target, brdf="mirror", sizes=sizes, reduction="none")
         assert out.shape == (3,)
-        per_scale = [reconstruction_loss(pred, target, "mirror", s, "none") for s in sizes]
+        per_scale = [
+            reconstruction_loss(pred, target, brdf="mirror", size=s, reduction="none") for s in sizes
+        ]
         torch.testing.assert_close(out, torch.stack(per_scale).mean(0))
 
     def test_exception(self):
         pred = hdr_lighting()
         with pytest.raises(ValueCheckError, match="sizes must name at least one"):
-            multiscale_reconstruction_loss(pred, pred, "diffuse", sizes=())
+            multiscale_reconstruction_loss(pred, pred, brdf="diffuse", sizes=())
         with pytest.raises(ValueCheckError, match=r"sizes must be one of \(4, 8, 16, 32, 64\), got 5"):
-            multiscale_reconstruction_loss(pred, pred, "diffuse", sizes=(4, 5))
+            multiscale_reconstruction_loss(pred, pred, brdf="diffuse", sizes=(4, 5))
         with pytest.raises(ValueCheckError, match="brdf must be one of"):
             MultiscaleReconstructionLoss("glass")
 
     def test_gradcheck(self):
         pred = (hdr_lighting(1, s=4, seed=1, dtype=F64) + 0.05).requires_grad_()
         target = hdr_lighting(1, s=4, seed=2, dtype=F64)
-        fn = lambda p: multiscale_reconstruction_loss(p, target, "matte_silver", (4, 8))
+        fn = lambda p: multiscale_reconstruction_loss(p, target, brdf="matte_silver", sizes=(4, 8))
         assert torch.autograd.gradcheck(fn, (pred,))
 
     def test_module_matches_functional(self):
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
-        module = MultiscaleReconstructionLoss("diffuse", (4, 16))
+        module = MultiscaleReconstructionLoss("diffuse", sizes=(4, 16))
         torch.testing.assert_close(
-            module(pred, target), multiscale_reconstruction_loss(pred, target, "diffuse", (4, 16))
+            module(pred, target), multiscale_reconstruction_loss(pred, target, brdf="diffuse", sizes=(4, 16))
         )
 
     @pytest.mark.parametrize("dt", [torch.float16, torch.bfloat16, torch.float32])
     def test_dtypes(self, dt):
         pred, target = hdr_lighting(seed=1, dtype=F64), hdr_lighting(seed=2, dtype=F64)
-        expected = multiscale_reconstruction_loss(pred, target, "mirror", reduction="none")
-        out = multiscale_reconstruction_loss(pred.to(dt), target.to(dt), "mirror", reduction="none")
+        expected = multiscale_reconstruction_loss(pred, target, brdf="mirror", reduction="none")
+        out = multiscale_reconstruction_loss(pred.to(dt), target.to(dt), brdf="mirror", reduction="none")
         assert out.dtype == dt
         assert_close_dtype(out, expected, dt)
 
     def test_compile(self):
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
-        compiled = torch.compile(MultiscaleReconstructionLoss("diffuse", (4, 8)))
-        expected = multiscale_reconstruction_loss(pred, target, "diffuse", (4, 8))
+        compiled = torch.compile(MultiscaleReconstructionLoss("diffuse", sizes=(4, 8)))
+        expected = multiscale_reconstruction_loss(pred, target, brdf="diffuse", sizes=(4, 8))
         torch.testing.assert_close(compiled(pred, target), expected)
 
     @given(st.integers(0, 2**16))
     def test_zero_for_identical_lightings(self, seed):
         x = hdr_lighting(1, seed=seed)
-        assert multiscale_reconstruction_loss(x, x, "matte_silver").item() == 0.0
+        assert multiscale_reconstruction_loss(x, x, brdf="matte_silver").item() == 0.0
 
 
 class TestRelativeRadiance:

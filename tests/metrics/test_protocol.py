@@ -63,8 +63,12 @@ def stylelight_tonemap(img, gamma=2.4, percentile=50, max_mapping=0.5):
 
 def _plain_renders(lighting: np.ndarray, size: int) -> dict[str, torch.Tensor]:
     lights = mirror_ball_to_lights(torch.from_numpy(lighting)[None])
-    return {b: relight(sphere_reflectance_field(b, size, 32, dtype=F64, multiscale=True), lights, size)
-            for b in BRDFS}
+    return {
+        b: relight(
+            sphere_reflectance_field(b, size, lighting_size=32, dtype=F64, multiscale=True), lights, size
+        )
+        for b in BRDFS
+    }
 
 
 class TestThreeSphereMetrics:

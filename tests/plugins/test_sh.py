@@ -165,7 +165,7 @@ class TestMultiScaleSH:
         lighting = sh_reconstruct(sh, 32)
         assert (lighting[:, :, VALID] < 0).float().mean() > 0.2
         truth = (torch.rand(2, 3, 32, 32, generator=torch.Generator().manual_seed(0)) + 0.1) * VALID
-        loss, _ = training_losses(mirror_ball_pyramid(lighting, SCALES), truth, BRDF_WEIGHTS)
+        loss, _ = training_losses(mirror_ball_pyramid(lighting, SCALES), truth, brdf_weights=BRDF_WEIGHTS)
         loss.backward()
         assert torch.isfinite(loss) and torch.isfinite(sh.grad).all() and sh.grad.abs().sum() > 0
 
@@ -175,7 +175,7 @@ class TestMultiScaleSH:
             model.estimator.head.bias.copy_(sun_sh(1).flatten())
         out = model(crops(2))
         assert (out[32][:, :, VALID] < 0).any()
-        loss, _ = training_losses(out, truth, BRDF_WEIGHTS)
+        loss, _ = training_losses(out, truth, brdf_weights=BRDF_WEIGHTS)
         loss.backward()
         grads = [p.grad for p in model.parameters()]
         assert all(g is not None and torch.isfinite(g).all() for g in grads)
@@ -186,12 +186,13 @@ class TestMultiScaleSH:
         sh = torch.zeros(1, 9, 3)
         sh[:, 0] = -1.0
         plain = sh.clone().requires_grad_(True)
-        training_losses(mirror_ball_pyramid(sh_reconstruct(plain, 32), SCALES), truth, BRDF_WEIGHTS)[0].backward()
+        training_losses(mirror_ball_pyramid(sh_reconstruct(plain, 32), SCALES), truth,
+                        brdf_weights=BRDF_WEIGHTS)[0].backward()
         assert plain.grad.abs().max() == 0  # the stall the penalty is for
         pushed = sh.clone().requires_grad_(True)
         pred = mirror_ball_pyramid(sh_reconstruct(pushed, 32), SCALES)
         extras = SHRecipe().extra_losses(pred)
-        (training_losses(pred, truth, BRDF_WEIGHTS)[0] + sum(extras.values())).backward()
+        (training_losses(pred, truth, brdf_weights=BRDF_WEIGHTS)[0] + sum(extras.values())).backward()
         assert pushed.grad[0, 0].lt(0).all()  # gradient descent raises the constant term
 
     def test_extra_loss_is_the_penalty(self):

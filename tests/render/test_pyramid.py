@@ -109,8 +109,8 @@ class TestMultiscaleSpheres:
         """Regression (issue 11): the 4, 8 and 16 px mirror spheres point-sampled the 32 px lighting."""
         pred, gt = _one_bright_pixel(*pixel)
         for s in (4, 8, 16, 32):
-            assert reconstruction_loss(pred, gt, "mirror", size=s).item() > 0
-            assert ReconstructionLoss("mirror", s, gamma="safe")(pred, gt).item() > 0
+            assert reconstruction_loss(pred, gt, brdf="mirror", size=s).item() > 0
+            assert ReconstructionLoss("mirror", size=s, gamma="safe")(pred, gt).item() > 0
         # and the mirror render keeps the energy of the lighting at every size
         for s in (4, 8, 16):
             render = render_spheres(pred.double(), s, ("mirror",))["mirror"]
@@ -130,15 +130,15 @@ class TestMultiscaleSpheres:
             # coarse pixel (2.3 % at s = 4; the multi-scale field integrates with the fine samples instead)
             coarse = render_spheres(level, size, (brdf,))[brdf]
             torch.testing.assert_close(direct, coarse, rtol=3e-2, atol=0)
-        field = sphere_reflectance_field(brdf, size, 32, multiscale=True, dtype=F64)
+        field = sphere_reflectance_field(brdf, size, lighting_size=32, multiscale=True, dtype=F64)
         torch.testing.assert_close(direct.flatten(2), torch.einsum("pn,bcn->bcp", field, lighting.flatten(2)))
 
     def test_sphere_pyramid_is_what_the_loss_compares(self):
         pred, target = hdr_lighting(2, seed=1, dtype=F64), hdr_lighting(2, seed=2, dtype=F64)
         sizes = (4, 8, 16, 32)
         for gamma in ("exact", "safe"):
-            a = sphere_pyramid(pred, sizes, gamma=gamma)
-            b = sphere_pyramid(target, sizes, gamma=gamma)
+            a = sphere_pyramid(pred, sizes=sizes, gamma=gamma)
+            b = sphere_pyramid(target, sizes=sizes, gamma=gamma)
             for brdf in BRDFS:
                 per_scale = []
                 for s in sizes:
@@ -146,16 +146,20 @@ class TestMultiscaleSpheres:
                     diff = (a[f"{brdf}_{s}"] - b[f"{brdf}_{s}"]).abs()[..., valid].mean((1, 2))
                     per_scale.append(diff)
                     assert (a[f"{brdf}_{s}"][..., ~valid] == 0).all()
-                    loss = reconstruction_loss(pred, target, brdf, s, "none", gamma=gamma)
+                    loss = reconstruction_loss(pred, target, brdf=brdf, size=s, reduction="none", gamma=gamma)
                     torch.testing.assert_close(diff, loss)
                 expected = torch.stack(per_scale).mean(0)
-                got = multiscale_reconstruction_loss(pred, target, brdf, sizes, "none", gamma=gamma)
+                got = multiscale_reconstruction_loss(
+                    pred, target, brdf=brdf, sizes=sizes, reduction="none", gamma=gamma
+                )
                 torch.testing.assert_close(got, expected)
-                module = MultiscaleReconstructionLoss(brdf, sizes, "none", gamma=gamma).double()
+                module = MultiscaleReconstructionLoss(
+                    brdf, sizes=sizes, reduction="none", gamma=gamma
+                ).double()
                 torch.testing.assert_close(module(pred, target), expected)
-        linear = sphere_pyramid(pred, (8,), ("diffuse",), encode=False)["diffuse_8"]
+        linear = sphere_pyramid(pred, sizes=(8,), brdfs=("diffuse",), encode=False)["diffuse_8"]
         torch.testing.assert_close(linear, render_spheres(pred, 8, ("diffuse",))["diffuse"])
-        encoded = sphere_pyramid(pred, (8,), ("diffuse",))["diffuse_8"]
+        encoded = sphere_pyramid(pred, sizes=(8,), brdfs=("diffuse",))["diffuse_8"]
         torch.testing.assert_close(encoded, encode_sphere(linear) * mirror_ball_valid(8))
 
 
@@ -164,11 +168,11 @@ class TestNegativesAndGamma:
         """docs/conventions.rst: L_rec(-0.1, 1, diffuse) = mean |0 - softclip(0.8)^(1/2.2)| = 0.90
         (was 43.6)."""
         gt = torch.ones(2, 3, 32, 32)
-        loss = reconstruction_loss(-0.1 * gt, gt, "diffuse")
+        loss = reconstruction_loss(-0.1 * gt, gt, brdf="diffuse")
         assert loss.item() == pytest.approx(0.9031, abs=2e-4)
-        safe = reconstruction_loss(-0.1 * gt, gt, "diffuse", gamma="safe")
+        safe = reconstruction_loss(-0.1 * gt, gt, brdf="diffuse", gamma="safe")
         assert safe.item() == pytest.approx(0.9031, abs=2e-4)
-        assert multiscale_reconstruction_loss(-0.1 * gt, 0 * gt, "mirror").item() == 0.0
+        assert multiscale_reconstruction_loss(-0.1 * gt, 0 * gt, brdf="mirror").item() == 0.0
 
     def test_exact_gamma_on_dark_scenes(self):
         """The metric uses the exact power; the training form is within 1e-3 of it (5.3e-4 at worst)."""
@@ -180,7 +184,7 @@ class TestNegativesAndGamma:
         dark = 1e-7 * hdr_lighting(2, seed=4, dtype=F64)
         render = render_spheres(dark, 32, ("diffuse",))["diffuse"]
         ref = render.clamp(min=0).pow(1 / 2.2)[..., mirror_ball_valid(32)]
-        loss = reconstruction_loss(dark, 0 * dark, "diffuse", reduction="none")
+        loss = reconstruction_loss(dark, 0 * dark, brdf="diffuse", reduction="none")
         torch.testing.assert_close(loss, ref.mean((1, 2)), rtol=1e-6, atol=0)
 
     def test_safe_gradient_is_finite_at_zero(self):
@@ -194,6 +198,6 @@ class TestNegativesAndGamma:
     def test_exception(self):
         gt = torch.ones(1, 3, 32, 32)
         with pytest.raises(ValueCheckError, match="gamma must be one of"):
-            reconstruction_loss(gt, gt, "diffuse", gamma="approx")
+            reconstruction_loss(gt, gt, brdf="diffuse", gamma="approx")
         with pytest.raises(ValueCheckError, match="gamma must be one of"):
             sphere_pyramid(gt, gamma="fast")

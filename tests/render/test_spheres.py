@@ -67,7 +67,7 @@ class TestSphereReflectanceField:
     @pytest.mark.parametrize("brdf", BRDFS)
     @pytest.mark.parametrize("size, lighting_size", [(4, 4), (8, 16), (16, 8), (4, 32)])
     def test_cardinality(self, brdf, size, lighting_size):
-        field = sphere_reflectance_field(brdf, size, lighting_size, dtype=F64)
+        field = sphere_reflectance_field(brdf, size, lighting_size=lighting_size, dtype=F64)
         assert field.shape == (size * size, lighting_size * lighting_size)
         off = ~mirror_ball_valid(size).flatten()
         assert field[off].abs().max().item() == 0.0  # pixels off the sphere are zero rows
@@ -81,7 +81,7 @@ class TestSphereReflectanceField:
         with pytest.raises(ValueCheckError, match=r"size must be one of \(4, 8, 16, 32, 64\), got 12"):
             sphere_reflectance_field("diffuse", 12)
         with pytest.raises(ValueCheckError, match="lighting_size must be one of"):
-            sphere_reflectance_field("diffuse", 8, 128)
+            sphere_reflectance_field("diffuse", 8, lighting_size=128)
         with pytest.raises(TypeCheckError, match="size must be an int"):
             sphere_reflectance_field("diffuse", 8.0)
 
@@ -107,7 +107,7 @@ class TestSphereReflectanceField:
 
     def test_mirror_is_the_lighting(self):
         """At size == lighting_size the mirror field is 0.827 times the identity on the valid pixels."""
-        field = sphere_reflectance_field("mirror", 32, 32, dtype=F64)
+        field = sphere_reflectance_field("mirror", 32, lighting_size=32, dtype=F64)
         valid = mirror_ball_valid(32).flatten().to(F64)
         torch.testing.assert_close(field, 0.827 * torch.diag(valid))
 
@@ -225,7 +225,7 @@ class TestRenderSpheres:
         for gamma in ("exact", "safe"):
             torch.testing.assert_close(EncodeSphere(gamma)(lighting), encode_sphere(lighting, gamma), rtol=0, atol=0)
             module = SpherePyramid((4, 16), ("diffuse", "mirror"), gamma=gamma)(lighting)
-            expected = sphere_pyramid(lighting, (4, 16), ("diffuse", "mirror"), gamma=gamma)
+            expected = sphere_pyramid(lighting, sizes=(4, 16), brdfs=("diffuse", "mirror"), gamma=gamma)
             assert module.keys() == expected.keys()
             for name, value in module.items():
                 torch.testing.assert_close(value, expected[name], rtol=0, atol=0)

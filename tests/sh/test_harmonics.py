@@ -320,7 +320,7 @@ class TestShReconstruct:
     @pytest.mark.parametrize(("layout", "clamp"), [("mirror_ball", False), ("latlong", True)])
     def test_module_matches_functional(self, layout, clamp):
         sh = torch.randn(2, 9, 3, dtype=F64)
-        module = SHReconstruct(8, layout, clamp, dtype=F64)
+        module = SHReconstruct(8, layout=layout, clamp_negative=clamp, dtype=F64)
         assert "basis" not in module.state_dict()
         torch.testing.assert_close(module(sh), sh_reconstruct(sh, 8, layout, clamp), atol=0, rtol=0)
 

@@ -150,7 +150,8 @@ class SIPRRecipe(Recipe):
         opt_g.step()
         with torch.no_grad():  # the rendering loss of the estimate, for the log only
             estimate = log_latlong_to_mirror_ball(z.detach(), source.shape[-1])
-            rec, parts = training_losses({source.shape[-1]: estimate}, source, config.brdf_weights)
+            rec, parts = training_losses({source.shape[-1]: estimate}, source,
+                                         brdf_weights=config.brdf_weights)
         zero = loss.new_zeros(())
         return {"loss": loss.detach(), "rec": rec, "adv": zero, "disc": zero, "extra": zero, **parts,
                 "relit": relit_loss.detach(), "lighting": lighting_loss.detach()}

@@ -178,8 +178,8 @@ class TestCrop:
     def test_jitter_boxes(self) -> None:
         nominal = torch.tensor([[100.0, 100.0, 200.0, 200.0], [0.0, 0.0, 120.0, 120.0]])
         g = torch.Generator().manual_seed(3)
-        boxes = jitter_boxes(nominal, 64, 300, 300, generator=g)
-        again = jitter_boxes(nominal, 64, 300, 300, generator=torch.Generator().manual_seed(3))
+        boxes = jitter_boxes(nominal, 64, height=300, width=300, generator=g)
+        again = jitter_boxes(nominal, 64, height=300, width=300, generator=torch.Generator().manual_seed(3))
         assert torch.equal(boxes, again) and boxes.shape == (2, 64, 4)
         side = boxes[..., 2] - boxes[..., 0]
         torch.testing.assert_close(side, boxes[..., 3] - boxes[..., 1])
@@ -189,7 +189,7 @@ class TestCrop:
         assert ((centre - 150).abs() <= 0.10 * side[0, :, None] + 1e-9).all()
         assert (centre - 150).abs().max() > 5
         assert (boxes[1, :, :2] >= 0).all() and (boxes[..., 2:] <= 300).all()  # the second is shifted inside
-        assert (jitter_boxes(nominal, 4, 100, 100)[..., 2:] <= 100 + 1e-9).all()  # and shrunk
+        assert (jitter_boxes(nominal, 4, height=100, width=100)[..., 2:] <= 100 + 1e-9).all()  # and shrunk
 
     def test_a_crop_invariant_estimator_has_no_spread(self, context_set) -> None:
         out = crop_stability(fixed_light, context_set, jitters=3)
@@ -220,14 +220,16 @@ class TestCrop:
 class TestRunChecks:
     def test_tables(self, eval_set, context_set) -> None:
         photos = torch.rand(2, 3, 256, 256)
-        out = run_checks(brightness, eval_set, CHECKS, context_set=context_set, photos=photos, jitters=2)
+        out = run_checks(brightness, eval_set, checks=CHECKS, context_set=context_set, photos=photos,
+                         jitters=2)
         assert set(out) == {*CHECKS, "tone_spread", "seconds"} and set(out["seconds"]) == set(CHECKS)
         assert set(out["exposure"]) == {"eval", "photos"} and out["exposure"]["photos"]["0.5"]["count"] == 2
-        assert set(run_checks(constant, eval_set, ["transfer"])) == {"transfer", "tone_spread", "seconds"}
+        transfer = run_checks(constant, eval_set, checks=["transfer"])
+        assert set(transfer) == {"transfer", "tone_spread", "seconds"}
         with pytest.raises(ValueCheckError, match="unknown checks"):
-            run_checks(constant, eval_set, ["speed"])
+            run_checks(constant, eval_set, checks=["speed"])
         with pytest.raises(ValueCheckError, match="context_set"):
-            run_checks(constant, eval_set, ["crop"])
+            run_checks(constant, eval_set, checks=["crop"])
 
     def test_evaluate_runs_them_on_the_estimators(self, eval_set, context_set) -> None:
         runner = check_runner(eval_set, ["transfer", "crop"], context_set=context_set, jitters=2)

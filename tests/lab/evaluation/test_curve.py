@@ -31,11 +31,12 @@ def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("run")
     torch.manual_seed(0)
     model = OursEstimator().eval()
-    save_snapshot(folder, model, "ours", 4, 128, 90.0)  # written out of order: the curve sorts by step
+    save_snapshot(folder, model, name="ours", step=4, samples=128,
+                  elapsed_s=90.0)  # written out of order: the curve sorts by step
     with torch.no_grad():
         for p in model.parameters():
             p.mul_(0.5)
-    save_snapshot(folder, model, "ours", 2, 64, 45.5)
+    save_snapshot(folder, model, name="ours", step=2, samples=64, elapsed_s=45.5)
     return folder
 
 
@@ -45,7 +46,7 @@ class TestLearningCurve:
         assert [(r["step"], r["samples"], r["elapsed_s"]) for r in rows] == [(2, 64, 45.5), (4, 128, 90.0)]
         assert all(set(r) == set(CURVE_FIELDS) for r in rows)
         last = snapshot_files(run)[-1]
-        reference = evaluate(eval_set, [], {"ours": last}, oracles=False, batch_size=8)["methods"]
+        reference = evaluate(eval_set, [], weights={"ours": last}, oracles=False, batch_size=8)["methods"]
         scores = reference[f"ours@{last.name}"]["scores"]
         for b in BRDF_NAMES:
             assert rows[1][b] == pytest.approx(float(scores[b].mean()), rel=1e-5)

@@ -160,7 +160,7 @@ class TestWeights:
     def test_evaluate_records_the_sha256_of_a_weight_file(self, eval_set, tmp_path) -> None:
         path = tmp_path / "ckpt.safetensors"
         _checkpoint(path)
-        results = evaluate(eval_set, ["uniform"], {"ours": path}, oracles=False)
+        results = evaluate(eval_set, ["uniform"], weights={"ours": path}, oracles=False)
         assert set(results["methods"]) == {"uniform", "ours@ckpt.safetensors"}
         assert results["methods"]["ours@ckpt.safetensors"]["sha256"] == sha256_file(path)
         assert "sha256" not in results["methods"]["uniform"]  # nothing to record: no weight file
@@ -172,10 +172,10 @@ class TestWeights:
         same_name = tmp_path / "b" / "a.safetensors"
         for path in (first, second, same_name):
             _checkpoint(path)
-        results = evaluate(eval_set, [], [("ours", first), ("ours", second)], oracles=False)
+        results = evaluate(eval_set, [], weights=[("ours", first), ("ours", second)], oracles=False)
         assert set(results["methods"]) == {"ours@a.safetensors", "ours@c.safetensors"}
         with pytest.raises(ValueCheckError, match="different names"):
-            evaluate(eval_set, [], [("ours", first), ("ours", same_name)], oracles=False)
+            evaluate(eval_set, [], weights=[("ours", first), ("ours", same_name)], oracles=False)
 
 
 def test_evaluate_scores_each_estimator_with_test_time_augmentation_too(eval_set) -> None:

@@ -51,7 +51,7 @@ class TestReport:
         path = tmp_path / "run.safetensors"
         net = create_estimator("ours", pretrained=False)
         safetensors.torch.save_file({k: v.contiguous() for k, v in net.state_dict().items()}, str(path))
-        summary = summarize(evaluate(eval_set, [], {"ours": path}, oracles=False), eval_set)
+        summary = summarize(evaluate(eval_set, [], weights={"ours": path}, oracles=False), eval_set)
         assert summary["weights"] == {"ours@run.safetensors": sha256_file(path)}
         assert f"- ours@run.safetensors: sha256 {sha256_file(path)}" in format_markdown(summary)
         written = write_report(summary, tmp_path / "out" / "eval.md", tmp_path / "out" / "eval.json")

@@ -161,7 +161,9 @@ class TestRenderBackground:
     def test_module_matches_functional(self):
         env = coloured_map().float()
         module = RenderBackground(size=(6, 10), fov_deg=75.0, yaw_deg=20.0, pitch_deg=-5.0, roll_deg=3.0)
-        expected = render_background(env, (6, 10), 75.0, 20.0, -5.0, 3.0)
+        expected = render_background(
+            env, size=(6, 10), fov_deg=75.0, yaw_deg=20.0, pitch_deg=-5.0, roll_deg=3.0
+        )
         assert torch.equal(module(env), expected)
 
     @pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16, torch.float32])

@@ -57,7 +57,7 @@ def test_functionals_identity_at_zero(linear) -> None:
     zero = torch.zeros(4)
     assert torch.equal(lens_blur(linear, zero), linear)
     assert torch.equal(vignette(linear, zero), linear)
-    assert torch.equal(sensor_noise(linear, zero, zero, generator=gen()), linear)
+    assert torch.equal(sensor_noise(linear, zero, read=zero, generator=gen()), linear)
     x = linear.clamp(0, 1)
     assert torch.equal(tone_curve(x, zero, torch.ones(4)), x)
     codes = encode_srgb8(linear)
@@ -85,11 +85,11 @@ def test_vignette_darkens_the_corners_only() -> None:
 
 def test_sensor_noise_is_signal_dependent() -> None:
     x = torch.cat([torch.full((1, 3, 64, 64), 0.01), torch.full((1, 3, 64, 64), 0.5)])
-    out = sensor_noise(x, 1e-3, 0.0, generator=gen())
+    out = sensor_noise(x, 1e-3, read=0.0, generator=gen())
     std = (out - x).std((1, 2, 3))
     torch.testing.assert_close(std, torch.tensor([0.01, 0.5]).mul(1e-3).sqrt(), rtol=0.05, atol=0)
     given = torch.randn(x.shape, generator=gen(3))
-    torch.testing.assert_close(sensor_noise(x, 1e-3, 0.0, noise=given), x + (x * 1e-3).sqrt() * given)
+    torch.testing.assert_close(sensor_noise(x, 1e-3, read=0.0, noise=given), x + (x * 1e-3).sqrt() * given)
     with pytest.raises(ShapeError):
         sensor_noise(x, 1e-3, noise=torch.zeros(1, 3, 4, 4))
 

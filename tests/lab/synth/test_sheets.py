@@ -34,7 +34,8 @@ def test_tone_map_tile_exposure():
 def test_write_grid(tmp_path, palette):
     tiles = [torch.rand(3, 20, 30), torch.zeros(3, 20, 30), torch.ones(3, 20, 30)]
     path = tmp_path / "sub" / "grid.png"  # a missing parent folder is created
-    write_grid(tiles, ["a", "b\nc", "d"], "title", path, columns=2, cell=(1.0, 0.8), fontsize=5, dpi=50,
+    write_grid(tiles, ["a", "b\nc", "d"], title="title", path=path, columns=2, cell=(1.0, 0.8), fontsize=5,
+               dpi=50,
                palette=palette)
     assert path.read_bytes()[:8] == PNG
     image = Image.open(path)

@@ -117,16 +117,16 @@ def test_fit_spread_learns_where_the_strength_is_uncertain() -> None:
     torch.manual_seed(0)
     truth = torch.ones(1, 3, 8, 8)
     est = _Known(truth)
-    report = fit_spread(est, _Stream(truth), 2048, batch=256)
+    report = fit_spread(est, _Stream(truth), samples=2048, batch=256)
     assert report["nll_after"] < report["nll_before"] and report["features"] == 2
     assert abs(report["coverage_shift"]) < 0.1  # Laplace-like errors: the likelihood's b is already calibrated
     w = est.spread.weight.detach()[0]  # log b = log 2 + log v: weight 1 on log v, none on the noise
     assert abs(float(w[0]) - 1.0) < 0.15 and abs(float(w[1])) < 0.1
     assert abs(report["within_one_spread"] - (1 - 1 / torch.e)) < 0.01  # moved to it exactly
     with pytest.raises(ValueCheckError, match="spread head"):
-        fit_spread(torch.nn.Identity(), _Stream(truth), 4)
+        fit_spread(torch.nn.Identity(), _Stream(truth), samples=4)
     with pytest.raises(ValueCheckError, match="positive integer"):
-        fit_spread(est, _Stream(truth), 0)
+        fit_spread(est, _Stream(truth), samples=0)
     with pytest.raises(ValueCheckError, match="fit_spread"):
         TrainConfig(out="x", cache=("c",), fit_spread=-1)
     with pytest.raises(ValueCheckError, match="0 only with init"):

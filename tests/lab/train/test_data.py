@@ -22,8 +22,8 @@ class TestData:
         """Starting at step 3 gives the batches that steps 3, 4 of a run from step 0 got (any worker count)."""
         dataset = training_dataset(TrainConfig(out="unused", cache=(str(tiny_cache),), data=small_data()))
         for workers in (0, 2):
-            run = list(itertools.islice(iter(StepBatches(dataset, 2, 0, workers=workers)), 5))
-            late = list(itertools.islice(iter(StepBatches(dataset, 2, 3, workers=workers)), 2))
+            run = list(itertools.islice(iter(StepBatches(dataset, 2, start=0, workers=workers)), 5))
+            late = list(itertools.islice(iter(StepBatches(dataset, 2, start=3, workers=workers)), 2))
             for a, b in zip(run[3:], late, strict=True):
                 assert torch.equal(a["image"], b["image"]) and torch.equal(a["mirror_ball"], b["mirror_ball"])
         assert not torch.equal(run[0]["image"], run[1]["image"])

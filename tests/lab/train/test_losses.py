@@ -25,17 +25,17 @@ class TestLosses:
         valid = mirror_ball_valid(32)
         truth = (torch.rand(2, 3, 32, 32) + 0.1) * valid
         pred = mirror_ball_pyramid(truth, SCALES)
-        loss, parts = training_losses(pred, truth, BRDF_WEIGHTS)
+        loss, parts = training_losses(pred, truth, brdf_weights=BRDF_WEIGHTS)
         assert loss.item() < 1e-6 and set(parts) == {f"rec_{b}" for b in BRDF_WEIGHTS}
         for s in SCALES:  # one bright pixel in the lighting of one scale: the loss sees it
             bumped = {k: v.clone() for k, v in pred.items()}
             i = s // 2
             bumped[s][:, :, i, i] += 50.0
-            assert training_losses(bumped, truth, BRDF_WEIGHTS)[0].item() > 1e-3, s
+            assert training_losses(bumped, truth, brdf_weights=BRDF_WEIGHTS)[0].item() > 1e-3, s
 
     def test_gradients_are_finite_on_black(self) -> None:
         pred = {s: torch.zeros(1, 3, s, s, requires_grad=True) for s in SCALES}
-        loss, _ = training_losses(pred, torch.zeros(1, 3, 32, 32), BRDF_WEIGHTS)
+        loss, _ = training_losses(pred, torch.zeros(1, 3, 32, 32), brdf_weights=BRDF_WEIGHTS)
         loss.backward()
         assert all(torch.isfinite(pred[s].grad).all() for s in SCALES)
 
@@ -45,9 +45,11 @@ class TestLosses:
         gen = torch.Generator().manual_seed(0)
         target = torch.rand(2, 3, 32, 32, generator=gen) * valid
         pred = {s: torch.rand(2, 3, s, s, generator=gen) * mirror_ball_valid(s) for s in SCALES}
-        plain, parts = training_losses(pred, target, BRDF_WEIGHTS, 0.5)
+        plain, parts = training_losses(pred, target, brdf_weights=BRDF_WEIGHTS, lambda_scale=0.5)
         truth = mirror_ball_pyramid(target, SCALES)
-        given, given_parts = training_losses(pred, target, BRDF_WEIGHTS, 0.5, truth)
+        given, given_parts = training_losses(
+            pred, target, brdf_weights=BRDF_WEIGHTS, lambda_scale=0.5, truth=truth
+        )
         assert torch.equal(plain, given) and all(torch.equal(parts[k], given_parts[k]) for k in parts)
 
     def test_brdf_weights_are_the_papers(self) -> None:
@@ -110,7 +112,7 @@ class TestTheScaleApart:
         torch.testing.assert_close(a, b)
         torch.testing.assert_close(log_energy(a, eps=0.0), log_energy(truth, eps=0.0))
         x = pred.clone().requires_grad_()  # L_rec of the result has no gradient along the prediction's scale
-        reconstruction_loss(to_true_energy({32: x}, {32: truth})[32], truth, "diffuse").mean().backward()
+        reconstruction_loss(to_true_energy({32: x}, {32: truth})[32], truth, brdf="diffuse").mean().backward()
         torch.testing.assert_close((x.grad * pred).sum(), torch.tensor(0.0), atol=1e-6, rtol=0)
 
     def test_the_likelihood_is_least_at_the_truth_with_the_mean_error_as_spread(self) -> None:

@@ -70,8 +70,8 @@ class BenchError:
                 ``l_rec_groups`` and ``relative_radiance``.
 
         Returns:
-            ``{"per_tone": {label: {tone: diffuse L_rec}}, "error": {"what", "short", "eval_set"},
-            "seconds": ..., "methods": ...}``.
+            a dict: ``per_tone`` (label -> tone -> diffuse ``L_rec``), ``error`` (``what``, ``short``,
+            ``eval_set``), ``methods`` (how many were scored) and ``seconds``.
         """
         t0 = time.perf_counter()
         methods = {}

@@ -36,8 +36,9 @@ def median(x: torch.Tensor) -> torch.Tensor:
     return torch.quantile(x, 0.5) if x.numel() else x.new_tensor(float("nan"))
 
 
-def subject_resamples(values: torch.Tensor, subjects: Sequence[int] | torch.Tensor, statistic: Statistic = median,
-                      *, resamples: int = RESAMPLES, seed: int = 0) -> torch.Tensor:
+def subject_resamples(values: torch.Tensor, subjects: Sequence[int] | torch.Tensor, *,
+                      statistic: Statistic = median, resamples: int = RESAMPLES,
+                      seed: int = 0) -> torch.Tensor:
     r"""``statistic`` of the portraits of ``resamples`` draws of the subjects with replacement.
 
     Args:
@@ -80,8 +81,9 @@ def _percentiles(x: torch.Tensor, level: float) -> list[float]:
     return torch.quantile(x, torch.tensor([tail, 1.0 - tail], dtype=x.dtype)).tolist()
 
 
-def subject_interval(values: torch.Tensor, subjects: Sequence[int] | torch.Tensor, statistic: Statistic = median,
-                     *, level: float = 0.95, resamples: int = RESAMPLES, seed: int = 0) -> list[float]:
+def subject_interval(values: torch.Tensor, subjects: Sequence[int] | torch.Tensor, *,
+                     statistic: Statistic = median, level: float = 0.95, resamples: int = RESAMPLES,
+                     seed: int = 0) -> list[float]:
     r"""The ``level`` percentile interval of ``statistic`` over subject resamples (:func:`subject_resamples`).
 
     Args:
@@ -97,7 +99,8 @@ def subject_interval(values: torch.Tensor, subjects: Sequence[int] | torch.Tenso
         >>> 0.9 <= low < 1.5 < high <= 2.1
         True
     """
-    return _percentiles(subject_resamples(values, subjects, statistic, resamples=resamples, seed=seed), level)
+    return _percentiles(subject_resamples(values, subjects, statistic=statistic, resamples=resamples,
+                                          seed=seed), level)
 
 
 def ratio_interval(groups: dict[str, tuple[torch.Tensor, Sequence[int] | torch.Tensor]],
@@ -123,7 +126,7 @@ def ratio_interval(groups: dict[str, tuple[torch.Tensor, Sequence[int] | torch.T
     """
     names = list(groups)
     point = torch.stack([statistic(v.double().flatten()) for v, _ in groups.values()])
-    draws = torch.stack([subject_resamples(v, s, statistic, resamples=resamples, seed=seed + k)
+    draws = torch.stack([subject_resamples(v, s, statistic=statistic, resamples=resamples, seed=seed + k)
                          for k, (v, s) in enumerate(groups.values())])
     ratio = draws.amax(0) / draws.amin(0)
     return {"ratio": float(point.max() / point.min()), "interval": _percentiles(ratio, level),

@@ -377,8 +377,8 @@ def darken(images: torch.Tensor, k: float) -> torch.Tensor:
 def exposure_equivariance(
     estimator: Estimator,
     images: torch.Tensor,
-    ks: Sequence[float] = EXPOSURE_FACTORS,
     *,
+    ks: Sequence[float] = EXPOSURE_FACTORS,
     prediction: torch.Tensor | None = None,
     batch_size: int = 32,
 ) -> dict[str, Any]:
@@ -556,7 +556,7 @@ def face_crops(photos: Mapping[str, Any] | Sequence[Any], detector: str | FaceDe
 # crop
 
 
-def jitter_boxes(nominal: torch.Tensor, jitters: int, height: int, width: int, *, position: float = 0.10,
+def jitter_boxes(nominal: torch.Tensor, jitters: int, *, height: int, width: int, position: float = 0.10,
                  extent: float = 0.15, generator: torch.Generator | None = None) -> torch.Tensor:
     r"""Square crops jittered around nominal boxes, as a face detector's boxes move.
 
@@ -611,11 +611,11 @@ def jitter_boxes(nominal: torch.Tensor, jitters: int, height: int, width: int, *
 def crop_stability(
     estimator: Estimator,
     context_set: EvalSet,
+    *,
     jitters: int = 8,
     position: float = 0.10,
     extent: float = 0.15,
     seed: int = 0,
-    *,
     size: int = 256,
     batch_size: int = 32,
 ) -> dict[str, Any]:
@@ -677,7 +677,8 @@ def crop_stability(
         raise ValueCheckError(f"jitters must be at least 2 (a spread), got {jitters}")
     images = context_set.images
     n, (h, w) = len(images), images.shape[-2:]
-    boxes = jitter_boxes(context_set.nominal_boxes, jitters, h, w, position=position, extent=extent,
+    boxes = jitter_boxes(context_set.nominal_boxes, jitters, height=h, width=w, position=position,
+                         extent=extent,
                          generator=torch.Generator().manual_seed(seed))
     per = max(1, batch_size // jitters)
 
@@ -769,7 +770,7 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
         for k, nominal in SPREAD_NOMINAL.items():
             inside = (z[m] <= k).double()
             row[f"within_{k}"] = float(inside.mean())
-            row[f"within_{k}_ci"] = subject_interval(inside, subjects[m], torch.mean)
+            row[f"within_{k}_ci"] = subject_interval(inside, subjects[m], statistic=torch.mean)
             row[f"nominal_{k}"] = nominal
         table[g] = row
     return {"table": table, "reason": ""}
@@ -782,8 +783,8 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
 def run_checks(
     estimator: Estimator,
     eval_set: EvalSet,
-    checks: Sequence[str] = CHECKS,
     *,
+    checks: Sequence[str] = CHECKS,
     context_set: EvalSet | None = None,
     photos: torch.Tensor | None = None,
     prediction: torch.Tensor | None = None,
@@ -845,14 +846,15 @@ def run_checks(
         elif name == "spread":
             out[name] = spread_calibration(estimator, eval_set, batch_size=batch_size)
         elif name == "exposure":
-            on_eval = exposure_equivariance(estimator, eval_set.images, ks, prediction=prediction,
+            on_eval = exposure_equivariance(estimator, eval_set.images, ks=ks, prediction=prediction,
                                             batch_size=batch_size)
             out[name] = {"eval": on_eval["table"]}
             if photos is not None and len(photos):
-                on_photos = exposure_equivariance(estimator, photos, ks, batch_size=batch_size)
+                on_photos = exposure_equivariance(estimator, photos, ks=ks, batch_size=batch_size)
                 out[name]["photos"] = on_photos["table"]
         elif context_set is not None:  # "crop", with its set (checked above)
-            out[name] = crop_stability(estimator, context_set, jitters, position, extent, seed,
+            out[name] = crop_stability(estimator, context_set, jitters=jitters, position=position,
+                                       extent=extent, seed=seed,
                                        batch_size=batch_size)["table"]
         seconds[name] = round(time.perf_counter() - t0, 2)
     out["seconds"] = seconds
@@ -906,6 +908,6 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
     names = list(checks)
 
     def run(estimator: Estimator, prediction: torch.Tensor) -> dict[str, Any]:
-        return run_checks(estimator, eval_set, names, prediction=prediction, **options)
+        return run_checks(estimator, eval_set, checks=names, prediction=prediction, **options)
 
     return run

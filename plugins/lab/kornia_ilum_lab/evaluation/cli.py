@@ -302,7 +302,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     batch_size = getattr(args, "batch_size", 32)
     runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, batch_size=batch_size,
                           **options) if checks else None
-    results = evaluate(eval_set, getattr(args, "estimator", None), weights,
+    results = evaluate(eval_set, getattr(args, "estimator", None), weights=weights,
                        oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner,
                        tta=getattr(args, "tta", None), runtimes=getattr(args, "runtime", None) or ())
     if checks:

@@ -378,7 +378,7 @@ def score(pred: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
         >>> sorted(s), s["diffuse"].tolist()
         (['diffuse', 'matte_silver', 'mirror', 'relative_radiance'], [0.0, 0.0])
     """
-    out = {b: reconstruction_loss(pred, target, b, size=32, reduction="none") for b in BRDF_NAMES}
+    out = {b: reconstruction_loss(pred, target, brdf=b, size=32, reduction="none") for b in BRDF_NAMES}
     out["relative_radiance"] = relative_radiance(pred, target)
     return out
 
@@ -500,10 +500,10 @@ def load_checkpoint(name: str, weights: str | os.PathLike[str]) -> tuple[Lightin
 def evaluate(
     eval_set: EvalSet,
     estimators: Sequence[str] | None = None,
+    *,
     weights: Mapping[str, str | os.PathLike[str]] | Sequence[tuple[str, str | os.PathLike[str]]] | None = None,
     oracles: bool = True,
     batch_size: int = 32,
-    *,
     checks: Callable[[LightingEstimator, torch.Tensor], dict[str, Any]] | None = None,
     tta: int | None = None,
     runtimes: Sequence[str] = (),

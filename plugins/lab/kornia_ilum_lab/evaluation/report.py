@@ -131,7 +131,7 @@ def summarize(results: dict[str, Any], eval_set: EvalSet, reference: str = "ours
             m = tones == tone
             t3[name][str(tone)] = {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
                                    **{b: _mean(s[b][m]) for b in BRDF_NAMES},
-                                   **{f"{b}_ci": subject_interval(s[b][m], subjects[m], torch.mean)
+                                   **{f"{b}_ci": subject_interval(s[b][m], subjects[m], statistic=torch.mean)
                                       for b in BRDF_NAMES},
                                    "relative_radiance": _means(rr[m]), "relative_radiance_abs": _means(rr[m].abs())}
     digests = {n: m["sha256"] for n, m in results["methods"].items() if "sha256" in m}

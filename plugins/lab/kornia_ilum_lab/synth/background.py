@@ -288,6 +288,7 @@ def camera_rays(
 
 def render_background(
     latlong: torch.Tensor,
+    *,
     size: tuple[int, int] = (256, 256),
     fov_deg: float = 60.0,
     yaw_deg: float = 0.0,
@@ -374,6 +375,7 @@ class RenderBackground(nn.Module):
     def __init__(
         self,
         size: tuple[int, int] = (256, 256),
+        *,
         fov_deg: float = 60.0,
         yaw_deg: float = 0.0,
         pitch_deg: float = 0.0,
@@ -388,7 +390,13 @@ class RenderBackground(nn.Module):
 
     def forward(self, latlong: torch.Tensor) -> torch.Tensor:
         return render_background(
-            latlong, self.size, self.fov_deg, self.yaw_deg, self.pitch_deg, self.roll_deg, self.exposure
+            latlong,
+            size=self.size,
+            fov_deg=self.fov_deg,
+            yaw_deg=self.yaw_deg,
+            pitch_deg=self.pitch_deg,
+            roll_deg=self.roll_deg,
+            exposure=self.exposure,
         )
 
     def extra_repr(self) -> str:

@@ -254,8 +254,8 @@ def read_noise_for_shot(shot: torch.Tensor | float) -> torch.Tensor:
 def sensor_noise(
     linear: torch.Tensor,
     shot: torch.Tensor | float,
-    read: torch.Tensor | float | None = None,
     *,
+    read: torch.Tensor | float | None = None,
     generator: torch.Generator | None = None,
     noise: torch.Tensor | None = None,
 ) -> torch.Tensor:
@@ -467,7 +467,7 @@ def encode_tone8(linear: torch.Tensor, contrast: torch.Tensor | float, gamma: to
         torch.mul(linear[k], u, out=scratch)
         if strength[k] > 0:
             _rolloff_scaled_(scratch, strength[k], u)
-        _encode_one(scratch, tables[k], cells[k], index, out[k])
+        _encode_one(scratch, tables[k], cells=cells[k], index=index, out=out[k])
     return out
 
 
@@ -527,8 +527,8 @@ def _sqrt_(x: torch.Tensor) -> torch.Tensor:
     return x
 
 
-def _encode_one(scaled: torch.Tensor, table: torch.Tensor, cells: int, index: torch.Tensor, out: torch.Tensor
-                ) -> torch.Tensor:
+def _encode_one(scaled: torch.Tensor, table: torch.Tensor, *, cells: int, index: torch.Tensor,
+                out: torch.Tensor) -> torch.Tensor:
     """Codes of one image from its linear values times ``cells^2`` (overwritten): clip, ``sqrt``, read the table.
 
     The steps of :func:`~kornia_ilum.color.encode_srgb8` (which does ``x * 65536^2``, clip, ``sqrt``, truncate,
@@ -600,7 +600,7 @@ def _jpeg_one(planes: torch.Tensor, quality: int) -> None:
 # random draws and modules
 
 
-def _check_pair(value: Any, name: str, lo: float, hi: float, *, open_hi: bool = False) -> tuple[float, float]:
+def _check_pair(value: Any, name: str, *, lo: float, hi: float, open_hi: bool = False) -> tuple[float, float]:
     if not (isinstance(value, (tuple, list)) and len(value) == 2):
         raise TypeCheckError(f"{name} must be a pair (low, high), got {value!r}")
     a, b = (float(v) for v in value)
@@ -617,7 +617,7 @@ def _check_p(p: Any, name: str) -> float:
     return float(p)
 
 
-def _draw(n: int, p: float, lo: float, hi: float, generator: torch.Generator | None, *, log: bool = False,
+def _draw(n: int, p: float, *, lo: float, hi: float, generator: torch.Generator | None, log: bool = False,
           off: float = 0.0) -> torch.Tensor:
     """``n`` values: with probability ``p`` uniform (log-uniform) in ``[lo, hi]``, else ``off``; float64.
 
@@ -652,10 +652,10 @@ class RandomLensBlur(_RandomEffect):
 
     def __init__(self, p: float = 0.2, sigma: tuple[float, float] = (0.0, 1.0)) -> None:
         super().__init__()
-        self.p, self.sigma = _check_p(p, "p"), _check_pair(sigma, "sigma", 0.0, 8.0)
+        self.p, self.sigma = _check_p(p, "p"), _check_pair(sigma, "sigma", lo=0.0, hi=8.0)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        return _draw(n, self.p, *self.sigma, generator)
+        return _draw(n, self.p, lo=self.sigma[0], hi=self.sigma[1], generator=generator)
 
     def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         _check_generator(generator)
@@ -672,10 +672,10 @@ class RandomVignette(_RandomEffect):
 
     def __init__(self, p: float = 0.3, strength: tuple[float, float] = (0.0, 0.3)) -> None:
         super().__init__()
-        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", 0.0, 1.0)
+        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", lo=0.0, hi=1.0)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        return _draw(n, self.p, *self.strength, generator)
+        return _draw(n, self.p, lo=self.strength[0], hi=self.strength[1], generator=generator)
 
     def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         _check_generator(generator)
@@ -696,10 +696,10 @@ class RandomSensorNoise(_RandomEffect):
 
     def __init__(self, p: float = 0.9, shot: tuple[float, float] = (1e-5, 1e-3)) -> None:
         super().__init__()
-        self.p, self.shot = _check_p(p, "p"), _check_pair(shot, "shot", 1e-12, 1.0)
+        self.p, self.shot = _check_p(p, "p"), _check_pair(shot, "shot", lo=1e-12, hi=1.0)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        return _draw(n, self.p, *self.shot, generator, log=True)
+        return _draw(n, self.p, lo=self.shot[0], hi=self.shot[1], generator=generator, log=True)
 
     def forward(self, linear: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         _check_generator(generator)
@@ -718,10 +718,11 @@ class RandomHighlightRolloff(_RandomEffect):
 
     def __init__(self, p: float = 0.5, strength: tuple[float, float] = (0.25, 0.6)) -> None:
         super().__init__()
-        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", 0.0, 1.0, open_hi=True)
+        self.p, self.strength = _check_p(p, "p"), _check_pair(strength, "strength", lo=0.0, hi=1.0,
+                                                              open_hi=True)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        return _draw(n, self.p, *self.strength, generator)
+        return _draw(n, self.p, lo=self.strength[0], hi=self.strength[1], generator=generator)
 
     def forward(self, linear: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         _check_generator(generator)
@@ -742,10 +743,10 @@ class RandomToneCurve(_RandomEffect):
                  gamma: tuple[float, float] = (0.8, 1.25)) -> None:
         super().__init__()
         self.p = _check_p(p, "p")
-        c = _check_pair(contrast, "contrast", -1.0, 1.0, open_hi=True)
+        c = _check_pair(contrast, "contrast", lo=-1.0, hi=1.0, open_hi=True)
         if c[0] <= -1.0:
             raise ValueCheckError(f"contrast must be in (-1, 1), got {contrast!r}")
-        self.contrast, self.gamma = c, _check_pair(gamma, "gamma", 1e-3, 1e3)
+        self.contrast, self.gamma = c, _check_pair(gamma, "gamma", lo=1e-3, hi=1e3)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
         u = torch.rand(3, n, generator=generator, dtype=torch.float64)
@@ -773,10 +774,10 @@ class RandomJpeg(_RandomEffect):
 
     def __init__(self, p: float = 0.5, quality: tuple[float, float] = (40.0, 95.0)) -> None:
         super().__init__()
-        self.p, self.quality = _check_p(p, "p"), _check_pair(quality, "quality", 1.0, 100.0)
+        self.p, self.quality = _check_p(p, "p"), _check_pair(quality, "quality", lo=1.0, hi=100.0)
 
     def draw(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        return _draw(n, self.p, *self.quality, generator).round()
+        return _draw(n, self.p, lo=self.quality[0], hi=self.quality[1], generator=generator).round()
 
     def forward(self, image: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         _check_generator(generator)
@@ -917,7 +918,7 @@ class CameraEffects:
                 x.addcmul_(_sqrt_(std), noise[k], value=math.sqrt(shot_l[k] * u))
             if strength[k] > 0:
                 _rolloff_scaled_(x, strength[k], u)
-            _encode_one(x, tables[k], cells[k], index, out[k])
+            _encode_one(x, tables[k], cells=cells[k], index=index, out=out[k])
             if quality[k] > 0:
                 _jpeg_one(out[k], quality[k])
         return out

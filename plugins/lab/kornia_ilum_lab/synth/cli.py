@@ -45,7 +45,7 @@ from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
 from kornia_ilum.core.errors import IlumError, ValueCheckError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.core.progress import progress
-from kornia_ilum.core.provenance import stamp_figure
+from kornia_ilum_lab.provenance import stamp_figure
 from kornia_ilum_lab.synth.sheets import require_matplotlib, write_contact_sheet
 
 __all__ = [
@@ -60,7 +60,7 @@ __all__ = [
 ]
 
 
-#: What the figures of ``synth environments`` show (their provenance stamp, :mod:`kornia_ilum.core.provenance`).
+#: What the figures of ``synth environments`` show (their provenance stamp, :mod:`kornia_ilum_lab.provenance`).
 ENVIRONMENT_FIGURES_SHOW = ("kornia_ilum_lab.synth.environments", "kornia_ilum_lab.synth.sheets", "kornia_ilum_lab.synth.stats")
 #: What the contact sheet of ``synth subjects`` shows: the light stage and the portraits made from it.
 LIGHTSTAGE_FIGURES_SHOW = ("kornia_ilum_lab.synth",)
@@ -440,7 +440,8 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None))
     out = Path(args.out)
     variant = "cuda_ad_rgb" if args.device == "cuda" else args.variant
-    manifest = build_cache(source, seeds, out, renderer=Auto(spp=args.spp, lighting_size=args.lighting_size),
+    manifest = build_cache(source, seeds, out_dir=out, renderer=Auto(spp=args.spp,
+                                                                     lighting_size=args.lighting_size),
                            views=SampledViews(args.views, size=args.size),
                            workers=Workers(processes=getattr(args, "workers", 2), index=args.worker[0],
                                            count=args.worker[1], threads=args.threads),

@@ -97,7 +97,7 @@ def _caption(env) -> str:
 
 
 def write_contact_sheet(
-    envs: Sequence, path: str | Path, columns: int = 4, dpi: int = 100, palette: bool = True
+    envs: Sequence, path: str | Path, *, columns: int = 4, dpi: int = 100, palette: bool = True
 ) -> None:
     """A PNG grid of :func:`tone_map_tile` tiles with captions (source, label, augmentation).
 
@@ -124,16 +124,16 @@ def write_contact_sheet(
     """
     tiles = [tone_map_tile(env.mirror_ball) for env in envs]
     title = "mirror ball | diffuse | matte silver | mirror (one exposure per environment)"
-    write_grid(tiles, [_caption(env) for env in envs], title, path, columns=columns, cell=(2.9, 1.15),
-               fontsize=6, dpi=dpi, palette=palette)
+    write_grid(tiles, [_caption(env) for env in envs], title=title, path=path, columns=columns,
+               cell=(2.9, 1.15), fontsize=6, dpi=dpi, palette=palette)
 
 
 def write_grid(
     tiles: Sequence[torch.Tensor],
     captions: Sequence[str],
+    *,
     title: str,
     path: str | Path,
-    *,
     columns: int,
     cell: tuple[float, float],
     fontsize: float,

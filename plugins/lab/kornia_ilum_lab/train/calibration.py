@@ -156,7 +156,7 @@ def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: Portra
             "median_ratio_after": torch.exp(-after.median(0).values).tolist()}
 
 
-def fit_spread(estimator: torch.nn.Module, dataset: PortraitDataset, samples: int, *, ridge: float = 1e-2,
+def fit_spread(estimator: torch.nn.Module, dataset: PortraitDataset, *, samples: int, ridge: float = 1e-2,
                batch: int = 32) -> dict[str, Any]:
     r"""Fit ``estimator``'s spread head alone, in place, on ``samples`` fresh training portraits (module docstring).
 

@@ -96,6 +96,7 @@ PROBE_SEED = 7
 
 
 def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | os.PathLike[str]],
+                         *,
                          hdri: Sequence[str | os.PathLike[str]] = (), samples: int = PROBE_SAMPLES,
                          seed: int = PROBE_SEED) -> dict[str, Any]:
     r"""Write the runtimes' probe (:mod:`kornia_ilum.estimators.probe`) from the training portraits.
@@ -210,7 +211,7 @@ class StepBatches(IterableDataset):
         (8, 3, 256, 256)
     """
 
-    def __init__(self, dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
+    def __init__(self, dataset: PortraitDataset, batch: int, *, start: int = 0, rank: int = 0, world: int = 1,
                  workers: int = 0) -> None:
         super().__init__()
         self.dataset, self.batch, self.start = dataset, batch, start
@@ -240,7 +241,7 @@ class StepBatches(IterableDataset):
         yield from self._batches(self.start + info.id)
 
 
-def batch_loader(dataset: PortraitDataset, batch: int, start: int = 0, rank: int = 0, world: int = 1,
+def batch_loader(dataset: PortraitDataset, batch: int, *, start: int = 0, rank: int = 0, world: int = 1,
                  workers: int = 0) -> Iterator[dict[str, Any]]:
     """An endless iterator of the batches of steps ``start, start + 1, ...`` (:class:`StepBatches`).
 
@@ -261,7 +262,7 @@ def batch_loader(dataset: PortraitDataset, batch: int, start: int = 0, rank: int
         >>> sorted(next(batches))  # doctest: +SKIP
         ['image', 'label', 'mirror_ball', 'skin_tone']
     """
-    steps = StepBatches(dataset, batch, start, rank, world, workers)
+    steps = StepBatches(dataset, batch, start=start, rank=rank, world=world, workers=workers)
     if workers == 0:
         return iter(steps)
     loader = DataLoader(steps, batch_size=None, num_workers=workers, persistent_workers=False,

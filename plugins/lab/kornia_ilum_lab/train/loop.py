@@ -237,8 +237,10 @@ def train(config: TrainConfig) -> dict[str, Any]:
 
     rows = [r for r in read_log(out) if r["step"] <= start] if rank == 0 else []
     if start >= config.steps:
-        return _finish(config, runtime, out, recipe, model, dataset, portraits, rows, elapsed, start, rank)
-    batches = recipe.batches(dataset, config.batch // world, start, rank, world, runtime.workers)
+        return _finish(config, runtime, out=out, recipe=recipe, model=model, dataset=dataset,
+                       portraits=portraits, rows=rows, elapsed=elapsed, step=start, rank=rank)
+    batches = recipe.batches(dataset, config.batch // world, start=start, rank=rank, world=world,
+                             workers=runtime.workers)
     window_t, window_n = time.perf_counter(), 0
     run_t0 = time.perf_counter()
     for step in range(start + 1, config.steps + 1):
@@ -257,8 +259,9 @@ def train(config: TrainConfig) -> dict[str, Any]:
             rows.append(row)
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if rank == 0 and config.snapshot_every and step % config.snapshot_every == 0:
-            save_snapshot(out, recipe.estimator(model), config.estimator, step, step * config.batch,
-                          elapsed + time.perf_counter() - run_t0)
+            save_snapshot(out, recipe.estimator(model), name=config.estimator, step=step,
+                          samples=step * config.batch,
+                          elapsed_s=elapsed + time.perf_counter() - run_t0)
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
                 terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("energy", config.lambda_energy),
@@ -276,12 +279,13 @@ def train(config: TrainConfig) -> dict[str, Any]:
             if world > 1:
                 dist.barrier()
     elapsed += time.perf_counter() - run_t0
-    return _finish(config, runtime, out, recipe, model, dataset, portraits, rows, elapsed, config.steps, rank)
+    return _finish(config, runtime, out=out, recipe=recipe, model=model, dataset=dataset,
+                   portraits=portraits, rows=rows, elapsed=elapsed, step=config.steps, rank=rank)
 
 
-def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Recipe, model: torch.nn.Module,
-            dataset: PortraitDataset, portraits: PortraitDataset, rows: list[dict[str, float]], elapsed: float,
-            step: int, rank: int) -> dict[str, Any]:
+def _finish(config: TrainConfig, runtime: RuntimeSettings, *, out: Path, recipe: Recipe,
+            model: torch.nn.Module, dataset: PortraitDataset, portraits: PortraitDataset,
+            rows: list[dict[str, float]], elapsed: float, step: int, rank: int) -> dict[str, Any]:
     """The summary and the exported weights; ``dataset`` is the recipe's training data (the float16 probe's),
     ``portraits`` the training portraits before :meth:`~kornia_ilum_lab.train.recipes.Recipe.dataset` (the
     calibrations draw the recipe's ``calibration_dataset`` of them)."""
@@ -303,7 +307,7 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, out: Path, recipe: Re
             if config.calibrate_energy:
                 summary["energy_calibration"] = calibrate_energy(estimator, recipe, calibration, config.calibrate_energy)
             if config.fit_spread:
-                summary["spread_fit"] = fit_spread(estimator, calibration, config.fit_spread)
+                summary["spread_fit"] = fit_spread(estimator, calibration, samples=config.fit_spread)
         summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors", recipe.probe(dataset))
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     return summary
@@ -319,7 +323,7 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
-def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, name: str, step: int, samples: int,
+def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, *, name: str, step: int, samples: int,
                   elapsed_s: float) -> Path:
     r"""Keep the estimator's float32 weights at ``step``: ``out/snapshots/step_NNNNNN.safetensors``.
 
@@ -437,7 +441,7 @@ def export_weights(estimator: torch.nn.Module, path: str | os.PathLike, probe: d
     def scores(module: torch.nn.Module) -> torch.Tensor:
         with torch.no_grad():
             pred = module(crops).mirror_ball
-            return torch.stack([reconstruction_loss(pred, truth, b) for b in BRDF_WEIGHTS])
+            return torch.stack([reconstruction_loss(pred, truth, brdf=b) for b in BRDF_WEIGHTS])
 
     state = {k: v.detach().float().contiguous() for k, v in estimator.state_dict().items()}
     full = scores(estimator)

@@ -62,7 +62,7 @@ def discriminator_images(lightings: dict[int, torch.Tensor]) -> dict[int, torch.
             for s, x in lightings.items()}
 
 
-def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_weights: dict[str, float],
+def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, *, brdf_weights: dict[str, float],
                     lambda_scale: float = 1.0, truth: dict[int, torch.Tensor] | None = None
                     ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     r"""The multi-scale rendering loss ``sum_s lambda_s sum_k lambda_k L_rec(k, s)`` (training form).
@@ -89,7 +89,7 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, brdf_we
     parts = {}
     for s, x in pred.items():
         for brdf, weight in brdf_weights.items():
-            term = reconstruction_loss(x, truth[s], brdf, size=s, gamma="safe")
+            term = reconstruction_loss(x, truth[s], brdf=brdf, size=s, gamma="safe")
             total = total + lambda_scale * weight * term
             if s == max(pred):
                 parts[f"rec_{brdf}"] = term.detach()

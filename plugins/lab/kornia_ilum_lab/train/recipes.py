@@ -137,11 +137,11 @@ class Recipe:
         portraits as the estimator meets photos at inference (default: :meth:`dataset`'s)."""
         return self.dataset(dataset)
 
-    def batches(self, dataset: PortraitDataset, batch: int, start: int, rank: int, world: int,
+    def batches(self, dataset: PortraitDataset, batch: int, *, start: int, rank: int, world: int,
                 workers: int) -> Iterator[dict[str, Any]]:
         """The batches of steps ``start, start + 1, ...`` of one rank
         (:func:`~kornia_ilum_lab.train.data.batch_loader`)."""
-        return batch_loader(dataset, batch, start, rank, world, workers)
+        return batch_loader(dataset, batch, start=start, rank=rank, world=world, workers=workers)
 
     def estimator(self, model: nn.Module) -> nn.Module:
         """The registered estimator inside the trained model (what is exported)."""
@@ -291,7 +291,7 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
         1e-12).sqrt()
     shared = (mean.detach() / mean).view(-1, 1, 1, 1)
     first, second = first * shared, second * shared  # the pairs' first crops stand as the truth of the second
-    return training_losses({size: second}, first, brdf_weights, truth={size: first})[0]
+    return training_losses({size: second}, first, brdf_weights=brdf_weights, truth={size: first})[0]
 
 
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
@@ -391,9 +391,11 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
     if config.loss == "log_l2":
         rec = log_l2_loss(scored, truth, config.lambda_scale)
         with torch.no_grad():  # L_rec at 32 px for the log only
-            parts = training_losses({finest: pred[finest]}, target, config.brdf_weights, truth=truth)[1]
+            parts = training_losses({finest: pred[finest]}, target, brdf_weights=config.brdf_weights,
+                                    truth=truth)[1]
     else:
-        rec, parts = training_losses(scored, target, config.brdf_weights, config.lambda_scale, truth)
+        rec, parts = training_losses(scored, target, brdf_weights=config.brdf_weights,
+                                     lambda_scale=config.lambda_scale, truth=truth)
     adv = disc_loss = rec.new_zeros(())
     if disc is not None:
         plain = getattr(disc, "module", disc)  # the generator's step syncs no gradient of the discriminator

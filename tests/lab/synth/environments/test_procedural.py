@@ -99,28 +99,36 @@ class TestSplatting:
 
     def test_rectangle_cells_are_exact(self):
         for nu, nv in ((1, 1), (3, 7), (40, 40)):
-            _, om = rectangle_cells([-0.5, -0.3, -2.0], [1.0, 0.0, 0.0], [0.0, 0.6, 0.0], nu, nv)
+            _, om = rectangle_cells(
+                [-0.5, -0.3, -2.0], edge_u=[1.0, 0.0, 0.0], edge_v=[0.0, 0.6, 0.0], nu=nu, nv=nv
+            )
             assert om.dtype == F64 and om.shape == (nu * nv,)
             assert float(om.sum()) == pytest.approx(centred_rectangle_solid_angle(0.5, 0.3, 2.0), rel=1e-12)
         # off the axis: the cells of any subdivision add up to the same, and to the whole's two triangles
-        args = ([0.4, -1.0, -1.5], [0.8, 0.0, 0.9], [0.0, 1.2, 0.0])
-        whole = float(rectangle_cells(*args, 1, 1)[1].sum())
-        assert float(rectangle_cells(*args, 17, 5)[1].sum()) == pytest.approx(whole, rel=1e-12)
+        rect = {"corner": [0.4, -1.0, -1.5], "edge_u": [0.8, 0.0, 0.9], "edge_v": [0.0, 1.2, 0.0]}
+        whole = float(rectangle_cells(**rect, nu=1, nv=1)[1].sum())
+        assert float(rectangle_cells(**rect, nu=17, nv=5)[1].sum()) == pytest.approx(whole, rel=1e-12)
         with pytest.raises(ValueCheckError, match="at least 1"):
-            rectangle_cells(*args, 0, 2)
+            rectangle_cells(**rect, nu=0, nv=2)
 
     @pytest.mark.parametrize("height", [8, 32, 128])
     def test_splat_rectangle_keeps_its_energy(self, height):
         env = torch.zeros(3, height, 2 * height)
         radiance = torch.tensor([1.0, 2.0, 0.5])
         # a 10 x 5 cm card 1.5 m away on the camera's axis (+Z: on the map's seam), smaller than a pixel
-        splat_rectangle(env, [-0.05, -0.025, 1.5], [0.1, 0.0, 0.0], [0.0, 0.05, 0.0], radiance)
+        splat_rectangle(
+            env,
+            corner=[-0.05, -0.025, 1.5],
+            edge_u=[0.1, 0.0, 0.0],
+            edge_v=[0.0, 0.05, 0.0],
+            radiance=radiance,
+        )
         om = centred_rectangle_solid_angle(0.05, 0.025, 1.5)
         torch.testing.assert_close(energy(env), radiance.double() * om, rtol=1e-6, atol=0.0)
         env = torch.zeros(3, height, 2 * height)  # off the axis, large
-        args = ([0.3, 0.2, -1.5], [1.0, 0.0, 0.4], [0.0, 0.8, 0.0])
-        splat_rectangle(env, *args, radiance)
-        exact = float(rectangle_cells(*args, 1, 1)[1].sum())
+        rect = {"corner": [0.3, 0.2, -1.5], "edge_u": [1.0, 0.0, 0.4], "edge_v": [0.0, 0.8, 0.0]}
+        splat_rectangle(env, **rect, radiance=radiance)
+        exact = float(rectangle_cells(**rect, nu=1, nv=1)[1].sum())
         torch.testing.assert_close(energy(env), radiance.double() * exact, rtol=1e-6, atol=0.0)
 
     def test_splat_rectangle_with_a_radiance_function(self):
@@ -130,8 +138,8 @@ class TestSplatting:
         def sky(d: torch.Tensor) -> torch.Tensor:  # brighter upward
             return (1.0 + d[:, 1:2]).expand(-1, 3)
 
-        splat_rectangle(env, corner, eu, ev, sky, cells=(64, 64))
-        dirs, om = rectangle_cells(corner, eu, ev, 64, 64)
+        splat_rectangle(env, corner=corner, edge_u=eu, edge_v=ev, radiance=sky, cells=(64, 64))
+        dirs, om = rectangle_cells(corner, edge_u=eu, edge_v=ev, nu=64, nv=64)
         dirs = dirs / dirs.norm(dim=-1, keepdim=True)
         expected = float(((1.0 + dirs[:, 1]) * om).sum())
         assert float(energy(env)[0]) == pytest.approx(expected, rel=1e-6)

@@ -163,10 +163,10 @@ class TestBuildCache:
     def test_random_views_sharded_and_resumed(self, tmp_path: Path, rendered: list[int]) -> None:
         src = SphereSource()
         views = SampledViews(2, size=16)
-        m0 = build_cache(src, [3, 4, 5], tmp_path, renderer=self.kw["renderer"], views=views,
+        m0 = build_cache(src, [3, 4, 5], out_dir=tmp_path, renderer=self.kw["renderer"], views=views,
                          workers=Workers(processes=1, index=0, count=2), progress=False)
         assert len(m0["entries"]) == 4 and rendered == [3, 3, 5, 5]  # a subject's views in one go
-        manifest = build_cache(src, [3, 4, 5], tmp_path, renderer=self.kw["renderer"], views=views,
+        manifest = build_cache(src, [3, 4, 5], out_dir=tmp_path, renderer=self.kw["renderer"], views=views,
                                workers=Workers(processes=1, index=1, count=2), progress=False)
         assert [(e["subject_seed"], e["view_index"]) for e in manifest["entries"]] == [
             (3, 0), (3, 1), (4, 0), (4, 1), (5, 0), (5, 1)]
@@ -189,26 +189,27 @@ class TestBuildCache:
         assert not list(tmp_path.rglob("*.tmp"))
 
         rendered.clear()  # resume: everything is intact, nothing renders
-        again = build_cache(src, [3, 4, 5], tmp_path, views=views, **self.kw)
+        again = build_cache(src, [3, 4, 5], out_dir=tmp_path, views=views, **self.kw)
         assert rendered == [] and again["run"]["rendered"] == 0
 
         victim = tmp_path / field_path(4, 1)
         victim.write_bytes(victim.read_bytes()[:-1] + b"x")  # corrupt one file: only it renders again
-        build_cache(src, [3, 4, 5], tmp_path, views=views, **self.kw)
+        build_cache(src, [3, 4, 5], out_dir=tmp_path, views=views, **self.kw)
         assert rendered == [4]
         assert read_field(victim).subject_seed == 4
 
         rendered.clear()  # other settings: rendered again
-        build_cache(src, [3], tmp_path, views=views, **{**self.kw, "renderer": Auto(spp=4, lighting_size=4)})
+        build_cache(src, [3], out_dir=tmp_path, views=views,
+                    **{**self.kw, "renderer": Auto(spp=4, lighting_size=4)})
         assert rendered == [3, 3]
         entries = {(e["subject_seed"], e["view_index"]): e for e in read_manifest(tmp_path)["entries"]}
         assert entries[(3, 0)]["spp_requested"] == 4 and entries[(4, 0)]["spp_requested"] == 1
 
     def test_two_worker_processes(self, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
         """workers=2 spawns two processes; their manifests merge; the summary and progress are printed."""
-        manifest = build_cache(SphereSource(), [0, 1, 2], tmp_path, renderer=Auto(spp=1, lighting_size=4),
-                               views=SampledViews(2, size=16), workers=Workers(processes=2), progress=True,
-                               summary=True)
+        manifest = build_cache(SphereSource(), [0, 1, 2], out_dir=tmp_path,
+                               renderer=Auto(spp=1, lighting_size=4), views=SampledViews(2, size=16),
+                               workers=Workers(processes=2), progress=True, summary=True)
         assert len(manifest["entries"]) == 6 and manifest["run"]["rendered"] == 6
         assert sorted(p.name for p in tmp_path.glob("manifest.w*")) == ["manifest.w000of002.json",
                                                                         "manifest.w001of002.json"]
@@ -220,18 +221,19 @@ class TestBuildCache:
 
     def test_worker_failure(self, tmp_path: Path) -> None:
         with pytest.raises(IlumError, match="cache worker process failed: AttributeError"):
-            build_cache(BrokenSource(), [0, 1], tmp_path, renderer=Auto(spp=1, lighting_size=4),
+            build_cache(BrokenSource(), [0, 1], out_dir=tmp_path, renderer=Auto(spp=1, lighting_size=4),
                         views=SampledViews(1, size=16), workers=Workers(processes=2), progress=False)
 
     def test_fixed_views(self, tmp_path: Path, rendered: list[int], monkeypatch) -> None:
         monkeypatch.setattr("kornia_ilum_lab.synth.lightstage.subjects.mannequin.make_subject",
                             SphereSource().sample)
-        manifest = build_cache("mannequin", [3], tmp_path, views=FixedViews(VIEWS, size=16), **self.kw)
+        manifest = build_cache("mannequin", [3], out_dir=tmp_path, views=FixedViews(VIEWS, size=16),
+                               **self.kw)
         assert [Camera(**e["camera"]) for e in manifest["entries"]] == [
             Camera(40.0, 4.0, 0.0, 0.0, size=16), Camera(40.0, 4.0, 30.0, 10.0, size=16)]
         assert manifest["entries"][0]["source"] == "mannequin" and manifest["entries"][0]["views"] == "fixed"
         rendered.clear()
-        build_cache("mannequin", [3], tmp_path, views=FixedViews(VIEWS, size=16), **self.kw)
+        build_cache("mannequin", [3], out_dir=tmp_path, views=FixedViews(VIEWS, size=16), **self.kw)
         assert rendered == []  # the same settings: resumed
 
     def test_read_v1_field(self, tmp_path: Path) -> None:
@@ -249,42 +251,45 @@ class TestBuildCache:
 
     def test_exception(self, tmp_path: Path) -> None:
         with pytest.raises(TypeCheckError, match="views must be a non-empty sequence of Camera"):
-            build_cache("mannequin", [1], tmp_path, views=FixedViews([(30.0, 1.0, 0.0, 0.0)]), progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, views=FixedViews([(30.0, 1.0, 0.0, 0.0)]),
+                        progress=False)
         with pytest.raises(ValueCheckError, match=r"index must be an int in \[0, 2\)"):
-            build_cache("mannequin", [1], tmp_path, workers=Workers(index=5, count=2), progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, workers=Workers(index=5, count=2), progress=False)
         with pytest.raises(TypeCheckError, match="source must be a SubjectSource"):
-            build_cache(3, [1], tmp_path, progress=False)
+            build_cache(3, [1], out_dir=tmp_path, progress=False)
         with pytest.raises(ValueCheckError, match="processes must be positive"):
-            build_cache("mannequin", [1], tmp_path, workers=Workers(processes=0), progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, workers=Workers(processes=0), progress=False)
         with pytest.raises(TypeCheckError, match="out_dir must be a folder path"):  # no cameras overload
-            build_cache(tmp_path, [1], list(VIEWS), progress=False)
+            build_cache(tmp_path, [1], out_dir=list(VIEWS), progress=False)
         with pytest.raises(TypeCheckError, match="renderer must be OnePass, Reference or Auto"):
-            build_cache("mannequin", [1], tmp_path, renderer={"spp": 1}, progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, renderer={"spp": 1}, progress=False)
         with pytest.raises(TypeCheckError, match="views must be FixedViews or SampledViews"):
-            build_cache("mannequin", [1], tmp_path, views=VIEWS, progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, views=VIEWS, progress=False)
         with pytest.raises(TypeCheckError, match="workers must be Workers"):
-            build_cache("mannequin", [1], tmp_path, workers=1, progress=False)
+            build_cache("mannequin", [1], out_dir=tmp_path, workers=1, progress=False)
 
     def test_renderer_settings_are_part_of_the_cache(self, tmp_path: Path, rendered: list[int]) -> None:
         """Explicit renderer settings are recorded and matched on resume; Auto with seed 0 records none."""
         views, workers = SampledViews(1, size=16), Workers(processes=1)
         onepass = OnePass(lighting_size=4, spp=2, subsurface=False)
-        build_cache(SphereSource(), [1], tmp_path, renderer=onepass, views=views, workers=workers,
+        build_cache(SphereSource(), [1], out_dir=tmp_path, renderer=onepass, views=views, workers=workers,
                     progress=False)
         entry = read_manifest(tmp_path)["entries"][0]
         assert entry["renderer"] == onepass.to_dict() and entry["spp_requested"] == 2
         assert read_field(tmp_path / entry["path"]).meta["post"] == []
         rendered.clear()
-        build_cache(SphereSource(), [1], tmp_path, renderer=onepass, views=views, workers=workers,
+        build_cache(SphereSource(), [1], out_dir=tmp_path, renderer=onepass, views=views, workers=workers,
                     progress=False)
         assert rendered == []
-        build_cache(SphereSource(), [1], tmp_path, renderer=OnePass(lighting_size=4, spp=2), views=views,
+        build_cache(SphereSource(), [1], out_dir=tmp_path, renderer=OnePass(lighting_size=4, spp=2),
+                    views=views,
                     workers=workers, progress=False)
         assert rendered == [1]  # subsurface on: another render
-        build_cache(SphereSource(), [1], tmp_path, renderer=Reference(lighting_size=4, spp=1), views=views,
+        build_cache(SphereSource(), [1], out_dir=tmp_path, renderer=Reference(lighting_size=4, spp=1),
+                    views=views,
                     workers=workers, progress=False)
         assert "renderer" in read_manifest(tmp_path)["entries"][0] and rendered == [1, 1]
-        build_cache(SphereSource(), [1], tmp_path, renderer=Auto(lighting_size=4, spp=1), views=views,
+        build_cache(SphereSource(), [1], out_dir=tmp_path, renderer=Auto(lighting_size=4, spp=1), views=views,
                     workers=workers, progress=False)
         assert "renderer" not in read_manifest(tmp_path)["entries"][0] and rendered == [1, 1, 1]
 

@@ -86,8 +86,8 @@ def test_makehuman_face_reflects_its_albedo(mh, variant):
     if not variant.startswith("llvm"):
         pytest.fail("the one-pass renderer needs llvm_ad_rgb")
     subject = mh.sample(5)
-    camera = sample_views(5, 1, 96, landmarks=subject.face_landmarks)[0]
-    field = render_olat(subject, camera, OnePass(lighting_size=16), threads=1)
+    camera = sample_views(5, 1, size=96, landmarks=subject.face_landmarks)[0]
+    field = render_olat(subject, camera, settings=OnePass(lighting_size=16), threads=1)
     result = check_skin(field, subject.skin_tone)
     assert result.ok, result
 

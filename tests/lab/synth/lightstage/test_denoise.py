@@ -139,7 +139,9 @@ class TestDenoiseField:
         g = random_gbuffer(seed=10)
         f = torch.rand(3, 100, 3)
         mod = DenoiseField(radius=1, sigma_spatial=2.0, iterations=2, demodulate=False)
-        torch.testing.assert_close(mod(f, g), denoise_field(f, g, 1, 2.0, iterations=2, demodulate=False))
+        torch.testing.assert_close(
+            mod(f, g), denoise_field(f, g, radius=1, sigma_spatial=2.0, iterations=2, demodulate=False)
+        )
         assert "iterations=2" in repr(mod)
 
     def test_exceptions(self) -> None:

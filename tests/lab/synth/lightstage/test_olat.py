@@ -29,7 +29,8 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def white_sphere(variant: str) -> ReflectanceField:
-    return render_olat(sphere_subject(), CAM, Reference(lighting_size=S, spp=16), variant=variant, threads=1)
+    return render_olat(sphere_subject(), CAM, settings=Reference(lighting_size=S, spp=16), variant=variant,
+                       threads=1)
 
 def covered(rf: ReflectanceField) -> torch.Tensor:
     """Pixels fully covered by the subject, ``(P,)`` bool."""
@@ -69,7 +70,8 @@ class TestRenderOlat:
 
     def test_white_environment_equals_sum(self, white_sphere: ReflectanceField, variant: str) -> None:
         """Relighting with a white environment equals a render under a uniform white environment."""
-        white, alpha = render_lighting(sphere_subject(), CAM, torch.ones(3, S, S), spp=16, variant=variant,
+        white, alpha = render_lighting(sphere_subject(), CAM, lighting=torch.ones(3, S, S), spp=16,
+                                       variant=variant,
                                        threads=1)
         torch.testing.assert_close(alpha, white_sphere.alpha)  # same seed: same sub-pixel positions
         summed = relight(white_sphere.field, torch.ones(1, S * S, 3))[0].flatten(1)
@@ -120,7 +122,8 @@ class TestRenderOlat:
         gen = torch.Generator().manual_seed(0)
         lighting = torch.rand(3, S, S, generator=gen) * mirror_ball_valid(S)
         lighting[:, 2, 3] += 20.0  # a bright light
-        direct, _ = render_lighting(sphere_subject(), CAM, lighting, spp=16, variant=variant, threads=1)
+        direct, _ = render_lighting(sphere_subject(), CAM, lighting=lighting, spp=16, variant=variant,
+                                    threads=1)
         relit = relight(white_sphere.field, lighting.flatten(1).T[None])[0].flatten(1)
         fg = white_sphere.alpha.flatten() > 0
         assert relit[:, fg].mean() == pytest.approx(direct.flatten(1)[:, fg].mean().item(), rel=0.03)
@@ -130,8 +133,9 @@ class TestRenderOlat:
     def test_seed_reproducible(self, variant: str) -> None:
         subject = sphere_subject(subdivisions=2)
         cam = Camera(40.0, 4.0, 0.0, 0.0, size=16)
-        a, b, c = (render_olat(subject, cam, Reference(lighting_size=4, spp=4, seed=s, lights=[5, 6]),
-                               variant=variant) for s in (0, 0, 1))
+        a, b, c = (render_olat(subject, cam, variant=variant,
+                               settings=Reference(lighting_size=4, spp=4, seed=s, lights=[5, 6]))
+                   for s in (0, 0, 1))
         assert torch.equal(a.field, b.field) and torch.equal(a.alpha, b.alpha)
         assert not torch.equal(a.field, c.field)
         others = torch.ones(16, dtype=torch.bool)
@@ -146,10 +150,11 @@ class TestRenderOlat:
                                  material=material("cornea", albedo=1.0, roughness=0.0, specular=0.3125))
         lights = [27, 21]  # near +Z, and from the upper right
         settings = Reference(lighting_size=S, spp=16, lights=lights)
-        bare = render_olat(sphere_subject(subdivisions=3), cam, settings, variant=variant)
-        capped = render_olat(sphere_subject(subdivisions=3, extra=[cornea]), cam, settings, variant=variant)
+        bare = render_olat(sphere_subject(subdivisions=3), cam, settings=settings, variant=variant)
+        capped = render_olat(sphere_subject(subdivisions=3, extra=[cornea]), cam, settings=settings,
+                             variant=variant)
         black = render_olat(sphere_subject(subdivisions=3, mat=material(albedo=0.0), extra=[cornea]), cam,
-                            settings, variant=variant)
+                            settings=settings, variant=variant)
         assert capped.meta["integrator"] == "volpath"
         ratio = capped.field[0, :, lights].float().sum(0) / bare.field[0, :, lights].float().sum(0)
         assert ((ratio > 0.93) & (ratio < 1.0)).all()  # (1 - F0)^2 = 0.95, plus catch-lights; measured 0.977
@@ -188,31 +193,32 @@ class TestRenderOlat:
         with pytest.raises(ValueCheckError, match="kind must be one of"):
             render_olat(sphere_subject(mat=SimpleNamespace(kind="chrome", albedo=(1, 1, 1))), CAM, variant=variant)
         with pytest.raises(ValueCheckError, match="lights must be valid light indices"):
-            render_olat(subject, CAM, Reference(lighting_size=4, lights=[0]), variant=variant)
+            render_olat(subject, CAM, settings=Reference(lighting_size=4, lights=[0]), variant=variant)
         with pytest.raises(ValueCheckError, match="spp must be positive"):
-            render_olat(subject, CAM, Auto(spp=0), variant=variant)
+            render_olat(subject, CAM, settings=Auto(spp=0), variant=variant)
         with pytest.raises(ValueCheckError, match="variant must be one of"):
-            render_olat(subject, CAM, Auto(lighting_size=2), variant="cpu_fast_rgb")
+            render_olat(subject, CAM, settings=Auto(lighting_size=2), variant="cpu_fast_rgb")
         with pytest.raises(TypeCheckError, match="settings must be OnePass, Reference or Auto"):
-            render_olat(subject, CAM, {"spp": 4}, variant=variant)
+            render_olat(subject, CAM, settings={"spp": 4}, variant=variant)
         with pytest.raises(ValueCheckError, match="lighting must be non-negative"):
-            render_lighting(subject, CAM, -torch.ones(3, 4, 4), variant=variant)
+            render_lighting(subject, CAM, lighting=-torch.ones(3, 4, 4), variant=variant)
         with pytest.raises(ShapeError, match=r"lighting must have shape \(3, S, S\)"):
-            render_lighting(subject, CAM, torch.ones(3, 4, 5), variant=variant)
+            render_lighting(subject, CAM, lighting=torch.ones(3, 4, 5), variant=variant)
 
 class TestDispatch:
     def test_auto_picks_the_renderer_of_the_variant(self, variant: str) -> None:
         """Auto renders what OnePass (vectorised variant) or Reference (scalar) renders, bit for bit."""
         subject, cam = sphere_subject(subdivisions=2), Camera(40.0, 4.0, 0.0, 0.0, size=8)
-        auto = render_olat(subject, cam, Auto(lighting_size=4, spp=4), variant=variant, threads=1)
+        auto = render_olat(subject, cam, settings=Auto(lighting_size=4, spp=4), variant=variant, threads=1)
         resolved = Auto(lighting_size=4, spp=4).resolve(variant)
-        direct = render_olat(subject, cam, resolved, variant=variant, threads=1)
+        direct = render_olat(subject, cam, settings=resolved, variant=variant, threads=1)
         assert torch.equal(auto.field, direct.field) and torch.equal(auto.alpha, direct.alpha)
         method = "onepass" if isinstance(resolved, OnePass) else "reference"
         assert auto.meta.get("method", "reference") == method
-        scalar = render_olat(subject, cam, Auto(lighting_size=4, spp=4), variant="scalar_rgb")
+        scalar = render_olat(subject, cam, settings=Auto(lighting_size=4, spp=4), variant="scalar_rgb")
         assert "method" not in scalar.meta and scalar.meta["integrator"] == "path"  # the reference
 
     def test_onepass_needs_a_vectorised_variant(self) -> None:
         with pytest.raises(ValueCheckError, match="vectorised Mitsuba variant"):
-            render_olat(sphere_subject(subdivisions=1), CAM, OnePass(lighting_size=2), variant="scalar_rgb")
+            render_olat(sphere_subject(subdivisions=1), CAM, settings=OnePass(lighting_size=2),
+                        variant="scalar_rgb")

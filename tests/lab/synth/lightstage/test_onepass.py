@@ -60,9 +60,9 @@ def fields():
     if not variant.startswith("llvm"):
         pytest.fail("the one-pass renderer needs llvm_ad_rgb (apt-get install libllvm19 on Debian 12)")
     sub = scene()
-    fast = render_olat(sub, CAM, OnePass(lighting_size=S, spp=16, shade_spp=16), threads=1)
+    fast = render_olat(sub, CAM, settings=OnePass(lighting_size=S, spp=16, shade_spp=16), threads=1)
     sharp = Reference(lighting_size=S, spp=64, max_depth=2, envmap_height=64)  # sharp light boundaries
-    ref = render_olat(sub, CAM, sharp, threads=1)
+    ref = render_olat(sub, CAM, settings=sharp, threads=1)
     return fast, ref
 
 
@@ -104,8 +104,9 @@ def test_metal_matches_reference() -> None:
     sub.parts[0] = SimpleNamespace(name="ball", vertices=ball.vertices, faces=ball.faces,
                                    material=SimpleNamespace(kind="metal", albedo=(0.54, 0.50, 0.45), roughness=0.3,
                                                             specular=0.5))
-    fast = render_olat(sub, CAM, OnePass(lighting_size=S, spp=16, shade_spp=16), threads=1)
-    ref = render_olat(sub, CAM, Reference(lighting_size=S, spp=64, max_depth=2, envmap_height=64), threads=1)
+    fast = render_olat(sub, CAM, settings=OnePass(lighting_size=S, spp=16, shade_spp=16), threads=1)
+    ref = render_olat(sub, CAM, settings=Reference(lighting_size=S, spp=64, max_depth=2, envmap_height=64),
+                      threads=1)
     f, r = fast.field.float(), ref.field.float()
     assert torch.isfinite(f).all() and (f >= 0).all()
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
@@ -124,7 +125,7 @@ def test_card_lets_light_through(fields) -> None:
     """Light from +X reaches the sphere through the card's transparent stripes: neither dark nor fully lit."""
     fast, ref = fields
     with_card = fast.field.float()
-    no_card = render_olat(scene(False), CAM, OnePass(lighting_size=S, spp=16, shade_spp=16),
+    no_card = render_olat(scene(False), CAM, settings=OnePass(lighting_size=S, spp=16, shade_spp=16),
                           threads=1).field.float()
     light = 7  # row 1, column 3: from +X, a little up
     ratio = with_card[..., light].sum() / no_card[..., light].sum()
@@ -141,11 +142,11 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
     subj = subject_source("makehuman", str(shared_data / "makehuman")).sample(seed)
     want = {1: "hair", 22: "beard0", 4: "lenses"}[seed]
     assert want in {p.name for p in subj.parts}
-    cam = sample_views(seed, 4, 24, landmarks=subj.face_landmarks)[0]
+    cam = sample_views(seed, 4, size=24, landmarks=subj.face_landmarks)[0]
     s = 8
     plain = OnePass(lighting_size=s, spp=16, shade_spp=16, subsurface=False, denoise=False)
-    fast = render_olat(subj, cam, plain, threads=1)
-    ref = render_olat(subj, cam, Reference(lighting_size=s, spp=64, max_depth=2), threads=1)
+    fast = render_olat(subj, cam, settings=plain, threads=1)
+    ref = render_olat(subj, cam, settings=Reference(lighting_size=s, spp=64, max_depth=2), threads=1)
     f, r = fast.field.float(), ref.field.float()
     assert torch.isfinite(f).all() and (f >= 0).all()
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
@@ -166,7 +167,7 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
         assert err < relit_err, err
     assert abs(fast.alpha.mean() - ref.alpha.mean()) < 0.02
     # the default sampling (32 camera samples, 4 or 16 tracing the lights, demodulated) agrees as well
-    demod = render_olat(subj, cam, OnePass(lighting_size=s, subsurface=False), threads=1)
+    demod = render_olat(subj, cam, settings=OnePass(lighting_size=s, subsurface=False), threads=1)
     assert demod.meta["demodulate"] and demod.meta["spp"] == 32
     d = demod.field.float()
     rel = (d.sum((0, 1))[lit] - per_light_r[lit]).abs() / per_light_r[lit]
@@ -182,7 +183,7 @@ def test_makehuman_matches_reference(shared_data, seed) -> None:
 def test_demodulated_matches_reference(fields) -> None:
     """16 camera samples of which 4 trace the lights (demodulated): per-light sums still match the reference."""
     _, ref = fields
-    fast = render_olat(scene(), CAM, OnePass(lighting_size=S, spp=16, shade_spp=4), threads=1)
+    fast = render_olat(scene(), CAM, settings=OnePass(lighting_size=S, spp=16, shade_spp=4), threads=1)
     assert fast.meta["demodulate"] and fast.meta["shade_spp"] == 4
     f, r = fast.field.float(), ref.field.float()
     per_light_f, per_light_r = f.sum((0, 1)), r.sum((0, 1))
@@ -220,9 +221,10 @@ def test_demodulation_antialiases_texture() -> None:
     cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=16)
     s = 16
     kw = dict(lighting_size=s, subsurface=False)
-    ref = render_olat(sub, cam, OnePass(spp=64, shade_spp=64, seed=1, **kw), threads=1).field.float()
-    plain = render_olat(sub, cam, OnePass(spp=4, seed=2, **kw), threads=1).field.float()
-    demod = render_olat(sub, cam, OnePass(spp=32, shade_spp=4, seed=2, **kw), threads=1).field.float()
+    ref = render_olat(sub, cam, settings=OnePass(spp=64, shade_spp=64, seed=1, **kw), threads=1).field.float()
+    plain = render_olat(sub, cam, settings=OnePass(spp=4, seed=2, **kw), threads=1).field.float()
+    demod = render_olat(sub, cam, settings=OnePass(spp=32, shade_spp=4, seed=2, **kw),
+                        threads=1).field.float()
     for lights in (torch.ones(1, s * s, 3), torch.zeros(1, s * s, 3).index_fill_(1, torch.tensor([100]), 5.0)):
         img_r = relight(ref, lights)
         err = [((relight(x, lights) - img_r).pow(2).mean().sqrt() / img_r.pow(2).mean().sqrt()).item()
@@ -236,12 +238,12 @@ def test_sampling_settings() -> None:
     sub = textured_quad()
     cam = Camera(fov_deg=50.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=12)
     kw = dict(lighting_size=S, subsurface=False)
-    a = render_olat(sub, cam, OnePass(spp=16, shade_spp=2, edge_spp=2, **kw), threads=1)
-    b = render_olat(sub, cam, OnePass(spp=16, shade_spp=2, edge_spp=8, **kw), threads=1)
+    a = render_olat(sub, cam, settings=OnePass(spp=16, shade_spp=2, edge_spp=2, **kw), threads=1)
+    b = render_olat(sub, cam, settings=OnePass(spp=16, shade_spp=2, edge_spp=8, **kw), threads=1)
     assert 2.0 <= a.meta["traced_per_pixel"] < 2.3  # a part seen by few samples still gets one traced hit
     assert 2.2 < b.meta["traced_per_pixel"] < 8.0
-    plain = render_olat(sub, cam, OnePass(spp=4, **kw), threads=1)
+    plain = render_olat(sub, cam, settings=OnePass(spp=4, **kw), threads=1)
     assert plain.meta["shade_spp"] == 4 and not plain.meta["demodulate"]
     for bad in (dict(spp=4, shade_spp=8), dict(spp=8, shade_spp=2, demodulate=False), dict(spp=8, edge_spp=16)):
         with pytest.raises(ValueCheckError):
-            render_olat(sub, cam, OnePass(**kw, **bad), threads=1)
+            render_olat(sub, cam, settings=OnePass(**kw, **bad), threads=1)

@@ -27,7 +27,7 @@ pytestmark = pytest.mark.slow  # every test renders with Mitsuba (a preview, or 
 def tiny_cache(tmp_path_factory) -> Path:
     """Two mannequins (seed 1 is an eval subject), two views each, 24 px, 4 x 4 lights."""
     out = tmp_path_factory.mktemp("cache")
-    build_cache("mannequin", [0, 1], out, renderer=Auto(spp=1, lighting_size=4),
+    build_cache("mannequin", [0, 1], out_dir=out, renderer=Auto(spp=1, lighting_size=4),
                 views=SampledViews(2, size=24), workers=Workers(processes=1), progress=False)
     return out
 
@@ -55,7 +55,7 @@ def test_textures_reach_the_render() -> None:
 
 def test_preview_with_a_light_stage_camera() -> None:
     subject = make_subject(3)
-    view = sample_views(3, 2, 24, landmarks=subject.face_landmarks)[0]
+    view = sample_views(3, 2, size=24, landmarks=subject.face_landmarks)[0]
     img = render_preview(subject, camera=view, spp=2)
     assert img.shape == (24, 24, 3) and float(img[6:18, 6:18].mean()) > 0.01
 
@@ -77,7 +77,7 @@ def test_compose_portrait(tiny_cache: Path) -> None:
     from kornia_ilum_lab.synth.lightstage.portraits import auto_exposure
 
     linear = srgb_to_linear(out["image"].float()[None] / 255)
-    crop = crop_faces(linear, square_crop_boxes(out["face_box"][None], CROP_SCALE), 24)
+    crop = crop_faces(linear, square_crop_boxes(out["face_box"][None], CROP_SCALE), size=24)
     assert float(auto_exposure(crop)[0]) == pytest.approx(1.0, rel=0.1)
     assert float(auto_exposure(linear)[0]) != pytest.approx(1.0, rel=0.1)  # the whole frame would differ
 

@@ -70,7 +70,13 @@ class TestEnvmapFrame:
     def test_each_light_in_its_direction(self, name: str) -> None:
         """Mitsuba's envmap for light n is 1 at light n's direction (camera frame) and 0 at the others'."""
         name = select_mitsuba_variant() if name == "default" else name
-        session = _session(sphere_subject(subdivisions=1), CAM, Reference(lighting_size=S, spp=1), name, 1)
+        session = _session(
+            sphere_subject(subdivisions=1),
+            CAM,
+            settings=Reference(lighting_size=S, spp=1),
+            variant=name,
+            threads=1,
+        )
         d, valid = mirror_ball_directions(S, dtype=torch.float64)
         dirs = d.reshape(-1, 3)[valid.flatten()].numpy()
         rng = np.random.default_rng(0)
@@ -89,6 +95,6 @@ class TestEnvmapFrame:
 class TestRenderOlatReference:
     def test_exception(self) -> None:
         with pytest.raises(TypeCheckError, match="settings must be Reference settings"):
-            render_olat_reference(sphere_subject(subdivisions=1), CAM, OnePass(lighting_size=2))
+            render_olat_reference(sphere_subject(subdivisions=1), CAM, settings=OnePass(lighting_size=2))
         with pytest.raises(ValueCheckError, match="lights must be valid light indices"):
             Reference(lighting_size=4, lights=[])

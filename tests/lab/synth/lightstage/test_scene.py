@@ -29,7 +29,7 @@ from tests.synth.lightstage.spheres import sphere_subject
 
 class TestSampleViews:
     def test_ranges(self) -> None:
-        views = [v for seed in range(150) for v in sample_views(seed, 4, 64)]
+        views = [v for seed in range(150) for v in sample_views(seed, 4, size=64)]
         yaw = np.array([v.yaw_deg for v in views])
         pitch = np.array([v.pitch_deg for v in views])
         roll = np.array([v.roll_deg for v in views])
@@ -51,8 +51,8 @@ class TestSampleViews:
             assert three[0] < -35 / 3 and -35 / 3 <= three[1] <= 35 / 3 and three[2] > 35 / 3
 
     def test_deterministic(self) -> None:
-        assert sample_views(11, 4, 192) == sample_views(11, 4, 192)
-        assert sample_views(11, 4, 192) != sample_views(12, 4, 192)
+        assert sample_views(11, 4, size=192) == sample_views(11, 4, size=192)
+        assert sample_views(11, 4, size=192) != sample_views(12, 4, size=192)
         # the lens, pitch and roll of view i depend on (seed, i) only
         a, b = sample_views(5, 4), sample_views(5, 6)
         assert [(v.fov_deg, v.pitch_deg, v.roll_deg) for v in a] == [(v.fov_deg, v.pitch_deg, v.roll_deg)
@@ -62,13 +62,13 @@ class TestSampleViews:
         """Project a subject's landmarks: the box is FACE_FRACTION of the image height and inside it."""
         for seed in (0, 3):
             subject = make_subject(seed)
-            for view in sample_views(seed, 6, 192, landmarks=subject.face_landmarks):
+            for view in sample_views(seed, 6, size=192, landmarks=subject.face_landmarks):
                 transform = camera_transform(view, subject_pivot(subject))
                 xy = project_points(subject.face_landmarks, view, transform).numpy()
                 height = np.ptp(xy[:, 1]) / view.size
                 assert abs(height - FACE_FRACTION) < 0.005
                 assert xy.min() > 0.1 * view.size and xy.max() < 0.9 * view.size
-            nominal = sample_views(seed, 4, 192)  # framed for a typical face: close to it
+            nominal = sample_views(seed, 4, size=192)  # framed for a typical face: close to it
             for view in nominal:
                 transform = camera_transform(view, subject_pivot(subject))
                 xy = project_points(subject.face_landmarks, view, transform).numpy()
@@ -158,7 +158,7 @@ class TestProjectPoints:
         centre = (0.3, 0.25, 0.1)
         subject = sphere_subject(radius=0.03, centre=centre, landmarks=pivot_marks, subdivisions=2)
         cam = Camera(40.0, 2.0, 30.0, 15.0, size=64)
-        rf = render_olat(subject, cam, Auto(lighting_size=2, spp=16), variant=variant, threads=1)
+        rf = render_olat(subject, cam, settings=Auto(lighting_size=2, spp=16), variant=variant, threads=1)
         alpha = rf.alpha[0]
         yy, xx = torch.meshgrid(torch.arange(64.0) + 0.5, torch.arange(64.0) + 0.5, indexing="ij")
         centroid = torch.stack([(alpha * xx).sum(), (alpha * yy).sum()]) / alpha.sum()

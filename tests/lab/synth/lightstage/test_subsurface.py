@@ -169,7 +169,9 @@ class TestSubsurfaceScatter:
         g = random_gbuffer(seed=10)
         d = torch.rand(3, 100, 3)
         mod = SubsurfaceScatter(radii_mm=(2.0, 1.0, 0.5), texturing="pre_post")
-        torch.testing.assert_close(mod(d, g), subsurface_scatter(d, g, (2.0, 1.0, 0.5), "pre_post"))
+        torch.testing.assert_close(
+            mod(d, g), subsurface_scatter(d, g, radii_mm=(2.0, 1.0, 0.5), texturing="pre_post")
+        )
         assert "pre_post" in repr(mod)
 
     def test_exceptions(self) -> None:

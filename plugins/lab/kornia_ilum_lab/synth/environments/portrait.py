@@ -270,7 +270,7 @@ def _splat_light(env: torch.Tensor, light: dict[str, Any], radiance: Any) -> Non
         splat_disk(env, p / dist, radius, torch.as_tensor(radiance, dtype=torch.float64) * solid)
     else:
         corner, eu, ev, _ = _rect_frame(light)
-        splat_rectangle(env, corner, eu, ev, radiance)
+        splat_rectangle(env, corner=corner, edge_u=eu, edge_v=ev, radiance=radiance)
 
 
 class _Room:
@@ -339,7 +339,7 @@ def _light_irradiance(light: dict[str, Any], radiance: Any) -> float:
         radius = math.asin(min(0.9, light["radius_m"] / float(p.norm())))
         return math.pi * math.sin(radius) ** 2 * float(torch.as_tensor(radiance, dtype=torch.float64) @ _LUMA)
     corner, eu, ev, _ = _rect_frame(light)
-    centres, om = rectangle_cells(corner, eu, ev, 32, 32)
+    centres, om = rectangle_cells(corner, edge_u=eu, edge_v=ev, nu=32, nv=32)
     dirs = centres / centres.norm(dim=-1, keepdim=True)
     if callable(radiance):
         lum = radiance(dirs.float()).double() @ _LUMA
@@ -510,7 +510,8 @@ def _softbox_angle(draw: Draw, distance: float) -> float:
     return draw.uniform(max(15.0, span[0]), min(45.0, span[1]))
 
 
-def _softbox(draw: Draw, role: str, off: float, elev: float, cct: float, irradiance: float) -> dict[str, Any]:
+def _softbox(draw: Draw, role: str, *, off: float, elev: float, cct: float, irradiance: float
+             ) -> dict[str, Any]:
     distance = draw.uniform(1.0, 3.0)
     side = 2 * distance * math.tan(math.radians(_softbox_angle(draw, distance)) / 2)
     aspect = draw.uniform(1.0, 1.5)
@@ -526,7 +527,7 @@ def _softbox(draw: Draw, role: str, off: float, elev: float, cct: float, irradia
     }
 
 
-def _lamp(draw: Draw, role: str, off: float, elev: float, cct: float, irradiance: float) -> dict[str, Any]:
+def _lamp(draw: Draw, role: str, *, off: float, elev: float, cct: float, irradiance: float) -> dict[str, Any]:
     distance = draw.uniform(0.7, 2.5)
     return {
         "role": role,
@@ -583,16 +584,17 @@ def _sample_studio(draw: Draw) -> dict[str, Any]:
     off, elev = side * draw.uniform(off_lo, off_hi), draw.uniform(el_lo, el_hi)
     if variant == "strobes":
         cct, make, fill_p = draw.uniform(5200.0, 5800.0), _softbox, 0.6
-        key = _softbox(draw, "key", off, elev, cct, draw.log_uniform(5.0, 50.0))
+        key = _softbox(draw, "key", off=off, elev=elev, cct=cct, irradiance=draw.log_uniform(5.0, 50.0))
     else:
         cct, make, fill_p = draw.uniform(2700.0, 3200.0), _lamp, 0.3
-        key = _lamp(draw, "key", off, elev, cct, draw.log_uniform(0.02, 0.3))
+        key = _lamp(draw, "key", off=off, elev=elev, cct=cct, irradiance=draw.log_uniform(0.02, 0.3))
     lights = [key]
     ratio = None
     if draw.bernoulli(fill_p):
         ratio = draw.log_uniform(2.0, 8.0)
         fill_off, fill_el = -side * draw.uniform(20.0, 60.0), draw.uniform(0.0, 25.0)
-        lights.append(make(draw, "fill", fill_off, fill_el, cct, key["irradiance_klux"] / (ratio - 1)))
+        irradiance = key["irradiance_klux"] / (ratio - 1)
+        lights.append(make(draw, "fill", off=fill_off, elev=fill_el, cct=cct, irradiance=irradiance))
     camera = [0.0, 0.0, draw.uniform(1.0, 3.0)]
     style = draw.choice(["studio", "home"], [0.6, 0.4] if variant == "strobes" else [0.3, 0.7])
     room = _room(draw, style, [camera] + [light["position_m"] for light in lights])

@@ -166,6 +166,7 @@ def _triangle_solid_angle(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor) -> 
 
 def rectangle_cells(
     corner: Sequence[float] | torch.Tensor,
+    *,
     edge_u: Sequence[float] | torch.Tensor,
     edge_v: Sequence[float] | torch.Tensor,
     nu: int,
@@ -219,6 +220,7 @@ def rectangle_cells(
 
 def splat_rectangle(
     latlong: torch.Tensor,
+    *,
     corner: Sequence[float] | torch.Tensor,
     edge_u: Sequence[float] | torch.Tensor,
     edge_v: Sequence[float] | torch.Tensor,
@@ -269,7 +271,7 @@ def splat_rectangle(
             for e in (eu, ev)
         )
     nu, nv = cells  # type: ignore[misc]
-    centres, om = rectangle_cells(p0, eu, ev, nu, nv)
+    centres, om = rectangle_cells(p0, edge_u=eu, edge_v=ev, nu=nu, nv=nv)
     dirs = centres / centres.norm(dim=-1, keepdim=True)
     if callable(radiance):
         values = radiance(dirs.float()).to(torch.float64)

@@ -514,7 +514,7 @@ def _render_subjects(job: dict[str, Any], report: Any) -> None:
         subject_seconds = time.perf_counter() - t0
         views = job["views"]
         if isinstance(views, SampledViews):
-            cameras = sample_views(seed, views.per_subject, views.size, landmarks=subject.face_landmarks)
+            cameras = sample_views(seed, views.per_subject, size=views.size, landmarks=subject.face_landmarks)
         else:
             cameras = list(views.cameras)
         for view in view_indices:
@@ -607,8 +607,8 @@ def _cache_settings(source: Any, renderer: OnePass | Reference | Auto, views: Fi
 def build_cache(
     source: Any,
     seeds: Iterable[int],
-    out_dir: str | os.PathLike,
     *,
+    out_dir: str | os.PathLike,
     renderer: OnePass | Reference | Auto | None = None,
     views: FixedViews | SampledViews | None = None,
     workers: Workers | None = None,

@@ -98,7 +98,7 @@ def uniform_response(field: ReflectanceField, radiance: float = 1.0) -> torch.Te
     s = field.lighting_size
     lighting = radiance * mirror_ball_valid(s).float().expand(1, 3, s, s)
     frame = torch.zeros(1, 3, field.size, field.size)
-    return add_relit(frame, field, lighting)[0]
+    return add_relit(frame, field, lighting=lighting)[0]
 
 
 def face_mask(landmarks: torch.Tensor, size: int) -> torch.Tensor:

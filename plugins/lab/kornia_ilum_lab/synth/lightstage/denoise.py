@@ -76,6 +76,7 @@ def _check_params(
 
 def denoise_operator(
     gbuffer: GBuffer,
+    *,
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,
@@ -164,6 +165,7 @@ def denoise_operator(
 def denoise_field(
     field: torch.Tensor,
     gbuffer: GBuffer,
+    *,
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,
@@ -213,7 +215,15 @@ def denoise_field(
     """
     check_field(field, gbuffer, "field")
     op = denoise_operator(
-        gbuffer, radius, sigma_spatial, sigma_albedo, sigma_normal, sigma_depth, iterations, demodulate, eps
+        gbuffer,
+        radius=radius,
+        sigma_spatial=sigma_spatial,
+        sigma_albedo=sigma_albedo,
+        sigma_normal=sigma_normal,
+        sigma_depth=sigma_depth,
+        iterations=iterations,
+        demodulate=demodulate,
+        eps=eps,
     )
     return op.apply(field, chunk)
 
@@ -230,6 +240,7 @@ class DenoiseField(nn.Module):
 
     def __init__(
         self,
+        *,
         radius: int = 2,
         sigma_spatial: float = 1.5,
         sigma_albedo: float = 0.1,
@@ -262,15 +273,15 @@ class DenoiseField(nn.Module):
         return denoise_field(
             field,
             gbuffer,
-            self.radius,
-            self.sigma_spatial,
-            self.sigma_albedo,
-            self.sigma_normal,
-            self.sigma_depth,
-            self.iterations,
-            self.demodulate,
-            self.eps,
-            self.chunk,
+            radius=self.radius,
+            sigma_spatial=self.sigma_spatial,
+            sigma_albedo=self.sigma_albedo,
+            sigma_normal=self.sigma_normal,
+            sigma_depth=self.sigma_depth,
+            iterations=self.iterations,
+            demodulate=self.demodulate,
+            eps=self.eps,
+            chunk=self.chunk,
         )
 
     def extra_repr(self) -> str:
@@ -283,6 +294,7 @@ class DenoiseField(nn.Module):
 def _denoise_reference(
     field: torch.Tensor,
     gbuffer: GBuffer,
+    *,
     radius: int = 2,
     sigma_spatial: float = 1.5,
     sigma_albedo: float = 0.1,

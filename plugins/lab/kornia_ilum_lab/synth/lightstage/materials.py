@@ -312,7 +312,7 @@ def diffuse_twin_bsdf(material: Material) -> dict[str, Any]:
     return bsdf
 
 
-def mitsuba_mesh(mi: Any, name: str, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
+def mitsuba_mesh(mi: Any, name: str, *, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None,
                   bsdf: dict[str, Any], uvs: np.ndarray | None = None) -> Any:
     """A Mitsuba mesh with the BSDF dict ``bsdf``, for the renderers and the previews.
 

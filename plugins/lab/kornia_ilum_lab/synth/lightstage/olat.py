@@ -58,8 +58,8 @@ __all__ = ["render_olat"]
 def render_olat(
     subject: Subject,
     camera: Camera,
-    settings: OnePass | Reference | Auto | None = None,
     *,
+    settings: OnePass | Reference | Auto | None = None,
     variant: str | None = None,
     threads: int | None = None,
     callback: Callable[[float], Any] | None = None,
@@ -108,12 +108,13 @@ def render_olat(
     if isinstance(settings, Auto):
         settings = settings.resolve(select_mitsuba_variant(variant))
     if isinstance(settings, Reference):
-        return render_olat_reference(subject, camera, settings, variant=variant, threads=threads,
+        return render_olat_reference(subject, camera, settings=settings, variant=variant, threads=threads,
                                      callback=callback)
-    return _render_onepass(subject, camera, settings, variant, threads, callback)
+    return _render_onepass(subject, camera, settings=settings, variant=variant, threads=threads,
+                           callback=callback)
 
 
-def _render_onepass(subject: Subject, camera: Camera, settings: OnePass, variant: str | None,
+def _render_onepass(subject: Subject, camera: Camera, *, settings: OnePass, variant: str | None,
                     threads: int | None, callback: Callable[[float], Any] | None) -> ReflectanceField:
     """The one-pass renderer, then its post-processing (subsurface, denoiser) and the field's ``meta``."""
     start = time.perf_counter()
@@ -135,7 +136,7 @@ def _render_onepass(subject: Subject, camera: Camera, settings: OnePass, variant
     pivot = subject_pivot(subject)
     transform = camera_transform(camera, pivot)
     n_lights = int(mirror_ball_valid(settings.lighting_size).sum())
-    res = render_olat_onepass(subject, camera, transform, settings,
+    res = render_olat_onepass(subject, camera, transform=transform, settings=settings,
                               callback=None if callback is None else (lambda frac: callback(frac * n_lights)))
     t_post = time.perf_counter()
     out, steps = _post_process(res, settings, camera.size)

@@ -260,16 +260,16 @@ class _Scenes:
             alpha_tested = otex is not None and uvs is not None
             name = f"part{i:03d}"
             bsdf = material_bsdf(mat) if kind != "cornea" else dummy
-            mesh = mitsuba_mesh(mi, name, v, f, normals, bsdf, uvs=uvs)
+            mesh = mitsuba_mesh(mi, name, vertices=v, faces=f, normals=normals, bsdf=bsdf, uvs=uvs)
             cam_objs[name] = mesh
             cam_ids.append(mesh)
             if alpha_tested:
-                amesh = mitsuba_mesh(mi, name, v, f, None, dummy, uvs=uvs)
+                amesh = mitsuba_mesh(mi, name, vertices=v, faces=f, normals=None, bsdf=dummy, uvs=uvs)
                 alpha_objs[name] = amesh
                 alpha_ids.append((i, amesh))
                 opacity[i] = _opacity_texture(mi, dr, otex)
             elif kind != "cornea":
-                shadow_objs[name] = mitsuba_mesh(mi, name, v, f, None, dummy)
+                shadow_objs[name] = mitsuba_mesh(mi, name, vertices=v, faces=f, normals=None, bsdf=dummy)
             full.append(mesh.bsdf())
             twin.append(mi.load_dict(diffuse_twin_bsdf(mat)) if kind != "cornea" else mesh.bsdf())
             self.parts.append(_Part(i, kind, alpha_tested, bool(getattr(mat, "subsurface", False))))
@@ -414,9 +414,9 @@ def _dir_to_light(dirs: np.ndarray, lighting_size: int) -> np.ndarray:
 def render_olat_onepass(
     subject: Any,
     camera: Camera,
+    *,
     transform: np.ndarray,
     settings: OnePass,
-    *,
     callback: Any = None,
 ) -> OnePassResult:
     r"""Trace every light of the basis at once (module docstring). Mitsuba's ``llvm_ad_rgb`` must be active.
@@ -469,18 +469,21 @@ def render_olat_onepass(
     rng = np.random.default_rng(settings.seed)
     dirs = _camera_dirs(camera, spp, rng)
     t1 = time.perf_counter()
-    cam = _trace_camera(mi, dr, sc, dirs, camera.size * camera.size)
-    plan = _trace_plan(cam.layers, cam.row_of, cam.n_rows, cam.p_count, spp, settings.shade_spp,
-                       settings.edge_spp, settings.demodulate, len(sc.parts), rng)
+    cam = _trace_camera(mi, dr, sc=sc, dirs=dirs, p_count=camera.size * camera.size)
+    plan = _trace_plan(cam.layers, cam.row_of, n_rows=cam.n_rows, p_count=cam.p_count, spp=spp,
+                       shade_spp=settings.shade_spp, edge_spp=settings.edge_spp,
+                       demodulate=settings.demodulate, n_parts=len(sc.parts), rng=rng)
     timings["camera"] = time.perf_counter() - t1
     traced = len(plan[0]) / max(cam.n_rows, 1)
 
     t2 = time.perf_counter()
-    diffuse, specular = _trace_lights(mi, dr, sc, table, plan, cam.n_rows, settings, callback)
+    diffuse, specular = _trace_lights(mi, dr, sc=sc, table=table, plan=plan, n_rows=cam.n_rows,
+                                      settings=settings, callback=callback)
     timings["lights"] = time.perf_counter() - t2
 
-    rows_all, diffuse, specular = _add_glints(cam, table.valid, diffuse, specular, settings.lighting_size,
-                                              spp)
+    rows_all, diffuse, specular = _add_glints(cam, table.valid, diffuse=diffuse, specular=specular,
+                                              lighting_size=settings.lighting_size,
+                                              spp=spp)
     gbuf = _gbuffer(cam, camera, spp)
     timings["total"] = time.perf_counter() - t0
     return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(table.valid), gbuf,
@@ -534,7 +537,7 @@ class _CameraPass:
         return len(self.rows_all)
 
 
-def _trace_camera(mi: Any, dr: Any, sc: _Scenes, dirs: np.ndarray, p_count: int) -> _CameraPass:
+def _trace_camera(mi: Any, dr: Any, *, sc: _Scenes, dirs: np.ndarray, p_count: int) -> _CameraPass:
     """Step 1: all camera samples of all pixels in one batch (lane = sample * P + pixel), through transparent
     texels and the cornea, at most :data:`MAX_LAYERS` surfaces."""
     glints = []  # (pixel, reflected dir, weight)
@@ -622,7 +625,7 @@ class _Chunk:
     sss: Any  # Bool: on a subsurface part
 
 
-def _trace_lights(mi: Any, dr: Any, sc: _Scenes, table: _LightTable, plan: tuple, n_rows: int,
+def _trace_lights(mi: Any, dr: Any, *, sc: _Scenes, table: _LightTable, plan: tuple, n_rows: int,
                   settings: OnePass, callback: Any) -> tuple[torch.Tensor, torch.Tensor]:
     """Step 3: every light at every traced hit, in chunks of ``chunk_lanes`` light-hit pairs; returns the
     ``(3, n_rows, N_v)`` diffuse (subsurface hits) and specular (the rest) parts."""
@@ -646,12 +649,13 @@ def _trace_lights(mi: Any, dr: Any, sc: _Scenes, table: _LightTable, plan: tuple
                        _jit(mi.Color3f, *tr_wd[a:b].T), _jit(mi.Float, tr_ws[a:b]),
                        _jit(mi.Bool, tr_sss[a:b], dtype=bool))
         dr.eval(si, strat, n_strat)
-        wo, up = _draw_directions(mi, dr, chunk, table, settings.seed)
+        wo, up = _draw_directions(mi, dr, chunk=chunk, table=table, seed=settings.seed)
         # kernel 2, on the lanes above the horizon only (about half): shadow rays and BSDF evaluations
         idx = dr.compress(up)
         if dr.width(idx):
-            _accumulate_visible(mi, dr, sc, chunk, table, idx, wo, ctx, twin_at, settings.demodulate, acc_d,
-                                acc_s)
+            _accumulate_visible(mi, dr, sc=sc, chunk=chunk, table=table, idx=idx, wo=wo, ctx=ctx,
+                                twin_at=twin_at, demodulate=settings.demodulate, acc_d=acc_d,
+                                acc_s=acc_s)
         if callback is not None:
             callback(n_h / max(total, 1))
     diffuse = torch.from_numpy(np.array(acc_d, dtype=np.float32)[:, :n_rows * nv]).reshape(3, n_rows, nv)
@@ -659,7 +663,7 @@ def _trace_lights(mi: Any, dr: Any, sc: _Scenes, table: _LightTable, plan: tuple
     return diffuse, specular
 
 
-def _draw_directions(mi: Any, dr: Any, chunk: _Chunk, table: _LightTable, seed: int) -> tuple[Any, Any]:
+def _draw_directions(mi: Any, dr: Any, *, chunk: _Chunk, table: _LightTable, seed: int) -> tuple[Any, Any]:
     """Kernel 1: one stratified direction per (hit, light) lane, and whether it is above the horizon."""
     nv = table.nv
     lane = dr.arange(mi.UInt32, chunk.n_h * nv)
@@ -684,8 +688,8 @@ def _draw_directions(mi: Any, dr: Any, chunk: _Chunk, table: _LightTable, seed: 
     return wo, up
 
 
-def _accumulate_visible(mi: Any, dr: Any, sc: _Scenes, chunk: _Chunk, table: _LightTable, idx: Any, wo: Any,
-                        ctx: Any, twin_at: Any, demodulate: bool, acc_d: Any, acc_s: Any) -> None:
+def _accumulate_visible(mi: Any, dr: Any, *, sc: _Scenes, chunk: _Chunk, table: _LightTable, idx: Any,
+                        wo: Any, ctx: Any, twin_at: Any, demodulate: bool, acc_d: Any, acc_s: Any) -> None:
     """Kernels 2 and 3 on the lanes ``idx`` above the horizon: shadow rays, then the BSDFs of the visible
     lanes only, scatter-added into the accumulators ``acc_d`` (diffuse of subsurface hits) and ``acc_s``
     (the rest)."""
@@ -725,7 +729,7 @@ def _accumulate_visible(mi: Any, dr: Any, sc: _Scenes, chunk: _Chunk, table: _Li
     dr.eval(acc_d, acc_s)
 
 
-def _add_glints(cam: _CameraPass, valid: np.ndarray, diffuse: torch.Tensor, specular: torch.Tensor,
+def _add_glints(cam: _CameraPass, valid: np.ndarray, *, diffuse: torch.Tensor, specular: torch.Tensor,
                 lighting_size: int, spp: int) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
     """The cornea's glints, a mean over the ``C`` samples, added to ``specular``; a glint over nothing opaque
     behind it adds its pixel as a new row. Returns the rows and both parts."""
@@ -762,7 +766,7 @@ def _gbuffer(cam: _CameraPass, camera: Camera, spp: int) -> GBuffer:
     )
 
 
-def _trace_plan(layers: list, row_of: np.ndarray, n_rows: int, p_count: int, spp: int, shade_spp: int,
+def _trace_plan(layers: list, row_of: np.ndarray, *, n_rows: int, p_count: int, spp: int, shade_spp: int,
                 edge_spp: int, demodulate: bool, n_parts: int, rng: np.random.Generator) -> tuple:
     r"""Which terminal hits trace the lights, their light strata and their weights.
 

@@ -333,7 +333,7 @@ def compose_portrait(field, env, *, key: float = 0.18) -> dict:
 def _crop(image: torch.Tensor, box: torch.Tensor, size: int) -> torch.Tensor:
     """The square crop (face box expanded 1.25 x) of a ``(3, H, W)`` float image, resized to ``size``."""
     square = square_crop_boxes(box[None].float(), CROP_SCALE)
-    return crop_faces(image[None], square, size)[0]
+    return crop_faces(image[None], square, size=size)[0]
 
 
 def _sphere_strip(lighting: torch.Tensor, side: int) -> torch.Tensor:
@@ -423,5 +423,6 @@ def training_sheet(
     title = (f"light-stage training portraits (face crop 1.25 x, shown at {size}) | ground truth: diffuse, "
              "matte silver, mirror")
     cell = (1.45, 1.45 * (size + 3 + side) / size + 0.3)
-    write_grid(tiles, captions, title, path, columns=columns, cell=cell, fontsize=5.5, dpi=100, palette=True)
+    write_grid(tiles, captions, title=title, path=path, columns=columns, cell=cell, fontsize=5.5, dpi=100,
+               palette=True)
     return count

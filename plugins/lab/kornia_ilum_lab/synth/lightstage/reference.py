@@ -158,7 +158,7 @@ def _envmap_data(texels: np.ndarray, height: int, width: int, data_width: int) -
 # rendering
 
 
-def _build_scene(mi: Any, subject: Any, camera: Camera, transform: np.ndarray, spp: int, max_depth: int,
+def _build_scene(mi: Any, subject: Any, *, camera: Camera, transform: np.ndarray, spp: int, max_depth: int,
                  height: int) -> tuple[Any, str]:
     objects: dict[str, Any] = {}
     has_null = False
@@ -176,7 +176,8 @@ def _build_scene(mi: Any, subject: Any, camera: Camera, transform: np.ndarray, s
             bsdf = {"type": "mask", "opacity": mask, "bsdf": bsdf}
             has_null = True
         name = f"part{i:03d}_{getattr(part, 'name', 'mesh')}"
-        objects[name] = mitsuba_mesh(mi, name, v, np.asarray(part.faces), normals, bsdf, uvs=uvs)
+        objects[name] = mitsuba_mesh(mi, name, vertices=v, faces=np.asarray(part.faces), normals=normals,
+                                     bsdf=bsdf, uvs=uvs)
     integrator = "volpath" if has_null else "path"
     to_world = np.eye(4)
     to_world[:3, :3] = _ENV_TO_WORLD
@@ -242,7 +243,7 @@ class _Session:
         return img
 
 
-def _session(subject: Any, camera: Camera, settings: Reference, variant: str | None, threads: int | None
+def _session(subject: Any, camera: Camera, *, settings: Reference, variant: str | None, threads: int | None
              ) -> _Session:
     """Validate the rest (the settings are), then select the variant and build the scene."""
     if not isinstance(camera, Camera):
@@ -261,13 +262,15 @@ def _session(subject: Any, camera: Camera, settings: Reference, variant: str | N
 
         dr.set_thread_count(threads)
     transform = camera_transform(camera, subject_pivot(subject))
-    scene, integrator = _build_scene(mi, subject, camera, transform, settings.spp, settings.max_depth, height)
+    scene, integrator = _build_scene(mi, subject, camera=camera, transform=transform, spp=settings.spp,
+                                     max_depth=settings.max_depth, height=height)
     spp = int(scene.sensors()[0].sampler().sample_count())  # multijitter rounds up to a product, e.g. 32 -> 35
     return _Session(mi, scene, mi.traverse(scene), variant, integrator, transform, basis, valid, height, spp,
                     settings.seed)
 
 
-def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, seconds: float) -> dict[str, Any]:
+def _meta(session: _Session, subject: Any, *, max_depth: int, lighting_size: int, seconds: float
+          ) -> dict[str, Any]:
     meta: dict[str, Any] = {
         "renderer": f"mitsuba {session.mi.__version__}",
         "variant": session.variant,
@@ -290,8 +293,8 @@ def _meta(session: _Session, subject: Any, max_depth: int, lighting_size: int, s
 def render_olat_reference(
     subject: Subject,
     camera: Camera,
-    settings: Reference | None = None,
     *,
+    settings: Reference | None = None,
     variant: str | None = None,
     threads: int | None = None,
     callback: Callable[[int], Any] | None = None,
@@ -343,7 +346,7 @@ def render_olat_reference(
     if not isinstance(settings, Reference):
         raise TypeCheckError(f"settings must be Reference settings, got {type(settings).__name__}")
     lighting_size = settings.lighting_size
-    session = _session(subject, camera, settings, variant, threads)
+    session = _session(subject, camera, settings=settings, variant=variant, threads=threads)
     setup = time.perf_counter() - start
     todo = session.valid if settings.lights is None else np.asarray(settings.lights, dtype=np.int64)
     size = camera.size
@@ -358,7 +361,8 @@ def render_olat_reference(
             callback(1)
     box = project_points(subject.face_landmarks, camera, session.transform)
     face_box = torch.cat([box.min(dim=0).values, box.max(dim=0).values])
-    meta = _meta(session, subject, settings.max_depth, lighting_size, time.perf_counter() - start)
+    meta = _meta(session, subject, max_depth=settings.max_depth, lighting_size=lighting_size,
+                 seconds=time.perf_counter() - start)
     meta["lights_rendered"] = len(todo)
     meta["landmarks"] = [[round(float(x), 3) for x in xy] for xy in box.tolist()]  # LANDMARK_NAMES order
     meta["setup_seconds"] = round(setup, 3)
@@ -368,8 +372,8 @@ def render_olat_reference(
 def render_lighting(
     subject: Subject,
     camera: Camera,
-    lighting: torch.Tensor,
     *,
+    lighting: torch.Tensor,
     spp: int = REFERENCE_SPP,
     variant: str | None = None,
     max_depth: int = REFERENCE_MAX_DEPTH,
@@ -420,7 +424,7 @@ def render_lighting(
         raise ShapeError(f"lighting must have shape (3, S, S), got {tuple(lighting.shape)}")
     settings = Reference(lighting_size=int(lighting.shape[-1]), spp=spp, max_depth=max_depth, seed=seed,
                          envmap_height=envmap_height)
-    session = _session(subject, camera, settings, variant, threads)
+    session = _session(subject, camera, settings=settings, variant=variant, threads=threads)
     lights = lighting.detach().to("cpu", torch.float64).flatten(1).T.numpy()  # (N, 3)
     img = session.render(np.asarray(session.basis @ lights))
     image = torch.from_numpy(np.ascontiguousarray(img[..., :3].transpose(2, 0, 1)))

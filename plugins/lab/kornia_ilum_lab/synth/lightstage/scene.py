@@ -311,8 +311,8 @@ def _nominal_landmarks() -> np.ndarray:
 def sample_views(
     seed: int,
     n: int = 4,
-    size: int = 192,
     *,
+    size: int = 192,
     landmarks: np.ndarray | None = None,
     fraction: float = FACE_FRACTION,
 ) -> tuple[Camera, ...]:

@@ -82,7 +82,7 @@ def smax(a: Array, b: Array, k: float) -> Array:
     return -smin(-a, -b, k)
 
 
-def sphere(x: Array, y: Array, z: Array, c: Sequence[float], r: float) -> Array:
+def sphere(x: Array, y: Array, z: Array, *, c: Sequence[float], r: float) -> Array:
     """Exact distance to a sphere of centre ``c`` and radius ``r``.
 
     Args:
@@ -103,7 +103,7 @@ def sphere(x: Array, y: Array, z: Array, c: Sequence[float], r: float) -> Array:
     return np.sqrt((x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2) - r
 
 
-def ellipsoid(x: Array, y: Array, z: Array, c: Sequence[float], r: Sequence[float]) -> Array:
+def ellipsoid(x: Array, y: Array, z: Array, *, c: Sequence[float], r: Sequence[float]) -> Array:
     """Axis-aligned ellipsoid of centre ``c`` and semi-axes ``r`` (Quilez's bound ``k0 (k0 - 1) / k1``).
 
     Args:
@@ -128,7 +128,14 @@ def ellipsoid(x: Array, y: Array, z: Array, c: Sequence[float], r: Sequence[floa
 
 
 def capsule(
-    x: Array, y: Array, z: Array, a: Sequence[float], b: Sequence[float], ra: float, rb: float | None = None
+    x: Array,
+    y: Array,
+    z: Array,
+    *,
+    a: Sequence[float],
+    b: Sequence[float],
+    ra: float,
+    rb: float | None = None,
 ) -> Array:
     """Segment ``a``-``b`` swept by a sphere whose radius goes linearly from ``ra`` to ``rb`` (a bound).
 
@@ -161,10 +168,10 @@ def capsule(
 
 def mesh_sdf(
     fn: SDF,
+    *,
     lo: Sequence[float],
     hi: Sequence[float],
     step: float,
-    *,
     coarse: int = 4,
     band: float = 2.0,
 ) -> tuple[Array, Array, Array]:
@@ -248,7 +255,7 @@ def _empty() -> tuple[Array, Array, Array]:
 
 
 def bounded(
-    fn: SDF, x: Array, y: Array, z: Array, lo: Sequence[float], hi: Sequence[float], margin: float
+    fn: SDF, x: Array, y: Array, z: Array, *, lo: Sequence[float], hi: Sequence[float], margin: float
 ) -> Array:
     r"""Evaluate a primitive only near its bounding box, and a cheap lower bound of its distance elsewhere.
 
@@ -292,6 +299,7 @@ def edit_in_box(
     x: Array,
     y: Array,
     z: Array,
+    *,
     lo: Sequence[float],
     hi: Sequence[float],
     fn: Callable[[Array, Array, Array, Array], Array],

@@ -135,6 +135,7 @@ def _points(gbuffer: GBuffer, pixels: torch.Tensor) -> torch.Tensor:
 
 def subsurface_operator(
     gbuffer: GBuffer,
+    *,
     radii_mm: tuple[float, float, float] = SKIN_RADII_MM,
     texturing: str = "post",
     eps: float = 1e-3,
@@ -219,6 +220,7 @@ def subsurface_operator(
 def subsurface_scatter(
     diffuse: torch.Tensor,
     gbuffer: GBuffer,
+    *,
     radii_mm: tuple[float, float, float] = SKIN_RADII_MM,
     texturing: str = "post",
     eps: float = 1e-3,
@@ -263,7 +265,9 @@ def subsurface_scatter(
         True
     """
     check_field(diffuse, gbuffer, "diffuse")
-    op = subsurface_operator(gbuffer, radii_mm, texturing, eps, max_radius_px)
+    op = subsurface_operator(
+        gbuffer, radii_mm=radii_mm, texturing=texturing, eps=eps, max_radius_px=max_radius_px
+    )
     return op.apply(diffuse, chunk)
 
 
@@ -286,6 +290,7 @@ class SubsurfaceScatter(nn.Module):
 
     def __init__(
         self,
+        *,
         radii_mm: tuple[float, float, float] = SKIN_RADII_MM,
         texturing: str = "post",
         eps: float = 1e-3,
@@ -301,7 +306,13 @@ class SubsurfaceScatter(nn.Module):
 
     def forward(self, diffuse: torch.Tensor, gbuffer: GBuffer) -> torch.Tensor:
         return subsurface_scatter(
-            diffuse, gbuffer, self.radii_mm, self.texturing, self.eps, self.max_radius_px, self.chunk
+            diffuse,
+            gbuffer,
+            radii_mm=self.radii_mm,
+            texturing=self.texturing,
+            eps=self.eps,
+            max_radius_px=self.max_radius_px,
+            chunk=self.chunk,
         )
 
     def extra_repr(self) -> str:
@@ -311,6 +322,7 @@ class SubsurfaceScatter(nn.Module):
 def _subsurface_reference(
     diffuse: torch.Tensor,
     gbuffer: GBuffer,
+    *,
     radii_mm: tuple[float, float, float] = SKIN_RADII_MM,
     texturing: str = "post",
     eps: float = 1e-3,

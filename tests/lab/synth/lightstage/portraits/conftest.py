@@ -40,13 +40,13 @@ def sphere_field(package_variant: str):
     camera = Camera(fov_deg=40.0, distance=4.0, yaw_deg=0.0, pitch_deg=0.0, size=SIZE)
     subject = sphere_subject(landmarks=landmarks)
     settings = OnePass(lighting_size=S, spp=16, denoise=True)
-    return render_olat(subject, camera, settings, variant=package_variant, threads=1)
+    return render_olat(subject, camera, settings=settings, variant=package_variant, threads=1)
 
 @pytest.fixture(scope="package")
 def cache(tmp_path_factory, package_variant: str):
     """Two light-stage subjects, seed 0 (train) and seed 1 (eval), one small view each."""
     out = tmp_path_factory.mktemp("lightstage")
-    build_cache("mannequin", [0, 1], out, renderer=Auto(spp=4, lighting_size=S),
+    build_cache("mannequin", [0, 1], out_dir=out, renderer=Auto(spp=4, lighting_size=S),
                 views=FixedViews(DEFAULT_VIEWS[:1], size=SIZE), workers=Workers(processes=1),
                 variant=package_variant, progress=False)
     return out

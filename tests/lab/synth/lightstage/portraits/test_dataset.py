@@ -253,7 +253,7 @@ class TestEnvironmentBackground:
         camera = Camera(30.0, 1.0, 0.0, 0.0, size=48)
         mirror, turn = torch.tensor([False, True]), torch.tensor([0.2, 0.6], dtype=torch.float64)
         old = frame_backgrounds([background_pyramid(environment_background(env, sampler, height=256))] * 2, camera,
-                                mirror, turn)
+                                mirror=mirror, turn=turn)
 
         def errors(view: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
             scale = old.abs().mean((1, 2, 3))
@@ -262,9 +262,11 @@ class TestEnvironmentBackground:
 
         # a real map's sharp detail: bilinear twice (old) against once (new); measured 0.024 and 0.039, pooled over
         # 4 x 4 pixels 0.009 and 0.015, mean colour 0.014
-        raw, pooled, colour = errors(frame_backgrounds([pyramid] * 2, camera, mirror, turn, rotation=m.expand(2, 3, 3)))
+        raw, pooled, colour = errors(frame_backgrounds([pyramid] * 2, camera, mirror=mirror, turn=turn,
+                                                       rotation=m.expand(2, 3, 3)))
         assert (raw < 0.1).all() and (pooled < 0.04).all() and (colour < 0.04).all(), (raw, pooled, colour)
-        _, pooled, _ = errors(frame_backgrounds([pyramid] * 2, camera, mirror, turn))  # without the rotation
+        _, pooled, _ = errors(frame_backgrounds([pyramid] * 2, camera, mirror=mirror,
+                                                turn=turn))  # without the rotation
         assert (pooled > 0.2).all(), pooled
 
     def test_environment_background_is_the_environment_at_higher_resolution(self) -> None:

@@ -35,18 +35,18 @@ def test_target_application_matches_file_text(mh):
 
 def test_macro_weight_formula():
     # age 0.5 (25 y): young only; female 0.3 of gender 0.7; ethnic normalised.
-    w = macro_target_weights((1.0, 1.0, 2.0), 0.7, 0.5, 0.5, 0.5)
+    w = macro_target_weights((1.0, 1.0, 2.0), gender=0.7, age=0.5, muscle=0.5, weight=0.5)
     assert w["caucasian-male-young"] == pytest.approx(0.5 * 0.7)
     assert w["african-female-young"] == pytest.approx(0.25 * 0.3)
     assert not any(k.endswith("-old") or k.endswith("-child") for k in w if not k.startswith("universal"))
     assert w["universal-male-young-averagemuscle-averageweight"] == pytest.approx(0.7)
     # age 0.75 (57.5 y): old = 0.5, young = 0.5; muscle 0.75 -> average 0.5, max 0.5; weight 0.2 -> min 0.6.
-    w = macro_target_weights((0.0, 1.0, 0.0), 1.0, 0.75, 0.75, 0.2)
+    w = macro_target_weights((0.0, 1.0, 0.0), gender=1.0, age=0.75, muscle=0.75, weight=0.2)
     assert w["asian-male-old"] == pytest.approx(0.5) and w["asian-male-young"] == pytest.approx(0.5)
     assert w["universal-male-old-maxmuscle-minweight"] == pytest.approx(0.5 * 0.5 * 0.6)
     assert w["universal-male-young-averagemuscle-averageweight"] == pytest.approx(0.5 * 0.5 * 0.4)
     # age 0.3 (below 25 y): young = (0.3 - 0.1875) * 3.2 = 0.36, child = min(1, 1.6) - 0.36 = 0.64.
-    w = macro_target_weights((0.0, 0.0, 1.0), 0.0, 0.3)
+    w = macro_target_weights((0.0, 0.0, 1.0), gender=0.0, age=0.3)
     assert w["caucasian-female-young"] == pytest.approx(0.36)
     assert w["caucasian-female-child"] == pytest.approx(0.64)
 

@@ -130,8 +130,8 @@ def _fit_inside(boxes: torch.Tensor, size: int) -> torch.Tensor:
 def face_crop_boxes(
     face_boxes: torch.Tensor,
     size: int,
-    generator: torch.Generator | None = None,
     *,
+    generator: torch.Generator | None = None,
     scale: float = CROP_SCALE,
     position: float = 0.06,
     extent: float = 0.15,
@@ -177,8 +177,8 @@ def face_crop_boxes(
 def inner_crop_boxes(
     n: int,
     size: int,
-    generator: torch.Generator,
     *,
+    generator: torch.Generator,
     position: float = 0.10,
     extent: float = 0.15,
 ) -> torch.Tensor:
@@ -218,8 +218,8 @@ def inner_crop_boxes(
 def random_crop_boxes(
     face_boxes: torch.Tensor,
     size: int,
-    generator: torch.Generator,
     *,
+    generator: torch.Generator,
     side: tuple[float, float] = (0.25, 0.5),
     max_overlap: float = 0.2,
     tries: int = 32,
@@ -308,11 +308,11 @@ def relight_portraits(field: ReflectanceField, lighting: torch.Tensor) -> tuple[
     s = field.lighting_size
     check_tensor(lighting, "lighting", ["B", "3", str(s), str(s)], finite=True, nonnegative=True)
     image = add_relit(lighting.new_zeros(lighting.shape[0], 3, field.size, field.size, dtype=torch.float32),
-                       field, lighting)
+                       field, lighting=lighting)
     return image, field.alpha.float().reshape(1, 1, field.size, field.size)
 
 
-def add_relit(frame: torch.Tensor, field: ReflectanceField, lighting: torch.Tensor,
+def add_relit(frame: torch.Tensor, field: ReflectanceField, *, lighting: torch.Tensor,
               sparse: SparseField | None = None, eps: float = 0.0) -> torch.Tensor:
     """Add the relit subject (premultiplied) to ``frame`` ``(B, 3, H, W)`` in place; only covered pixels.
 
@@ -576,7 +576,7 @@ def sphere_targets(mirror_ball: torch.Tensor, sizes: Sequence[int] = (4, 8, 16, 
         raise ShapeError(f"mirror_ball must be (B, 3, S, S) with S in {SPHERE_SIZES}, got {tuple(mirror_ball.shape)}")
     for size in sizes:
         check_positive_int(size, "sizes", allowed=SPHERE_SIZES)
-    return sphere_pyramid(mirror_ball, tuple(sizes), gamma="safe") if sizes else {}
+    return sphere_pyramid(mirror_ball, sizes=tuple(sizes), gamma="safe") if sizes else {}
 
 
 
@@ -670,6 +670,7 @@ _SHARP_SIGMA = 0.5
 def frame_backgrounds(
     pyramids: Sequence[Sequence[torch.Tensor]],
     camera: Camera,
+    *,
     mirror: torch.Tensor | None = None,
     turn: torch.Tensor | None = None,
     sigma: torch.Tensor | None = None,

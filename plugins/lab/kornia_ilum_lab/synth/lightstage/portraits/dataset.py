@@ -277,6 +277,7 @@ def _read_full(path: str, height: int | None) -> torch.Tensor:
 def _background_source(
     env: Environment,
     sampler: EnvironmentSampler,
+    *,
     height: int | None,
     procedural_height: int,
     room_height: int | None,
@@ -348,7 +349,8 @@ def environment_background(
         >>> environment_background(env, sampler, procedural_height=8) is env.latlong  # not above: itself
         True
     """
-    full, m, gains = _background_source(env, sampler, height, procedural_height, room_height)
+    full, m, gains = _background_source(env, sampler, height=height, procedural_height=procedural_height,
+                                        room_height=room_height)
     if m is None or gains is None:
         return full
     h = full.shape[-2]
@@ -511,8 +513,9 @@ class PortraitDataset(IterableDataset):
         entry = self._backgrounds.get(key)
         if entry is None:
             cfg = self.config
-            latlong, m, gains = _background_source(env, self.environments, cfg.background_height,
-                                                   cfg.procedural_background_height, cfg.room_background_height)
+            latlong, m, gains = _background_source(env, self.environments, height=cfg.background_height,
+                                                   procedural_height=cfg.procedural_background_height,
+                                                   room_height=cfg.room_background_height)
             pyramid = background_pyramid(latlong)  # new tensors: scaled in place
             if gains is not None:
                 for level in pyramid:
@@ -577,10 +580,10 @@ class PortraitDataset(IterableDataset):
             landmarks[flips[rows], :, 0] = rf.size - landmarks[flips[rows], :, 0]  # in the mirrored image
             faces.append(detector_boxes(landmarks))
             if cfg.crop == "face":
-                boxes.append(face_crop_boxes(faces[-1], rf.size, g, scale=cfg.crop_scale,
+                boxes.append(face_crop_boxes(faces[-1], rf.size, generator=g, scale=cfg.crop_scale,
                                              position=cfg.crop_position, extent=cfg.crop_extent))
             else:
-                boxes.append(random_crop_boxes(faces[-1], rf.size, g))
+                boxes.append(random_crop_boxes(faces[-1], rf.size, generator=g))
             if cfg.pairs or cfg.matte:
                 alpha = crop_images(rf.alpha.float()[None], _source_boxes(boxes[-1], flips[rows], rf.size),
                                     cfg.size, flips[rows])
@@ -593,8 +596,9 @@ class PortraitDataset(IterableDataset):
                     backgrounds = [self._background(kk, e) for kk, e in zip(env_keys[rows], envs[rows], strict=True)]
                 params = {name: v[rows] for name, v in fx.items()}
                 backdrop = None if plain is None else (plain[rows], backdrops[rows])
-                out.append(self._render(rf, latlong[rows], backgrounds, turns[rows], blur[rows], flips[rows],
-                                        boxes[-1], key[rows], params, g, backdrop))
+                out.append(self._render(rf, latlong[rows], backgrounds=backgrounds, turn=turns[rows],
+                                        blur=blur[rows], flip=flips[rows], boxes=boxes[-1], key=key[rows],
+                                        effects=params, g=g, backdrop=backdrop))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
             image, truth, gain = (torch.cat(parts) for parts in zip(*out, strict=True))
@@ -605,7 +609,8 @@ class PortraitDataset(IterableDataset):
         boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
         second = None
         if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
-            second = inner_crop_boxes(n, cfg.size, g, position=cfg.crop_position, extent=cfg.crop_extent).float()
+            second = inner_crop_boxes(n, cfg.size, generator=g, position=cfg.crop_position,
+                                      extent=cfg.crop_extent).float()
         samples = []
         for j in range(n):
             rf = self.fields[field_ids[j // nl]]
@@ -650,9 +655,9 @@ class PortraitDataset(IterableDataset):
         return [self._noise_bank[int(neg), :, i : i + size, j : j + size] for (i, j), neg in zip(offsets, signs,
                                                                                                    strict=True)]
 
-    def _render(self, rf: ReflectanceField, latlong: torch.Tensor, backgrounds: list | None, turn: torch.Tensor,
-                blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor, key: torch.Tensor,
-                effects: dict[str, torch.Tensor], g: torch.Generator,
+    def _render(self, rf: ReflectanceField, latlong: torch.Tensor, *, backgrounds: list | None,
+                turn: torch.Tensor, blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor,
+                key: torch.Tensor, effects: dict[str, torch.Tensor], g: torch.Generator,
                 backdrop: tuple[torch.Tensor, torch.Tensor] | None = None
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring).
@@ -670,7 +675,8 @@ class PortraitDataset(IterableDataset):
         source_boxes = _source_boxes(boxes, flip, rf.size)
         if backgrounds is not None:
             pyramids, rotations = zip(*backgrounds, strict=True)
-            frame = frame_backgrounds(pyramids, rf.camera, flip, turn, blur, torch.stack(rotations))
+            frame = frame_backgrounds(pyramids, rf.camera, mirror=flip, turn=turn, sigma=blur,
+                                      rotation=torch.stack(rotations))
             if cfg.subject:
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
@@ -680,7 +686,7 @@ class PortraitDataset(IterableDataset):
             frame[plain] = 0.0
         if cfg.subject:
             flipped = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
-            add_relit(frame, rf, flipped, sparse=self._sparse_of(rf), eps=cfg.relight_eps)
+            add_relit(frame, rf, lighting=flipped, sparse=self._sparse_of(rf), eps=cfg.relight_eps)
         if plain is not None:
             alpha = rf.alpha.float()
             subject = torch.einsum("bchw,c->b", frame[plain].double(), torch.tensor(LUMINANCE, dtype=torch.float64))

@@ -770,7 +770,9 @@ class MakeHumanSource:
                 v[idx] += w * d
 
         eth = (p["ethnic"]["african"], p["ethnic"]["asian"], p["ethnic"]["caucasian"])
-        for name, w in macro_target_weights(eth, p["gender"], p["age"], p["muscle"], p["weight"]).items():
+        for name, w in macro_target_weights(
+            eth, gender=p["gender"], age=p["age"], muscle=p["muscle"], weight=p["weight"]
+        ).items():
             add(name, w)
         lookup = {s[0]: s for s in a.sliders}
         for t, val in p["sliders"].items():
@@ -918,12 +920,13 @@ class MakeHumanSource:
         parts.insert(0, MeshPart("skin", cv_.astype(np.float32), cf_.astype(np.int32), skin_mat,
                                  cn.astype(np.float32), np.clip(cuv, 0, 1).astype(np.float32)))  # fmt: skip
         landmarks = to_m(v[[LANDMARK_VERTICES[n] for n in LANDMARK_NAMES]])
-        parts = self._accessories(p, parts, dict(zip(LANDMARK_NAMES, landmarks.astype(np.float64))), eye_centres,
-                                  hair_rgb, seed)  # fmt: skip
+        parts = self._accessories(p, parts, lm=dict(zip(LANDMARK_NAMES, landmarks.astype(np.float64))),
+                                  eye_centres=eye_centres, hair_rgb=hair_rgb, seed=seed)  # fmt: skip
         params = dict(p)
         params.update(skin_texture=skin_path.name, cut_y=round(y_cut, 5),
                       macro_targets={k: round(w, 5) for k, w in macro_target_weights(
-                          tuple(p["ethnic"].values()), p["gender"], p["age"], p["muscle"], p["weight"]).items()})  # fmt: skip
+                          tuple(p["ethnic"].values()), gender=p["gender"], age=p["age"], muscle=p["muscle"],
+                          weight=p["weight"]).items()})  # fmt: skip
         return Subject(
             seed=seed,
             split=subject_split(seed),
@@ -935,7 +938,7 @@ class MakeHumanSource:
             face_albedo=face_albedo,
         )
 
-    def _accessories(self, p: dict, parts: list[MeshPart], lm: dict[str, np.ndarray], eye_centres: list,
+    def _accessories(self, p: dict, parts: list[MeshPart], *, lm: dict[str, np.ndarray], eye_centres: list,
                      hair_rgb: np.ndarray, seed: int) -> list[MeshPart]:  # fmt: skip
         """``parts`` with the subject's beard, beanie and glasses (:mod:`.makehuman_accessories`) added."""
         by_name = {q.name: q for q in parts}
@@ -953,7 +956,8 @@ class MakeHumanSource:
             skin = dataclasses.replace(skin, material=dataclasses.replace(skin.material, albedo_texture=tex))
             parts = [skin if q.name == "skin" else q for q in parts]
             rng = np.random.default_rng(seed_digest(seed, "makehuman-beard"))
-            parts += beard_parts(p, skin, wv, self.assets.head_island, beard_rgb, rng)
+            parts += beard_parts(p, skin, weight=wv, island=self.assets.head_island, colour=beard_rgb,
+                                 rng=rng)
         if p["hat"] != "none":
             ears = np.concatenate([lm["ear_right"][None], lm["ear_left"][None]])
             head = skin.vertices[np.linalg.norm(skin.vertices[:, None] - ears[None], axis=-1).min(1) > 0.035]

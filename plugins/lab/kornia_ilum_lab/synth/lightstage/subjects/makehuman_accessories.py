@@ -379,8 +379,8 @@ def _strand_mask(size: int, direction: np.ndarray, length: int, rng: np.random.G
 
 
 def beard_parts(
-    p: dict, skin: MeshPart, weight: np.ndarray, island: np.ndarray, colour: np.ndarray, rng: np.random.Generator,
-    *, size: int = 1024,
+    p: dict, skin: MeshPart, *, weight: np.ndarray, island: np.ndarray, colour: np.ndarray,
+    rng: np.random.Generator, size: int = 1024,
 ) -> list[MeshPart]:  # fmt: skip
     """The fur shells of a beard style over ``skin``: three for a moustache, goatee or beard, one short sparse
     layer for stubble, none without facial hair.

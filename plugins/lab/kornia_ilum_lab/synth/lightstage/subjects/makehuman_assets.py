@@ -469,7 +469,7 @@ def _min_avg_max(x: float) -> dict[str, float]:
 
 
 def macro_target_weights(
-    ethnic: tuple[float, float, float], gender: float, age: float, muscle: float = 0.5, weight: float = 0.5
+    ethnic: tuple[float, float, float], *, gender: float, age: float, muscle: float = 0.5, weight: float = 0.5
 ) -> dict[str, float]:
     """The weights of the macro targets (``targets/macrodetails``) for the macro sliders.
 

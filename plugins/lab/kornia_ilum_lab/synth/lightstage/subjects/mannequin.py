@@ -303,11 +303,11 @@ def subject_params(seed: int) -> dict:
 # --------------------------------------------------------------------------------------------------------
 
 
-def _bounded_ellipsoid(x, y, z, c, r, margin: float):
+def _bounded_ellipsoid(x, y, z, *, c, r, margin: float):
     """An ellipsoid evaluated only near its bounding box (:func:`~kornia_ilum_lab.synth.lightstage.sdf.bounded`)."""
     lo = [c[i] - r[i] for i in range(3)]
     hi = [c[i] + r[i] for i in range(3)]
-    return bounded(lambda a, b, cc: ellipsoid(a, b, cc, c, r), x, y, z, lo, hi, margin)
+    return bounded(lambda a, b, cc: ellipsoid(a, b, cc, c=c, r=r), x, y, z, lo=lo, hi=hi, margin=margin)
 
 
 def _warp_arch(x: np.ndarray, z: np.ndarray, radius: float) -> np.ndarray:
@@ -383,8 +383,8 @@ class _Head:
     # ---- pieces --------------------------------------------------------------------------------------
 
     def cranium_sdf(self, x, y, z):
-        c = ellipsoid(x, y, z, *self.cranium)
-        return smin(c, ellipsoid(x, y, z, *self.forehead), 0.02)
+        c = ellipsoid(x, y, z, c=self.cranium[0], r=self.cranium[1])
+        return smin(c, ellipsoid(x, y, z, c=self.forehead[0], r=self.forehead[1]), 0.02)
 
     def _eye_local(self, x, y, z, side: int):
         """Eye-centred angular coordinates: (radius, azimuth toward the temple, elevation)."""
@@ -420,45 +420,47 @@ class _Head:
             e = self.eyes[side]
             sg = -1.0 if side == 0 else 1.0
 
-            def edit(d, x, y, z, e=e, sg=sg, side=side):
+            def edit(d, x, y, z, *, e=e, sg=sg, side=side):
                 socket = ellipsoid(
-                    x, y, z, (e[0] + sg * 0.001, e[1] + 0.002, e[2] + 0.010), (0.019, 0.0155, 0.011)
+                    x, y, z, c=(e[0] + sg * 0.001, e[1] + 0.002, e[2] + 0.010), r=(0.019, 0.0155, 0.011)
                 )
                 d = smax(d, -socket, 0.006)
                 ap = self.aperture(x, y, z, side)
-                lid = smax(sphere(x, y, z, e, self.lid_r), -ap, 0.001)
+                lid = smax(sphere(x, y, z, c=e, r=self.lid_r), -ap, 0.001)
                 d = smin(d, lid, 0.003)
-                return np.maximum(d, -np.maximum(ap, sphere(x, y, z, e, self.lid_r + 0.003)))
+                return np.maximum(d, -np.maximum(ap, sphere(x, y, z, c=e, r=self.lid_r + 0.003)))
 
             lo = (e[0] - 0.032, e[1] - 0.03, e[2] - 0.02)
             hi = (e[0] + 0.032, e[1] + 0.032, e[2] + 0.04)
-            face = edit_in_box(face, x, y, z, lo, hi, edit)
+            face = edit_in_box(face, x, y, z, lo=lo, hi=hi, fn=edit)
         return face
 
     def nose(self, x, y, z):
         n, t, nw = self.nasion, self.tip, self.nose_w
         tip_back = (0.0, t[1] + 0.002, t[2] - 0.007)
-        d = capsule(x, y, z, n, tip_back, 0.0052, 0.0068)
+        d = capsule(x, y, z, a=n, b=tip_back, ra=0.0052, rb=0.0068)
         side = ellipsoid(
             x,
             y,
             z,
-            (0.0, 0.5 * (n[1] + t[1]) - 0.004, 0.5 * (n[2] + t[2]) - 0.006),
-            (0.012 * nw, 0.5 * (n[1] - t[1]) + 0.004, 0.013),
+            c=(0.0, 0.5 * (n[1] + t[1]) - 0.004, 0.5 * (n[2] + t[2]) - 0.006),
+            r=(0.012 * nw, 0.5 * (n[1] - t[1]) + 0.004, 0.013),
         )
         d = smin(d, side, 0.006)
-        d = smin(d, ellipsoid(x, y, z, (0.0, t[1], t[2] - 0.0085), (0.0095 * nw, 0.0085, 0.0088)), 0.004)
+        d = smin(d, ellipsoid(x, y, z, c=(0.0, t[1], t[2] - 0.0085), r=(0.0095 * nw, 0.0085, 0.0088)), 0.004)
         for s in (-1, 1):
-            ala = ellipsoid(x, y, z, (s * 0.0135 * nw, t[1] - 0.005, t[2] - 0.019), (0.0072, 0.0068, 0.0075))
+            ala = ellipsoid(
+                x, y, z, c=(s * 0.0135 * nw, t[1] - 0.005, t[2] - 0.019), r=(0.0072, 0.0068, 0.0075)
+            )
             d = smin(d, ala, 0.003)
-        colum = ellipsoid(x, y, z, (0.0, t[1] - 0.009, t[2] - 0.012), (0.0055, 0.004, 0.010))
+        colum = ellipsoid(x, y, z, c=(0.0, t[1] - 0.009, t[2] - 0.012), r=(0.0055, 0.004, 0.010))
         return smin(d, colum, 0.003)
 
     def nostrils(self, d, x, y, z):
         t, nw = self.tip, self.nose_w
         for s in (-1, 1):
             hole = ellipsoid(
-                x, y, z, (s * 0.0068 * nw, t[1] - 0.0115, t[2] - 0.0145), (0.0038 * nw, 0.0026, 0.0068)
+                x, y, z, c=(s * 0.0068 * nw, t[1] - 0.0115, t[2] - 0.0145), r=(0.0038 * nw, 0.0026, 0.0068)
             )
             d = smax(d, -hole, 0.0012)
         return d
@@ -474,9 +476,9 @@ class _Head:
     def lips(self, x, y, z):
         lx, ly, lz = self._lip_frame(x, y, z)
         f, w, d = self.lip_f, self.mouth_w, self.d_open
-        upper = ellipsoid(lx, ly, lz, (0.0, 0.0042 * f, -0.0030), (0.5 * w, 0.0050 * f, 0.0075 * f))
+        upper = ellipsoid(lx, ly, lz, c=(0.0, 0.0042 * f, -0.0030), r=(0.5 * w, 0.0050 * f, 0.0075 * f))
         lower = ellipsoid(
-            lx, ly, lz, (0.0, -0.0055 * f - d, -0.0045 - 0.3 * d), (0.46 * w, 0.0058 * f, 0.0080 * f)
+            lx, ly, lz, c=(0.0, -0.0055 * f - d, -0.0045 - 0.3 * d), r=(0.46 * w, 0.0058 * f, 0.0080 * f)
         )
         return np.minimum(upper, lower)
 
@@ -484,16 +486,16 @@ class _Head:
         """The slit between the lips and, when open, the mouth's cavity (negative inside)."""
         lx, ly, lz = self._lip_frame(x, y, z)
         w, d = self.mouth_w, self.d_open
-        slit = ellipsoid(lx, ly, lz, (0.0, -0.5 * d, -0.006), (0.51 * w, 0.0007 + 0.5 * d, 0.013))
-        cavity = ellipsoid(lx, ly, lz, (0.0, -0.5 * d, -0.026), (0.024, 0.003 + 0.6 * d, 0.022))
+        slit = ellipsoid(lx, ly, lz, c=(0.0, -0.5 * d, -0.006), r=(0.51 * w, 0.0007 + 0.5 * d, 0.013))
+        cavity = ellipsoid(lx, ly, lz, c=(0.0, -0.5 * d, -0.026), r=(0.024, 0.003 + 0.6 * d, 0.022))
         return np.minimum(slit, cavity)
 
     def teeth(self, x, y, z):
         lx, ly, lz = self._lip_frame(x, y, z)
         lz = _warp_arch(x, z - self.mouth_z, 0.026)
         d = self.d_open
-        up = ellipsoid(lx, ly, lz, (0.0, 0.004, -0.0085), (0.019, 0.0055, 0.0035))
-        lo = ellipsoid(lx, ly, lz, (0.0, -0.004 - d, -0.0095 - 0.3 * d), (0.017, 0.0045, 0.0032))
+        up = ellipsoid(lx, ly, lz, c=(0.0, 0.004, -0.0085), r=(0.019, 0.0055, 0.0035))
+        lo = ellipsoid(lx, ly, lz, c=(0.0, -0.004 - d, -0.0095 - 0.3 * d), r=(0.017, 0.0045, 0.0032))
         return np.minimum(up, lo)
 
     def ear_frame(self, side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float, float]]:
@@ -530,48 +532,54 @@ class _Head:
         d = smin(plate, rim, 0.0015)
         d = smin(d, anti, 0.0015)
         concha = ellipsoid(
-            lu, lv, ln, (u0 - 0.005 * es, v0 + 0.004 * es, 0.0068), (0.0105 * es, 0.0085 * es, 0.006)
+            lu, lv, ln, c=(u0 - 0.005 * es, v0 + 0.004 * es, 0.0068), r=(0.0105 * es, 0.0085 * es, 0.006)
         )
         d = smax(d, -concha, 0.0015)
         lobe = ellipsoid(
-            lu, lv, ln, (u0 - 0.021 * es, v0 + 0.002 * es, 0.0028), (0.0095 * es, 0.0085 * es, 0.0045)
+            lu, lv, ln, c=(u0 - 0.021 * es, v0 + 0.002 * es, 0.0028), r=(0.0095 * es, 0.0085 * es, 0.0045)
         )
         d = smin(d, lobe, 0.003)
-        tragus = ellipsoid(lu, lv, ln, (u0 - 0.008 * es, v0 + 0.0125 * es, 0.0045), (0.005, 0.003, 0.0035))
+        tragus = ellipsoid(
+            lu, lv, ln, c=(u0 - 0.008 * es, v0 + 0.0125 * es, 0.0045), r=(0.005, 0.003, 0.0035)
+        )
         d = smin(d, tragus, 0.0015)
         # The root, reaching into the head.
-        root = ellipsoid(lu, lv, ln, (u0 - 0.004, v0 + 0.010 * es, -0.004), (0.020 * es, 0.008 * es, 0.006))
+        root = ellipsoid(
+            lu, lv, ln, c=(u0 - 0.004, v0 + 0.010 * es, -0.004), r=(0.020 * es, 0.008 * es, 0.006)
+        )
         return smin(d, root, 0.003)
 
     def face(self, x, y, z):
         """Cranium, face and jaw, before eyes, nose, lips, ears and neck."""
         d = self.cranium_sdf(x, y, z)
-        f = ellipsoid(x, y, z, *self.lower_face)
-        f = smin(f, _bounded_ellipsoid(x, y, z, *self.muzzle, 0.03), 0.012)
-        for c in self.cheeks:
-            f = smin(f, _bounded_ellipsoid(x, y, z, *c, 0.035), 0.015)
-        for c in self.cheekbones:
-            f = smin(f, _bounded_ellipsoid(x, y, z, *c, 0.03), 0.012)
+        f = ellipsoid(x, y, z, c=self.lower_face[0], r=self.lower_face[1])
+        f = smin(f, _bounded_ellipsoid(x, y, z, c=self.muzzle[0], r=self.muzzle[1], margin=0.03), 0.012)
+        for c, r in self.cheeks:
+            f = smin(f, _bounded_ellipsoid(x, y, z, c=c, r=r, margin=0.035), 0.015)
+        for c, r in self.cheekbones:
+            f = smin(f, _bounded_ellipsoid(x, y, z, c=c, r=r, margin=0.03), 0.012)
         for g, c, rt in zip(self.gonion, self.chin_side, self.ramus_top):
             lo = np.minimum(np.minimum(g, c), rt) - 0.012
             hi = np.maximum(np.maximum(g, c), rt) + 0.012
 
-            def jaw(x, y, z, g=g, c=c, rt=rt):
+            def jaw(x, y, z, *, g=g, c=c, rt=rt):
                 return smin(
-                    capsule(x, y, z, g, c, 0.011, 0.010), capsule(x, y, z, rt, g, 0.012, 0.011), 0.012
+                    capsule(x, y, z, a=g, b=c, ra=0.011, rb=0.010),
+                    capsule(x, y, z, a=rt, b=g, ra=0.012, rb=0.011),
+                    0.012,
                 )
 
-            f = smin(f, bounded(jaw, x, y, z, lo, hi, 0.03), 0.014)
-        f = smin(f, _bounded_ellipsoid(x, y, z, *self.chin, 0.02), 0.01)
+            f = smin(f, bounded(jaw, x, y, z, lo=lo, hi=hi, margin=0.03), 0.014)
+        f = smin(f, _bounded_ellipsoid(x, y, z, c=self.chin[0], r=self.chin[1], margin=0.02), 0.01)
         d = smin(d, f, 0.022)
 
         def brow(x, y, z):
-            b = ellipsoid(x, y, z, *self.glabella)
-            for c in self.brows:
-                b = smin(b, ellipsoid(x, y, z, *c), 0.01)
+            b = ellipsoid(x, y, z, c=self.glabella[0], r=self.glabella[1])
+            for c, r in self.brows:
+                b = smin(b, ellipsoid(x, y, z, c=c, r=r), 0.01)
             return b
 
-        b = bounded(brow, x, y, z, (-0.058, -0.002, 0.05), (0.058, 0.035, 0.095), 0.025)
+        b = bounded(brow, x, y, z, lo=(-0.058, -0.002, 0.05), hi=(0.058, 0.035, 0.095), margin=0.025)
         return smin(d, b, 0.012)
 
     def skin(self, x, y, z):
@@ -579,37 +587,41 @@ class _Head:
         d = self.face(x, y, z)
         d = self.eyelids(x, y, z, d)
         t = self.tip
-        nose = bounded(self.nose, x, y, z, (-0.03, t[1] - 0.02, 0.06), (0.03, 0.02, t[2] + 0.01), 0.02)
+        nose = bounded(
+            self.nose, x, y, z, lo=(-0.03, t[1] - 0.02, 0.06), hi=(0.03, 0.02, t[2] + 0.01), margin=0.02
+        )
         d = smin(d, nose, 0.006)
         d = edit_in_box(
-            d, x, y, z, (-0.02, t[1] - 0.025, t[2] - 0.03), (0.02, t[1], t[2] + 0.005), self.nostrils
+            d, x, y, z, lo=(-0.02, t[1] - 0.025, t[2] - 0.03), hi=(0.02, t[1], t[2] + 0.005), fn=self.nostrils
         )
         lo = (-0.04, self.sto_y - 0.02 - self.d_open, 0.07)
         hi = (0.04, self.sto_y + 0.02, 0.11)
-        d = smin(d, bounded(self.lips, x, y, z, lo, hi, 0.02), 0.0025)
-        d = smax(d, -bounded(self.mouth_cut, x, y, z, (-0.04, lo[1], 0.05), hi, 0.01), 0.0015)
+        d = smin(d, bounded(self.lips, x, y, z, lo=lo, hi=hi, margin=0.02), 0.0025)
+        d = smax(d, -bounded(self.mouth_cut, x, y, z, lo=(-0.04, lo[1], 0.05), hi=hi, margin=0.01), 0.0015)
         d = smin(d, self.neck_sdf(x, y, z), 0.012)
         return d
 
     def neck_sdf(self, x, y, z):
         """The neck, down into the shirt (and the chest inside a V neck)."""
-        d = capsule(x, y, z, self.neck[0], self.neck[1], self.neck_r)
+        d = capsule(x, y, z, a=self.neck[0], b=self.neck[1], ra=self.neck_r)
         if self.p["shirt_style"] == "vneck":
-            chest = ellipsoid(x, y, z, (0.0, -0.35, -0.008), (0.16 * self.shoulder_w, 0.13, 0.105))
+            chest = ellipsoid(x, y, z, c=(0.0, -0.35, -0.008), r=(0.16 * self.shoulder_w, 0.13, 0.105))
             vee = np.maximum(np.abs(x) - 0.5 * (y + 0.285) - 0.015, -0.295 - y)  # only what the V shows
             d = smin(d, np.maximum(chest, vee), 0.02)
         return d
 
     def body(self, x, y, z):
         """Neck, shoulders and chest (the shirt's inside)."""
-        return smin(capsule(x, y, z, self.neck[0], self.neck[1], self.neck_r), self.torso(x, y, z), 0.035)
+        return smin(
+            capsule(x, y, z, a=self.neck[0], b=self.neck[1], ra=self.neck_r), self.torso(x, y, z), 0.035
+        )
 
     def torso(self, x, y, z):
         """Shoulders and chest, without the neck."""
         sw = 0.175 * self.shoulder_w
-        shoulders = capsule(x, y, z, (-sw, -0.232, -0.022), (sw, -0.232, -0.022), 0.052)
-        chest = ellipsoid(x, y, z, (0.0, -0.35, -0.008), (0.16 * self.shoulder_w, 0.13, 0.105))
-        trap = capsule(x, y, z, (-0.10, -0.205, -0.035), (0.10, -0.205, -0.035), 0.04)
+        shoulders = capsule(x, y, z, a=(-sw, -0.232, -0.022), b=(sw, -0.232, -0.022), ra=0.052)
+        chest = ellipsoid(x, y, z, c=(0.0, -0.35, -0.008), r=(0.16 * self.shoulder_w, 0.13, 0.105))
+        trap = capsule(x, y, z, a=(-0.10, -0.205, -0.035), b=(0.10, -0.205, -0.035), ra=0.04)
         return smin(smin(shoulders, chest, 0.06), trap, 0.05)
 
 
@@ -733,7 +745,12 @@ def _ear_meshes(head: _Head, step: float = 0.0015) -> list[tuple[np.ndarray, np.
                             for c in (-0.010, 0.011)])  # fmt: skip
         world = corners @ np.stack([u, v, n]) + np.array(r)
         out.append(
-            mesh_sdf(lambda a, b, c, side=side: head.ear(a, b, c, side), world.min(0), world.max(0), step)
+            mesh_sdf(
+                lambda a, b, c, side=side: head.ear(a, b, c, side),
+                lo=world.min(0),
+                hi=world.max(0),
+                step=step,
+            )
         )
     return out
 
@@ -743,7 +760,7 @@ def _skin_mesh(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[tuple[str, Material]]]:
     """The skin (head, neck, ears) and a label per face: skin, lips, mouth, and stubble or buzz-cut hair."""
     lo = (_SKIN_LO[0], -0.27 if p["shirt_style"] == "vneck" else -0.215, _SKIN_LO[2])
-    v, f, n = merge_meshes([mesh_sdf(head.skin, lo, _SKIN_HI, _SKIN_STEP), *_ear_meshes(head)])
+    v, f, n = merge_meshes([mesh_sdf(head.skin, lo=lo, hi=_SKIN_HI, step=_SKIN_STEP), *_ear_meshes(head)])
     cen = v[f].mean(axis=1)
     cx, cy, cz = cen[:, 0], cen[:, 1], cen[:, 2]
     skin = np.array(p["skin_albedo"])
@@ -823,7 +840,7 @@ def _hair_sdf(head: _Head, p: dict, x, y, z):
         t_top, t_side = 0.014 + 0.012 * vol, 0.009 + 0.006 * vol
         for side in (0, 1):
             r = head.ear_root[side]
-            blob = ellipsoid(x, y, z, (r[0] * 1.12, r[1] + 0.002, r[2] - 0.016), (0.016, 0.036, 0.028))
+            blob = ellipsoid(x, y, z, c=(r[0] * 1.12, r[1] + 0.002, r[2] - 0.016), r=(0.016, 0.036, 0.028))
             base = smin(base, blob, 0.02)
     t = t_side + (t_top - t_side) * up
     t = t * (1.0 - 0.35 * front * (1.0 - up))  # thinner over the forehead
@@ -836,7 +853,7 @@ def _hair_sdf(head: _Head, p: dict, x, y, z):
         grooves = 0.0025 * np.sin(150.0 * x) * np.sin(150.0 * y + 1.0) * np.sin(150.0 * z + 2.0)
     d = smax(np.maximum(base - t + grooves, -(base + 0.006)), region, 0.002)
     if style == "bun":
-        d = smin(d, sphere(x, y, z, (0.0, 0.075, -0.112), 0.028 + 0.01 * vol), 0.012)
+        d = smin(d, sphere(x, y, z, c=(0.0, 0.075, -0.112), r=0.028 + 0.01 * vol), 0.012)
     if style == "long":
         # A curtain falling from the head: hugging it at the top, flaring a little toward the shoulders,
         # thinning and ending in a rounded, uneven edge; grooves run down its strands.
@@ -880,7 +897,7 @@ def _hat_sdf(head: _Head, p: dict, x, y, z):
         cuff = 0.003 * np.clip((edge + 0.028 - y) / 0.003, 0.0, 1.0)
         d = np.maximum(base - 0.011 - cuff + ribs, edge - y)
         if p["hair_volume"] > 0.5:  # a pompom
-            d = smin(d, sphere(x, y, z, (0.0, 0.132, -0.02), 0.016), 0.006)
+            d = smin(d, sphere(x, y, z, c=(0.0, 0.132, -0.02), r=0.016), 0.006)
         return d
     # Cap: a dome and a brim.
     d = np.maximum(base - 0.008, edge - y)
@@ -890,10 +907,10 @@ def _hat_sdf(head: _Head, p: dict, x, y, z):
     outline = np.sqrt((x / 0.085) ** 2 + ((z - fz + 0.02) / 0.085) ** 2) - 1.0
     brim = np.maximum(plate, np.maximum(outline * 0.08, fz - 0.03 - z))
     d = smin(d, brim, 0.004)
-    return smin(d, sphere(x, y, z, (0.0, 0.127, -0.015), 0.006), 0.002)
+    return smin(d, sphere(x, y, z, c=(0.0, 0.127, -0.015), r=0.006), 0.002)
 
 
-def _brow_region(head: _Head, p: dict, x, y, z, side: int):
+def _brow_region(head: _Head, p: dict, x, y, z, *, side: int):
     sg = -1.0 if side == 0 else 1.0
     e = head.eyes[side]
     xl = sg * x
@@ -905,10 +922,10 @@ def _brow_region(head: _Head, p: dict, x, y, z, side: int):
     return np.maximum(d, 0.05 - z)
 
 
-def _brow_sdf(head: _Head, p: dict, x, y, z, side: int):
+def _brow_sdf(head: _Head, p: dict, x, y, z, *, side: int):
     """A thin shell over the skin inside the brow band, thickest in the middle of the band."""
     skin = head.skin(x, y, z)
-    region = _brow_region(head, p, x, y, z, side)
+    region = _brow_region(head, p, x, y, z, side=side)
     t = 0.0019 * np.clip(-region / 0.0015, 0.3, 1.0)
     return smax(np.maximum(skin - t, -(skin + 0.0008)), region, 0.0005)
 
@@ -952,7 +969,7 @@ def _beard_sdf(head: _Head, p: dict, x, y, z):
     texture = 0.0008 * np.sin(260.0 * x + 70.0 * y) * np.sin(210.0 * z + 40.0 * x)
     d = smax(np.maximum(skin - t + texture, -(skin + 0.0045)), region, 0.002)
     if p["facial_hair"] == "long_beard":
-        hang = ellipsoid(x, y, z, (0.0, -0.132 - head.d_open, 0.06), (0.04, 0.04, 0.028))
+        hang = ellipsoid(x, y, z, c=(0.0, -0.132 - head.d_open, 0.06), r=(0.04, 0.04, 0.028))
         d = smin(d, np.maximum(hang, y - head.sto_y + 0.03), 0.012)
     return d
 
@@ -971,10 +988,14 @@ def _glasses_sdf(head: _Head, p: dict, x, y, z):
             - 0.006
         )
         ring = np.sqrt(rect**2 + zz**2) - 0.0016
-        temple = capsule(x, y, z, (sg * (ex + 0.029), 0.010, zg - 0.006), (sg * 0.074, 0.008, -0.005), 0.0013)
+        temple = capsule(
+            x, y, z, a=(sg * (ex + 0.029), 0.010, zg - 0.006), b=(sg * 0.074, 0.008, -0.005), ra=0.0013
+        )
         part = np.minimum(ring, temple)
         d = part if d is None else np.minimum(d, part)
-    bridge = capsule(x, y, z, (-ex + 0.024, 0.009, zg + 0.0005), (ex - 0.024, 0.009, zg + 0.0005), 0.0014)
+    bridge = capsule(
+        x, y, z, a=(-ex + 0.024, 0.009, zg + 0.0005), b=(ex - 0.024, 0.009, zg + 0.0005), ra=0.0014
+    )
     return np.minimum(d, bridge)
 
 
@@ -985,7 +1006,7 @@ def _shirt_sdf(head: _Head, p: dict, x, y, z):
     d = body - 0.005 + folds
     if p["shirt_style"] == "turtleneck":
         return d
-    hole = capsule(x, y, z, head.neck[0], head.neck[1], head.neck_r) - 0.010
+    hole = capsule(x, y, z, a=head.neck[0], b=head.neck[1], ra=head.neck_r) - 0.010
     if p["shirt_style"] == "vneck":
         vee = np.abs(x) - 0.5 * (y + 0.285)
         hole = np.minimum(hole, np.maximum(vee, -z))
@@ -996,7 +1017,7 @@ def _collar_sdf(head: _Head, p: dict, x, y, z):
     """The neckline's finish, meshed finer than the shirt: a rib (crew), a V rib, a standing collar or a
     turtleneck's rolled tube."""
     style = p["shirt_style"]
-    neck = capsule(x, y, z, head.neck[0], head.neck[1], head.neck_r)
+    neck = capsule(x, y, z, a=head.neck[0], b=head.neck[1], ra=head.neck_r)
     back = np.clip(-z / 0.05, 0.0, 1.0)
     if style == "turtleneck":  # solid down to the neck's axis: the skin inside it is hidden
         top = -0.135 + 0.03 * back
@@ -1061,7 +1082,7 @@ def _earring_sdf(head: _Head, p: dict, x, y, z):
             [u, v, n]
         ) + np.array(r)
         if p["earring_style"] == "stud":
-            e = sphere(x, y, z, lobe, 0.0028)
+            e = sphere(x, y, z, c=lobe, r=0.0028)
         else:
             c = lobe - np.array([0.0, 0.011, 0.0])
             q = np.sqrt((y - c[1]) ** 2 + (z - c[2]) ** 2) - 0.010
@@ -1123,14 +1144,14 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
     # (name, vertices, faces, normals, material, its SDF when it hides what is inside it)
     pieces: list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None, Material, object]] = []
 
-    def add(name, mesh, material, sdf=None, box=None):
+    def add(name, mesh, *, material, sdf=None, box=None):
         if len(mesh[1]):
             if sdf is not None:  # what the mesh holds: the SDF clipped to the meshed box, and its step
                 sdf = (_clip_to_box(sdf, *box[:2]), box[2])
             pieces.append((name, mesh[0], mesh[1], mesh[2], material, sdf))
 
-    def fn_of(f, *args):
-        return lambda x, y, z: f(head, p, x, y, z, *args)
+    def fn_of(f, **kwargs):
+        return lambda x, y, z: f(head, p, x, y, z, **kwargs)
 
     # Eyebrows: a thin shell over the skin inside a band over each brow ridge.
     hair_rgb = np.array(_HAIR_COLOURS[p["beard_colour"]])
@@ -1142,35 +1163,45 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
     for side in (0, 1):
         sg = -1.0 if side == 0 else 1.0
         lo, hi = (min(sg * 0.006, sg * 0.064), 0.002, 0.05), (max(sg * 0.006, sg * 0.064), 0.036, 0.1)
-        brows.append(mesh_sdf(fn_of(_brow_sdf, side), lo, hi, 0.001))
-    add("brows", merge_meshes(brows), Material("hair", _rgb(brow_rgb), 0.35, 0.4))
+        brows.append(mesh_sdf(fn_of(_brow_sdf, side=side), lo=lo, hi=hi, step=0.001))
+    add("brows", merge_meshes(brows), material=Material("hair", _rgb(brow_rgb), 0.35, 0.4))
     if p["facial_hair"] not in ("none", "stubble"):
         box = ((-0.085, -0.2, -0.03), (0.085, 0.0, 0.135))
-        add("beard", mesh_sdf(fn_of(_beard_sdf), *box, 0.0026), beard_mat, fn_of(_beard_sdf), (*box, 0.0026))
+        beard = mesh_sdf(fn_of(_beard_sdf), lo=box[0], hi=box[1], step=0.0026)
+        add("beard", beard, material=beard_mat, sdf=fn_of(_beard_sdf), box=(*box, 0.0026))
     if p["hair_style"] not in ("bald", "buzz"):
         hair_fn = fn_of(_hair_sdf)
         if p["hat"] != "none":
             hair_fn = lambda x, y, z: np.maximum(_hair_sdf(head, p, x, y, z), -_hat_cover(p, x, y, z))
         step = 0.0036 if p["hair_style"] in ("afro", "long") else 0.003
         box = ((-0.16, -0.30, -0.20), (0.16, 0.19, 0.14))
-        add("hair", mesh_sdf(hair_fn, *box, step), hair_mat, hair_fn, (*box, step))
+        hair = mesh_sdf(hair_fn, lo=box[0], hi=box[1], step=step)
+        add("hair", hair, material=hair_mat, sdf=hair_fn, box=(*box, step))
     if p["hat"] != "none":
         hat_fn = fn_of(_hat_sdf)
         kind = "diffuse" if p["hat"] == "beanie" else "glossy"
         box = ((-0.12, -0.03, -0.14), (0.12, 0.16, 0.20))
-        add("hat", mesh_sdf(hat_fn, *box, 0.0028), Material(kind, tuple(p["hat_albedo"]), 0.45, 0.4), hat_fn,
-            (*box, 0.0028))  # fmt: skip
+        hat = mesh_sdf(hat_fn, lo=box[0], hi=box[1], step=0.0028)
+        add(
+            "hat",
+            hat,
+            material=Material(kind, tuple(p["hat_albedo"]), 0.45, 0.4),
+            sdf=hat_fn,
+            box=(*box, 0.0028),
+        )
     if p["glasses"]:
-        add("glasses", mesh_sdf(fn_of(_glasses_sdf), (-0.08, -0.02, -0.01), (0.08, 0.024, 0.1), 0.001),
-            frame_material(p["glasses_frame"], p["glasses_albedo"], 0.15))  # fmt: skip
+        glasses = mesh_sdf(fn_of(_glasses_sdf), lo=(-0.08, -0.02, -0.01), hi=(0.08, 0.024, 0.1), step=0.001)
+        add("glasses", glasses, material=frame_material(p["glasses_frame"], p["glasses_albedo"], 0.15))
     if p["earrings"]:
-        add("earrings", mesh_sdf(fn_of(_earring_sdf), (-0.11, -0.075, -0.06), (0.11, -0.005, 0.03), 0.0007),
-            Material("glossy", tuple(p["earring_albedo"]), 0.08, 0.5))  # fmt: skip
+        earrings = mesh_sdf(
+            fn_of(_earring_sdf), lo=(-0.11, -0.075, -0.06), hi=(0.11, -0.005, 0.03), step=0.0007
+        )
+        add("earrings", earrings, material=Material("glossy", tuple(p["earring_albedo"]), 0.08, 0.5))
     if p["mouth_open"] > 0.1:
         lo = (-0.03, head.sto_y - 0.015 - head.d_open, head.mouth_z - 0.03)
         hi = (0.03, head.sto_y + 0.012, head.mouth_z + 0.005)
-        add("teeth", mesh_sdf(lambda x, y, z: head.teeth(x, y, z), lo, hi, 0.001),
-            Material("glossy", (0.62, 0.57, 0.47), 0.25, 0.5))  # fmt: skip
+        add("teeth", mesh_sdf(lambda x, y, z: head.teeth(x, y, z), lo=lo, hi=hi, step=0.001),
+            material=Material("glossy", (0.62, 0.57, 0.47), 0.25, 0.5))  # fmt: skip
     shirt_mat = Material("diffuse", tuple(p["shirt_albedo"]), 0.6, 0.3)
     turtle = p["shirt_style"] == "turtleneck"
     box = (
@@ -1178,9 +1209,10 @@ def make_subject(seed: int, *, cull_hidden: bool = True) -> Subject:
         (0.085, -0.10 if turtle else -0.15, 0.085),
     )
     step = 0.0035 if turtle else 0.0027
-    collar = mesh_sdf(fn_of(_collar_sdf), *box, step)
-    shirt = mesh_sdf(fn_of(_shirt_sdf), _SHIRT_LO, _SHIRT_HI, 0.008)
-    add("shirt", merge_meshes([shirt, collar]), shirt_mat, fn_of(_collar_sdf) if turtle else None, (*box, step))
+    collar = mesh_sdf(fn_of(_collar_sdf), lo=box[0], hi=box[1], step=step)
+    shirt = mesh_sdf(fn_of(_shirt_sdf), lo=_SHIRT_LO, hi=_SHIRT_HI, step=0.008)
+    collar_sdf = fn_of(_collar_sdf) if turtle else None
+    add("shirt", merge_meshes([shirt, collar]), material=shirt_mat, sdf=collar_sdf, box=(*box, step))
     # The shirt's body is smooth and thick: its mesh follows its SDF closely, so it hides skin 4 mm inside it.
     occluders_extra = [(_clip_to_box(fn_of(_shirt_sdf), _SHIRT_LO, _SHIRT_HI), 0.004 / 1.5)]
 

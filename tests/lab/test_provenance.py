@@ -1,4 +1,4 @@
-"""kornia_ilum.core.provenance: the stamp of a figure, read back, and the fingerprint of the code it shows."""
+"""kornia_ilum_lab.provenance: the stamp of a figure, read back, and the fingerprint of the code it shows."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from kornia_ilum.core.errors import ValueCheckError
-from kornia_ilum.core.provenance import code_fingerprint, figure_problems, read_stamp, stamp_figure
+from kornia_ilum_lab.provenance import code_fingerprint, figure_problems, read_stamp, stamp_figure
 
 
 def _png(path: Path) -> Path:

@@ -194,7 +194,7 @@ def figure_problems(path: str | os.PathLike[str]) -> list[str]:
     path = Path(path)
     stamp = read_stamp(path)
     if stamp is None:
-        return [f"{path} has no provenance stamp (kornia_ilum.core.provenance.stamp_figure)"]
+        return [f"{path} has no provenance stamp (kornia_ilum_lab.provenance.stamp_figure)"]
     again = f"; make it again with: {stamp['command']}"
     problems = []
     for module, fingerprint in stamp["shows"].items():
