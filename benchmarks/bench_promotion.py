@@ -195,7 +195,7 @@ def systems(truth: torch.Tensor, size: int):
     one batch padded to the largest probe (``promote_spheres`` sorts the probes by size into chunks of 32)."""
     ldr = encode(render_spheres(truth, size))
     args = (ldr["mirror"], ldr["diffuse"], ldr["matte_silver"])
-    enc, lin, clipped, base, thr = _prepare(*args, 2.2, CLIP_THRESHOLD)
+    enc, lin, clipped, base, thr = _prepare(*args, gamma=2.2, threshold=CLIP_THRESHOLD)
     keep = clipped.any(1)
     fields = _fields(size, torch.device("cpu"))
     system = _build_system(

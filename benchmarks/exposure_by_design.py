@@ -40,7 +40,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=1024)
     parser.add_argument("--estimator", nargs="+", default=["sh", "sipr"])
     args = parser.parse_args()
-    eval_set = build_eval_set(args.cache, args.hdri, args.samples)
+    eval_set = build_eval_set(args.cache, args.hdri, samples=args.samples)
     photos = face_crops(default_photos())[0]
     print(f"{len(eval_set)} eval portraits; {len(photos)} real photo(s)")
     for name in args.estimator:

@@ -89,7 +89,7 @@ def main() -> None:
         estimator = load_checkpoint(*args.weights)[0]
     else:
         estimator = load_estimator("ours")
-    eval_set = build_eval_set(args.cache, args.hdri, args.samples)
+    eval_set = build_eval_set(args.cache, args.hdri, samples=args.samples)
     albedo = {}
     for cache in args.cache:
         for entry in read_manifest(cache)["entries"]:

@@ -42,7 +42,7 @@ def main() -> None:
     args = parser.parse_args()
     rows = {}
     for name, camera in (("roll-off off", CameraEffects(rolloff_p=0.0)), ("default", CameraEffects())):
-        eval_set = build_eval_set(args.cache, args.hdri, args.samples, portraits={"camera": camera})
+        eval_set = build_eval_set(args.cache, args.hdri, samples=args.samples, portraits={"camera": camera})
         rows[name] = clipped_shares(eval_set.images, eval_set.alpha)
     tones = torch.tensor(eval_set.skin_tone)
     print(f"{len(tones)} eval portraits; share of pixels at code 255 (subject / background), and of photos with "

@@ -587,7 +587,8 @@ def _error(message: str, status: int) -> int:
     return status
 
 
-def _warn(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG001
+def _warn(message, category, filename, lineno, *where) -> None:  # noqa: ARG001
+    # warnings.showwarning's signature; ``where`` is its (file, line), which a one-line warning leaves out
     print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 

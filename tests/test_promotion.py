@@ -221,7 +221,7 @@ class TestPromoteSpheres:
         """The assembled G, c are A^T A, A^T b of the documented least-squares rows (Eq. 3)."""
         truth = sun_environment(16, 900.0)
         truth[0, :, 3, 7] = 300.0
-        enc, lin, clipped, base, thr = _prepare(*encode(truth), 2.2, CLIP_THRESHOLD)
+        enc, lin, clipped, base, thr = _prepare(*encode(truth), gamma=2.2, threshold=CLIP_THRESHOLD)
         system = _build_system(
             _fields(16, torch.device("cpu")),
             enc,

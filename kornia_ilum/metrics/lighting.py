@@ -167,11 +167,11 @@ def reconstruction_loss(
 
     Examples:
         >>> gt = torch.ones(2, 3, 32, 32)
-        >>> reconstruction_loss(gt, gt, "diffuse").item()
+        >>> reconstruction_loss(gt, gt, brdf="diffuse").item()
         0.0
-        >>> round(reconstruction_loss(0.5 * gt, gt, "mirror", size=16).item(), 3)
+        >>> round(reconstruction_loss(0.5 * gt, gt, brdf="mirror", size=16).item(), 3)
         0.247
-        >>> round(reconstruction_loss(-0.1 * gt, gt, "diffuse").item(), 3)  # negative light counts as 0
+        >>> round(reconstruction_loss(-0.1 * gt, gt, brdf="diffuse").item(), 3)  # negative light counts as 0
         0.903
     """
     s_l = check_lighting_pair(pred, target)
@@ -223,11 +223,11 @@ def multiscale_reconstruction_loss(
 
     Examples:
         >>> gt = torch.ones(1, 3, 32, 32)
-        >>> multiscale_reconstruction_loss(gt, gt, "matte_silver").item()
+        >>> multiscale_reconstruction_loss(gt, gt, brdf="matte_silver").item()
         0.0
         >>> pred = gt.clone()
         >>> pred[0, :, 16, 16] = 50.0  # one bright pixel: every scale sees it
-        >>> bool(multiscale_reconstruction_loss(pred, gt, "mirror", sizes=(4,), gamma="safe") > 0)
+        >>> bool(multiscale_reconstruction_loss(pred, gt, brdf="mirror", sizes=(4,), gamma="safe") > 0)
         True
     """
     s_l = check_lighting_pair(pred, target)

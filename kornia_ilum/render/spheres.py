@@ -375,9 +375,9 @@ def shared_sphere_field(
         lighting pixels, as :func:`sphere_reflectance_field`.
 
     Examples:
-        >>> args = ("mirror", 8, 32, torch.device("cpu"), torch.float32)
-        >>> field = shared_sphere_field(*args, on_sphere=True)
-        >>> field.shape, field is shared_sphere_field(*args, on_sphere=True)
+        >>> settings = {"lighting_size": 32, "device": torch.device("cpu"), "dtype": torch.float32}
+        >>> field = shared_sphere_field("mirror", 8, **settings, on_sphere=True)
+        >>> field.shape, field is shared_sphere_field("mirror", 8, **settings, on_sphere=True)
         (torch.Size([52, 1024]), True)
     """
     field = (_multiscale_f64 if multiscale else _field_f64)(brdf, size, lighting_size, supersamples)
@@ -394,7 +394,8 @@ class SpherePlan(NamedTuple):
     the lighting's own size, whose renders are copies of lighting pixels.
 
     Examples:
-        >>> plan = sphere_plan(("mirror",), (8, 32), 32, torch.device("cpu"), torch.float32)
+        >>> cpu = torch.device("cpu")
+        >>> plan = sphere_plan(("mirror",), (8, 32), lighting_size=32, device=cpu, dtype=torch.float32)
         >>> plan.field.shape, plan.index.shape, plan.order is None  # the 8 px mirror: one product
         (torch.Size([52, 1024]), torch.Size([812]), True)
     """
@@ -437,7 +438,8 @@ def sphere_plan(
         sphere in row-major order, brdf-major and in the order of ``sizes``.
 
     Examples:
-        >>> plan = sphere_plan(("diffuse", "mirror"), (4, 32), 32, torch.device("cpu"), torch.float32)
+        >>> plan = sphere_plan(("diffuse", "mirror"), (4, 32), lighting_size=32, device=torch.device("cpu"),
+        ...                    dtype=torch.float32)
         >>> plan.field.shape, plan.index.shape  # the 32 x 32 mirror is a copy of the lighting
         (torch.Size([836, 1024]), torch.Size([812]))
     """
@@ -484,7 +486,8 @@ def render_plan(plan: SpherePlan, lights: torch.Tensor, *, knee: float | None = 
         - Output: :math:`(B, 3, P)`
 
     Examples:
-        >>> plan = sphere_plan(("diffuse",), (4,), 32, torch.device("cpu"), torch.float32)
+        >>> plan = sphere_plan(("diffuse",), (4,), lighting_size=32, device=torch.device("cpu"),
+        ...                    dtype=torch.float32)
         >>> out = render_plan(plan, torch.ones(1, 1024, 3))
         >>> out.shape, round(out[0, 0, 0].item(), 4)  # uniform white lighting: the albedo
         (torch.Size([1, 3, 12]), 0.8)
@@ -648,7 +651,7 @@ def render_spheres(
     (:func:`~kornia_ilum.render.mirror_ball_pyramid`), so a coarse sphere sees all of the lighting, a single
     bright pixel included. Spheres larger than the lighting are rendered from it directly (the field
     integrates each lighting pixel over its solid angle). This is ``sphere_reflectance_field(brdf, size,
-    S_L, multiscale=True)`` applied to the lighting.
+    lighting_size=S_L, multiscale=True)`` applied to the lighting.
 
     Args:
         lighting: linear mirror-ball lighting in radiance, ``(B, 3, S_L, S_L)``, ``S_L`` in

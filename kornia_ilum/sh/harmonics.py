@@ -483,7 +483,7 @@ class SHReconstruct(nn.Module):
         - Output: :math:`(B, 3, S, S)` or :math:`(B, 3, H, 2H)`
 
     Examples:
-        >>> SHReconstruct(16, "latlong")(torch.zeros(2, 9, 3)).shape
+        >>> SHReconstruct(16, layout="latlong")(torch.zeros(2, 9, 3)).shape
         torch.Size([2, 3, 16, 32])
     """
 

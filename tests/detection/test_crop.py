@@ -289,4 +289,4 @@ class TestCropFaces:
     def test_compile(self):
         image, boxes = torch.rand(3, 16, 16), torch.tensor([[-2.0, 1.0, 14.0, 17.0]])
         compiled = torch.compile(crop_faces)
-        torch.testing.assert_close(compiled(image, boxes, 8), crop_faces(image, boxes, size=8))
+        torch.testing.assert_close(compiled(image, boxes, size=8), crop_faces(image, boxes, size=8))

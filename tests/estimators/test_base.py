@@ -329,8 +329,7 @@ class TestFromPretrained:
     def test_no_weights_shipped(self):
         with pytest.raises(
             MissingWeightsError,
-            match=r"^'toy' is registered but ships no trained weights yet; pass "
-            r"pretrained=False for an untrained model or pick one of: .*uniform",
+            match=r"^'toy' ships no trained weights yet; pass pretrained=False for an untrained model",
         ):
             Toy.from_pretrained()
 

@@ -11,7 +11,7 @@ import pytest
 import torch
 from kornia_ilum_uniform import UniformEstimator
 
-from kornia_ilum.core.errors import MissingWeightsError
+from kornia_ilum.core.errors import MissingWeightsError, UnknownNameError
 from kornia_ilum.estimators import (
     DEFAULT_ESTIMATOR,
     ENTRY_POINT_GROUP,
@@ -137,7 +137,8 @@ class TestInstalledEntryPoints:
         assert uniform.paper.startswith("none") and uniform.description
 
     def test_unknown_name_lists_valid_names(self):
-        with pytest.raises(ValueError, match=r"unknown estimator 'nope'\. Valid names: ours, sh, sipr, uniform$"):
+        with pytest.raises(UnknownNameError, match=r"unknown estimator 'nope'\. Valid names: ours, sh, sipr, uniform; "
+                           r"an estimator plugin registers its estimators in the entry-point group "):
             create_estimator("nope")
         with pytest.raises(ValueError, match="Valid names: ours, sh, sipr, uniform"):
             estimator_info("nope")
@@ -221,14 +222,16 @@ class TestPatchedEntryPoints:
         assert list_estimators() == ["toy"]
         assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
 
-    def test_known_plugin_not_installed(self, patch_entry_points):
+    def test_plugin_not_installed(self, patch_entry_points):
+        """The registry names no plugin by hand: it says where estimators come from (a ValueError, typed)."""
         patch_entry_points(real("ours"))
         with pytest.raises(
-            ValueError,
-            match=r"unknown estimator 'uniform'; .*pip install \./plugins/uniform.*"
-            r"Valid names: ours$",
+            UnknownNameError,
+            match=r"unknown estimator 'uniform'\. Valid names: ours; .*'kornia_ilum\.estimators'.*pip install "
+            r"\./plugins/NAME",
         ):
             create_estimator("uniform")
+        assert issubclass(UnknownNameError, ValueError)
         assert isinstance(create_estimator(DEFAULT_ESTIMATOR), OursEstimator)  # ships in kornia_ilum itself
 
     def test_no_plugins(self, patch_entry_points):

@@ -14,8 +14,8 @@ from kornia_ilum_lab.ablation import ABLATIONS, BASELINE, ablation_config, forma
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.evaluation import BRDF_NAMES, build_eval_set
 from kornia_ilum_lab.train.data import training_dataset
-from tests.evaluation.helpers import write_cache
-from tests.train.helpers import small_data
+from tests.lab.evaluation.helpers import write_cache
+from tests.lab.train.helpers import small_data
 
 
 @pytest.fixture(scope="module")

@@ -127,7 +127,8 @@ class TestReconstructionLoss:
         pred, target = hdr_lighting(seed=1), hdr_lighting(seed=2)
         compiled = torch.compile(reconstruction_loss)
         torch.testing.assert_close(
-            compiled(pred, target, "diffuse", 8), reconstruction_loss(pred, target, brdf="diffuse", size=8)
+            compiled(pred, target, brdf="diffuse", size=8),
+            reconstruction_loss(pred, target, brdf="diffuse", size=8),
         )
 
     @given(st.integers(0, 2**16), st.sampled_from(BRDFS), st.sampled_from([4, 8, 32]))

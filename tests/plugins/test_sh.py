@@ -27,7 +27,7 @@ from kornia_ilum.render import mirror_ball_pyramid
 from kornia_ilum.sh import sh_project, sh_reconstruct
 from kornia_ilum_lab.train import BRDF_WEIGHTS, TrainConfig, train, training_losses
 from kornia_ilum_lab.train.recipes import get_recipe, list_recipes
-from tests.train.helpers import small_data
+from tests.lab.train.helpers import small_data
 
 VALID = mirror_ball_valid(32)
 

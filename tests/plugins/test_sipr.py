@@ -35,7 +35,7 @@ from kornia_ilum_lab.train import TrainConfig, read_log, train
 from kornia_ilum_lab.train.data import collate
 import kornia_ilum_lab.train.recipes
 from kornia_ilum_lab.train.recipes import get_recipe, list_recipes
-from tests.train.helpers import small_data
+from tests.lab.train.helpers import small_data
 
 
 @pytest.fixture(scope="module")

@@ -206,7 +206,7 @@ def run_ablations(names: Sequence[str], out: str | os.PathLike[str], *, cache: S
     for name in rows:
         row = ABLATIONS[name]
         if row.eval_key not in sets:
-            eval_set = build_eval_set(eval_cache, hdri, samples, background=row.background,
+            eval_set = build_eval_set(eval_cache, hdri, samples=samples, background=row.background,
                                       portraits=row.portraits, progress=True)
             sets[row.eval_key] = eval_set, _row_scores(eval_set, weights["baseline"][0], batch_size)[0]
         eval_set, base = sets[row.eval_key]

@@ -10,7 +10,7 @@ import torch
 from kornia_ilum_lab.evaluation import build_eval_set
 from kornia_ilum.io import write_hdr
 from kornia_ilum_lab.synth.lightstage import subject_split
-from tests.evaluation.helpers import N, write_cache
+from tests.lab.evaluation.helpers import N, write_cache
 
 
 @pytest.fixture(scope="package")

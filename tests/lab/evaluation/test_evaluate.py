@@ -24,7 +24,7 @@ from kornia_ilum_lab.evaluation import (
 from kornia_ilum.metrics import relative_radiance
 from kornia_ilum.sh import sh_project
 from kornia_ilum_lab.synth.lightstage import subject_split
-from tests.evaluation.helpers import N
+from tests.lab.evaluation.helpers import N
 
 
 class TestEvalSet:

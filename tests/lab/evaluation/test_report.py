@@ -10,7 +10,7 @@ import safetensors.torch
 from kornia_ilum.core.files import sha256_file
 from kornia_ilum.estimators import create_estimator
 from kornia_ilum_lab.evaluation import BRDF_NAMES, ORACLES, evaluate, format_markdown, summarize, write_report
-from tests.evaluation.helpers import N
+from tests.lab.evaluation.helpers import N
 
 
 class TestReport:

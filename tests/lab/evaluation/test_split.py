@@ -13,7 +13,7 @@ from kornia_ilum_lab.evaluation import eval_environment_sources, eval_fields, he
 from kornia_ilum.io import write_hdr
 from kornia_ilum_lab.synth.cli import add_synth_subjects_parser, split_seeds
 from kornia_ilum_lab.synth.environments.real import HDRFolderSource, folder_splits, guess_label, hdri_split
-from tests.evaluation.helpers import tiny_field
+from tests.lab.evaluation.helpers import tiny_field
 
 
 class TestSplits:

@@ -15,7 +15,7 @@ from kornia_ilum_lab.train import Recipe, TrainConfig, read_log, train
 from kornia_ilum_lab.train.calibration import CALIBRATION_STREAM, calibrate_energy, energy_log_ratios
 from kornia_ilum_lab.train.data import training_dataset
 from kornia_ilum_lab.train.recipes import PROBE_STREAM, OursRecipe
-from tests.train.helpers import small_data, weights
+from tests.lab.train.helpers import small_data, weights
 
 
 @pytest.fixture

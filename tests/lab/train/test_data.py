@@ -12,7 +12,7 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum_lab.train import TrainConfig
 from kornia_ilum_lab.train.data import TRAINING_PORTRAITS, StepBatches, collate, training_dataset
-from tests.train.helpers import small_data
+from tests.lab.train.helpers import small_data
 
 pytestmark = pytest.mark.slow  # the tiny_cache fixture renders with Mitsuba
 

@@ -20,7 +20,7 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum_lab.train import TrainConfig, average_snapshots, export_weights, read_log, train
-from tests.train.helpers import cli, common, env, small_data, weights
+from tests.lab.train.helpers import cli, common, env, small_data, weights
 
 _LOSS_COLUMNS = slice(4, None)  # log.csv columns after step, samples, elapsed_s, samples_per_s
 

@@ -52,7 +52,7 @@ class BenchError:
                  *, samples: int = 1024, quick: bool = False) -> None:
         self.cache, self.hdri, self.quick = list(cache), list(hdri), quick
         if self.cache:
-            self.eval_set: EvalSet = build_eval_set(self.cache, self.hdri, samples)
+            self.eval_set: EvalSet = build_eval_set(self.cache, self.hdri, samples=samples)
             self.what = (f"the held-out eval split ({len(self.eval_set)} portraits of "
                          f"{len(self.eval_set.description['subjects'])} eval subjects, kornia-ilum evaluate's set)")
         else:

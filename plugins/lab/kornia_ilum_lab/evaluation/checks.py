@@ -588,7 +588,7 @@ def jitter_boxes(nominal: torch.Tensor, jitters: int, *, height: int, width: int
         as the boxes of :mod:`kornia_ilum.detection`.
 
     Examples:
-        >>> boxes = jitter_boxes(torch.tensor([[64.0, 64.0, 192.0, 192.0]]), 4, 256, 256,
+        >>> boxes = jitter_boxes(torch.tensor([[64.0, 64.0, 192.0, 192.0]]), 4, height=256, width=256,
         ...                      generator=torch.Generator().manual_seed(0))
         >>> boxes.shape, bool(((boxes[..., 2] - boxes[..., 0]) <= 128 * math.exp(0.15) + 1e-9).all())
         (torch.Size([1, 4, 4]), True)
@@ -826,7 +826,7 @@ def run_checks(
     Examples:
         >>> from kornia_ilum_lab.evaluation import probe_eval_set
         >>> from kornia_ilum.estimators import create_estimator
-        >>> out = run_checks(create_estimator("uniform"), probe_eval_set(slice(64, 68)), ["exposure"])
+        >>> out = run_checks(create_estimator("uniform"), probe_eval_set(slice(64, 68)), checks=["exposure"])
         >>> sorted(out), sorted(out["exposure"]["eval"]), out["exposure"]["eval"]["0.5"]["count"]
         (['exposure', 'seconds'], ['0.25', '0.5'], 4)
     """

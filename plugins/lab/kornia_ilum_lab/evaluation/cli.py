@@ -270,7 +270,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueCheckError("evaluate needs --cache DIR (a light-stage cache with eval subjects); only "
                               "--curve with curve.csv files alone goes without")
     eval_set = None if len(written) == len(curves) and curves else build_eval_set(
-        args.cache, hdri, samples, background=background, progress=True)
+        args.cache, hdri, samples=samples, background=background, progress=True)
     if curves:
         found = {}
         for run in curves:
@@ -289,7 +289,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     context_set, photos, about_photos = None, None, {}
     if "crop" in checks:
         subset = min(getattr(args, "jitter_samples", 256), samples)
-        context_set = build_eval_set(args.cache, hdri, subset, background=background,
+        context_set = build_eval_set(args.cache, hdri, samples=subset, background=background,
                                      context=getattr(args, "context", 1.5), progress=True)
     if "exposure" in checks:
         listed = getattr(args, "photos", None)

@@ -127,8 +127,8 @@ class EvalSet:
 def build_eval_set(
     caches: Sequence[str | os.PathLike[str]] = (),
     hdri: Sequence[str | os.PathLike[str]] = (),
-    samples: int = DEFAULT_SAMPLES,
     *,
+    samples: int = DEFAULT_SAMPLES,
     fields: Sequence[Any] = (),
     seed: int = EVAL_SEED,
     size: int = 256,

@@ -285,7 +285,7 @@ def sensor_noise(
 
     Examples:
         >>> x = torch.full((2, 3, 64, 64), 0.25)
-        >>> y = sensor_noise(x, torch.tensor([0.0, 1e-2]), torch.tensor([0.0, 0.0]),
+        >>> y = sensor_noise(x, torch.tensor([0.0, 1e-2]), read=torch.tensor([0.0, 0.0]),
         ...                  generator=torch.Generator().manual_seed(0))
         >>> torch.equal(y[0], x[0]), abs((y[1] - x[1]).std().item() - 0.05) < 0.003  # sqrt(0.01 * 0.25)
         (True, True)

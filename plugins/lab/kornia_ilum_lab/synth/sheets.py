@@ -160,8 +160,8 @@ def write_grid(
         >>> import tempfile
         >>> tiles = [torch.zeros(3, 4, 4), torch.ones(3, 4, 4)]
         >>> with tempfile.TemporaryDirectory() as d:
-        ...     write_grid(tiles, ["black", "white"], "two tiles", Path(d) / "sub" / "grid.png", columns=2,
-        ...                cell=(1.0, 1.0), fontsize=6, dpi=20, palette=False)
+        ...     write_grid(tiles, ["black", "white"], title="two tiles", path=Path(d) / "sub" / "grid.png",
+        ...                columns=2, cell=(1.0, 1.0), fontsize=6, dpi=20, palette=False)
         ...     (Path(d) / "sub" / "grid.png").is_file()
         True
     """

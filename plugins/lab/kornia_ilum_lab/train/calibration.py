@@ -186,7 +186,8 @@ def fit_spread(estimator: torch.nn.Module, dataset: PortraitDataset, *, samples:
         >>> from kornia_ilum_lab.train.data import training_dataset
         >>> from kornia_ilum.estimators import create_estimator
         >>> dataset = training_dataset(TrainConfig(out="runs/sh", cache=("lightstage/",)))  # doctest: +SKIP
-        >>> report = fit_spread(create_estimator("sh", spread_head=True), dataset, 2048)  # doctest: +SKIP
+        >>> estimator = create_estimator("sh", spread_head=True)  # doctest: +SKIP
+        >>> report = fit_spread(estimator, dataset, samples=2048)  # doctest: +SKIP
         >>> round(report["within_one_spread"], 1)  # doctest: +SKIP
         0.6
     """

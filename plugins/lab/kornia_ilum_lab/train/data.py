@@ -126,7 +126,7 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
 
         It relights subjects of a light-stage cache (``kornia-ilum export --probe DIR --cache CACHE`` calls it):
 
-        >>> meta = write_training_probe("probe/", ["lightstage/"], ["hdri/"])  # doctest: +SKIP
+        >>> meta = write_training_probe("probe/", ["lightstage/"], hdri=["hdri/"])  # doctest: +SKIP
         >>> meta["samples"], meta["split"], meta["seed"]  # doctest: +SKIP
         (320, 'train', 7)
     """

@@ -260,8 +260,7 @@ def train(config: TrainConfig) -> dict[str, Any]:
             _status(step, config.steps, row, (config.steps - step) * config.batch / max(rate, 1e-9))
         if rank == 0 and config.snapshot_every and step % config.snapshot_every == 0:
             save_snapshot(out, recipe.estimator(model), name=config.estimator, step=step,
-                          samples=step * config.batch,
-                          elapsed_s=elapsed + time.perf_counter() - run_t0)
+                          samples=step * config.batch, elapsed_s=elapsed + time.perf_counter() - run_t0)
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
                 terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("energy", config.lambda_energy),
@@ -345,7 +344,8 @@ def save_snapshot(out: str | os.PathLike, estimator: torch.nn.Module, *, name: s
     Examples:
         >>> import tempfile
         >>> with tempfile.TemporaryDirectory() as run:
-        ...     save_snapshot(run, torch.nn.Linear(2, 1), "ours", step=100, samples=3200, elapsed_s=60.0).name
+        ...     save_snapshot(run, torch.nn.Linear(2, 1), name="ours", step=100, samples=3200,
+        ...                   elapsed_s=60.0).name
         'step_000100.safetensors'
     """
     path = Path(out) / "snapshots" / f"step_{step:06d}.safetensors"
@@ -380,7 +380,7 @@ def average_snapshots(out: str | os.PathLike, after: float,
         >>> with tempfile.TemporaryDirectory() as run:
         ...     for step in (100, 200, 300):
         ...         _ = torch.nn.init.constant_(model.weight, step / 100)
-        ...         _ = save_snapshot(run, model, "ours", step, 32 * step, 1.0)
+        ...         _ = save_snapshot(run, model, name="ours", step=step, samples=32 * step, elapsed_s=1.0)
         ...     mean, steps = average_snapshots(run, after=150, upto=300)
         >>> steps, mean["weight"].tolist()
         ([200, 300], [[2.5, 2.5]])

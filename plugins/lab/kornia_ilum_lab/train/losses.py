@@ -79,7 +79,8 @@ def training_losses(pred: dict[int, torch.Tensor], target: torch.Tensor, *, brdf
 
     Examples:
         >>> truth = torch.ones(1, 3, 32, 32)
-        >>> loss, parts = training_losses(mirror_ball_pyramid(truth, (4, 32)), truth, BRDF_WEIGHTS)
+        >>> loss, parts = training_losses(mirror_ball_pyramid(truth, (4, 32)), truth,
+        ...                               brdf_weights=BRDF_WEIGHTS)
         >>> round(loss.item(), 6), sorted(parts)
         (0.0, ['rec_diffuse', 'rec_matte_silver', 'rec_mirror'])
     """

@@ -14,7 +14,7 @@ from kornia_ilum_lab.synth.lightstage.materials import (
     material_bsdf,
     select_mitsuba_variant,
 )
-from tests.synth.lightstage.spheres import material
+from tests.lab.synth.lightstage.spheres import material
 
 class TestMaterialBsdf:
     @pytest.mark.slow

@@ -23,7 +23,7 @@ from kornia_ilum_lab.synth.lightstage.reference import render_lighting
 from kornia_ilum_lab.synth.lightstage.scene import Camera
 from kornia_ilum_lab.synth.lightstage.settings import Auto, OnePass, Reference
 from kornia_ilum_lab.synth.lightstage.subjects.base import icosphere
-from tests.synth.lightstage.spheres import ALBEDO, CAM, S, material, sphere_subject
+from tests.lab.synth.lightstage.spheres import ALBEDO, CAM, S, material, sphere_subject
 
 pytestmark = pytest.mark.slow
 

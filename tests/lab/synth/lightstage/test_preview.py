@@ -18,7 +18,7 @@ from kornia_ilum_lab.synth.lightstage.subjects import Material, MeshPart, make_s
 from tests.conftest import SHARED_DATA
 
 PNG = b"\x89PNG\r\n\x1a\n"
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 
 pytestmark = pytest.mark.slow  # every test renders with Mitsuba (a preview, or the tiny cache's fields)
 

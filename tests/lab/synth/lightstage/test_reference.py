@@ -13,7 +13,7 @@ from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angle
 from kornia_ilum_lab.synth.lightstage.materials import select_mitsuba_variant
 from kornia_ilum_lab.synth.lightstage.reference import _session, olat_envmap_basis, render_olat_reference
 from kornia_ilum_lab.synth.lightstage.settings import OnePass, Reference
-from tests.synth.lightstage.spheres import CAM, S, sphere_subject
+from tests.lab.synth.lightstage.spheres import CAM, S, sphere_subject
 
 class TestOlatEnvmapBasis:
     def test_cardinality(self) -> None:

@@ -24,7 +24,7 @@ from kornia_ilum_lab.synth.lightstage.scene import (
 from kornia_ilum_lab.synth.lightstage.settings import Auto
 from kornia_ilum_lab.synth.lightstage.subjects import make_subject
 from kornia_ilum_lab.synth.lightstage.subjects.base import icosphere
-from tests.synth.lightstage.spheres import sphere_subject
+from tests.lab.synth.lightstage.spheres import sphere_subject
 
 
 class TestSampleViews:

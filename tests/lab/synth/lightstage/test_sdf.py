@@ -17,7 +17,7 @@ from kornia_ilum_lab.synth.lightstage.sdf import (
     smin,
     sphere,
 )
-from tests.synth.lightstage.meshes import edge_counts, signed_volume
+from tests.lab.synth.lightstage.meshes import edge_counts, signed_volume
 
 class TestSdf:
     def test_mesh_sphere(self):

@@ -13,7 +13,7 @@ from kornia_ilum.core.errors import HDRIOError, ValueCheckError
 from kornia_ilum.render import prepare_sparse, relight_sparse
 from kornia_ilum_lab.synth.lightstage import read_field, read_manifest, read_sparse, write_sparse_cache
 from kornia_ilum_lab.synth.lightstage.sparse import sparse_path
-from tests.synth.lightstage.portraits.common import OFF, small
+from tests.lab.synth.lightstage.portraits.common import OFF, small
 
 pytestmark = pytest.mark.slow  # the cache is rendered with Mitsuba
 

@@ -199,7 +199,8 @@ def rectangle_cells(
 
     Examples:
         >>> # a 2 x 2 square 1 unit ahead, centred: 4 asin(1 / 2) = 2 pi / 3 steradians
-        >>> _, om = rectangle_cells([-1.0, -1.0, -1.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], 5, 3)
+        >>> _, om = rectangle_cells([-1.0, -1.0, -1.0], edge_u=[2.0, 0.0, 0.0], edge_v=[0.0, 2.0, 0.0],
+        ...                        nu=5, nv=3)
         >>> round(float(om.sum()) / math.pi, 6)
         0.666667
     """
@@ -255,7 +256,8 @@ def splat_rectangle(
 
     Examples:
         >>> env = torch.zeros(3, 32, 64)
-        >>> _ = splat_rectangle(env, [-1.0, -1.0, -1.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], torch.ones(3))
+        >>> rect = {"corner": [-1.0, -1.0, -1.0], "edge_u": [2.0, 0.0, 0.0], "edge_v": [0.0, 2.0, 0.0]}
+        >>> _ = splat_rectangle(env, **rect, radiance=torch.ones(3))
         >>> round(float((env[0] * latlong_solid_angles(32)).sum()) / math.pi, 5)  # 2 pi / 3 sr of radiance 1
         0.66667
     """

@@ -339,7 +339,8 @@ def mitsuba_mesh(mi: Any, name: str, *, vertices: np.ndarray, faces: np.ndarray,
         >>> mi = import_mitsuba()
         >>> _ = select_mitsuba_variant("scalar_rgb")
         >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-        >>> mesh = mitsuba_mesh(mi, "tri", tri, np.array([[0, 1, 2]]), None, {"type": "diffuse"})
+        >>> mesh = mitsuba_mesh(mi, "tri", vertices=tri, faces=np.array([[0, 1, 2]]), normals=None,
+        ...                    bsdf={"type": "diffuse"})
         >>> mesh.vertex_count(), mesh.face_count(), round(mesh.surface_area(), 3)
         (3, 1, 0.5)
     """

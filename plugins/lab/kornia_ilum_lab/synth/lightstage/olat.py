@@ -98,7 +98,8 @@ def render_olat(
         >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
-        >>> rf = render_olat(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8), Auto(lighting_size=4, spp=4))
+        >>> rf = render_olat(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8),
+        ...                  settings=Auto(lighting_size=4, spp=4))
         >>> rf.field.shape, rf.field.dtype
         (torch.Size([3, 64, 16]), torch.bfloat16)
     """

@@ -446,11 +446,13 @@ def render_olat_onepass(
 
     Examples:
         >>> from kornia_ilum_lab.synth.lightstage.settings import Reference
-        >>> render_olat_onepass(None, Camera(30.0, 1.0, 0.0, 0.0, size=8), np.eye(4), Reference())
+        >>> render_olat_onepass(None, Camera(30.0, 1.0, 0.0, 0.0, size=8), transform=np.eye(4),
+        ...                     settings=Reference())
         Traceback (most recent call last):
         ...
         kornia.core.exceptions.TypeCheckError: settings must be OnePass settings, got Reference
-        >>> result = render_olat_onepass(subject, camera, transform, OnePass(lighting_size=8))  # doctest: +SKIP
+        >>> result = render_olat_onepass(subject, camera, transform=transform,
+        ...                              settings=OnePass(lighting_size=8))  # doctest: +SKIP
     """
     import drjit as dr  # lazy: Dr.Jit comes with Mitsuba, an optional extra
 
@@ -482,8 +484,7 @@ def render_olat_onepass(
     timings["lights"] = time.perf_counter() - t2
 
     rows_all, diffuse, specular = _add_glints(cam, table.valid, diffuse=diffuse, specular=specular,
-                                              lighting_size=settings.lighting_size,
-                                              spp=spp)
+                                              lighting_size=settings.lighting_size, spp=spp)
     gbuf = _gbuffer(cam, camera, spp)
     timings["total"] = time.perf_counter() - t0
     return OnePassResult(diffuse, specular, torch.from_numpy(rows_all), torch.from_numpy(table.valid), gbuf,

@@ -337,7 +337,7 @@ def render_olat_reference(
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
         >>> rf = render_olat_reference(subject, Camera(30.0, 1.0, 0.0, 0.0, size=8),
-        ...                            Reference(lighting_size=4, spp=4), variant="scalar_rgb")
+        ...                            settings=Reference(lighting_size=4, spp=4), variant="scalar_rgb")
         >>> rf.field.shape, rf.field.dtype, rf.meta["lights_rendered"]
         (torch.Size([3, 64, 16]), torch.bfloat16, 12)
     """
@@ -414,8 +414,8 @@ def render_lighting(
         >>> ball = SimpleNamespace(name="ball", vertices=0.1 * v, faces=f,
         ...                        material=SimpleNamespace(kind="diffuse", albedo=(0.8, 0.8, 0.8)))
         >>> subject = SimpleNamespace(seed=0, parts=[ball], face_landmarks=0.1 * v)
-        >>> image, alpha = render_lighting(subject, Camera(20.0, 1.0, 0.0, 0.0, size=8), torch.ones(3, 4, 4),
-        ...                                spp=64, variant="scalar_rgb")
+        >>> image, alpha = render_lighting(subject, Camera(20.0, 1.0, 0.0, 0.0, size=8),
+        ...                                lighting=torch.ones(3, 4, 4), spp=64, variant="scalar_rgb")
         >>> round(image[:, 3:5, 3:5].mean().item(), 1)  # a white environment: the albedo, up to noise
         0.8
     """

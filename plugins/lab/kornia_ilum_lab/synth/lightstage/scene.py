@@ -342,8 +342,8 @@ def sample_views(
         ``n`` :class:`Camera`.
 
     Examples:
-        >>> views = sample_views(7, 4, 192)
-        >>> len(views), all(abs(v.yaw_deg) <= 35 for v in views), views == sample_views(7, 4, 192)
+        >>> views = sample_views(7, 4, size=192)
+        >>> len(views), all(abs(v.yaw_deg) <= 35 for v in views), views == sample_views(7, 4, size=192)
         (4, True, True)
         >>> sorted(int((v.yaw_deg + 35) // 17.5) for v in views)  # one view per yaw stratum
         [0, 1, 2, 3]

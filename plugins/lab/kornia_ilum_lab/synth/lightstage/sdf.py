@@ -97,7 +97,7 @@ def sphere(x: Array, y: Array, z: Array, *, c: Sequence[float], r: float) -> Arr
 
     Examples:
         >>> x = np.array([0.0, 0.3], np.float32); o = np.zeros(2, np.float32)
-        >>> [round(float(v), 4) for v in sphere(x, o, o, (0.0, 0.0, 0.0), 0.1)]
+        >>> [round(float(v), 4) for v in sphere(x, o, o, c=(0.0, 0.0, 0.0), r=0.1)]
         [-0.1, 0.2]
     """
     return np.sqrt((x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2) - r
@@ -118,7 +118,7 @@ def ellipsoid(x: Array, y: Array, z: Array, *, c: Sequence[float], r: Sequence[f
 
     Examples:
         >>> x = np.array([0.2, 0.4], np.float32); o = np.zeros(2, np.float32)
-        >>> [round(float(v), 4) for v in ellipsoid(x, o, o, (0.0, 0.0, 0.0), (0.2, 0.1, 0.1))]  # on the x axis
+        >>> [round(float(v), 4) for v in ellipsoid(x, o, o, c=(0.0, 0.0, 0.0), r=(0.2, 0.1, 0.1))]  # x axis
         [0.0, 0.2]
     """
     px, py, pz = (x - c[0]) / r[0], (y - c[1]) / r[1], (z - c[2]) / r[2]
@@ -153,9 +153,10 @@ def capsule(
 
     Examples:
         >>> p = [np.float32(0.1), np.float32(0.05), np.float32(0.0)]  # beside the middle of the segment
-        >>> round(float(capsule(*p, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0), 0.05)), 4)
+        >>> segment = {"a": (0.0, 0.0, 0.0), "b": (0.0, 0.1, 0.0)}
+        >>> round(float(capsule(*p, **segment, ra=0.05)), 4)
         0.05
-        >>> round(float(capsule(*p, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0), 0.05, 0.01)), 4)  # radius 0.03 there
+        >>> round(float(capsule(*p, **segment, ra=0.05, rb=0.01)), 4)  # radius 0.03 there
         0.07
     """
     rb = ra if rb is None else rb
@@ -196,7 +197,8 @@ def mesh_sdf(
         set misses the box.
 
     Examples:
-        >>> v, f, n = mesh_sdf(lambda x, y, z: sphere(x, y, z, (0, 0, 0), 0.1), (-0.12,) * 3, (0.12,) * 3, 0.01)
+        >>> ball = lambda x, y, z: sphere(x, y, z, c=(0, 0, 0), r=0.1)
+        >>> v, f, n = mesh_sdf(ball, lo=(-0.12,) * 3, hi=(0.12,) * 3, step=0.01)
         >>> bool(np.allclose(np.linalg.norm(v, axis=1), 0.1, atol=2e-3)), f.dtype
         (True, dtype('int32'))
     """
@@ -278,7 +280,8 @@ def bounded(
 
     Examples:
         >>> x = np.array([0.0, 1.0], np.float32); o = np.zeros(2, np.float32)
-        >>> d = bounded(lambda x, y, z: sphere(x, y, z, (0, 0, 0), 0.1), x, o, o, (-0.1,) * 3, (0.1,) * 3, 0.05)
+        >>> ball = lambda x, y, z: sphere(x, y, z, c=(0, 0, 0), r=0.1)
+        >>> d = bounded(ball, x, o, o, lo=(-0.1,) * 3, hi=(0.1,) * 3, margin=0.05)
         >>> [round(float(v), 3) for v in d]  # exact inside the margin, a lower bound outside
         [-0.1, 0.9]
     """
@@ -323,7 +326,8 @@ def edit_in_box(
 
     Examples:
         >>> x = np.array([0.0, 1.0], np.float32); o = np.zeros(2, np.float32)
-        >>> edit_in_box(x - 0.5, x, o, o, (-0.1,) * 3, (0.1,) * 3, lambda d, x, y, z: d - 1.0).tolist()
+        >>> edit = lambda d, x, y, z: d - 1.0
+        >>> edit_in_box(x - 0.5, x, o, o, lo=(-0.1,) * 3, hi=(0.1,) * 3, fn=edit).tolist()
         [-1.5, 0.5]
     """
     m = (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])

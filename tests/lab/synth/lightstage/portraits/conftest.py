@@ -20,8 +20,8 @@ from kornia_ilum_lab.synth.lightstage import (
     select_mitsuba_variant,
 )
 from kornia_ilum_lab.synth.lightstage.scene import PIVOT_RAISE, Camera
-from tests.synth.lightstage.portraits.common import SIZE, S
-from tests.synth.lightstage.spheres import sphere_subject
+from tests.lab.synth.lightstage.portraits.common import SIZE, S
+from tests.lab.synth.lightstage.spheres import sphere_subject
 
 
 @pytest.fixture(scope="package")

@@ -33,7 +33,7 @@ from kornia_ilum_lab.synth.lightstage.portraits import (
 )
 from kornia_ilum_lab.synth.lightstage.portraits.compose import _enlarge, _rotated_grid, _view_matrices
 from kornia_ilum_lab.synth.lightstage.scene import Camera
-from tests.synth.lightstage.portraits.common import SIZE, S
+from tests.lab.synth.lightstage.portraits.common import SIZE, S
 
 @pytest.mark.slow
 class TestRelight:

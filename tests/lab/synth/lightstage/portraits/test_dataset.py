@@ -28,8 +28,8 @@ from kornia_ilum_lab.synth.lightstage.portraits import (
     sphere_targets,
 )
 from kornia_ilum_lab.synth.lightstage.scene import Camera
-from tests.synth.lightstage.portraits.common import OFF, OUT, S, small, uniform_sampler
-from tests.synth.lightstage.spheres import ALBEDO
+from tests.lab.synth.lightstage.portraits.common import OFF, OUT, S, small, uniform_sampler
+from tests.lab.synth.lightstage.spheres import ALBEDO
 
 @pytest.mark.slow
 class TestAnalytic:

@@ -18,7 +18,7 @@ from kornia_ilum_lab.synth.lightstage import (
     subject_params,
     subject_split,
 )
-from tests.synth.lightstage.meshes import edge_counts, signed_volume
+from tests.lab.synth.lightstage.meshes import edge_counts, signed_volume
 
 KINDS = {"skin", "diffuse", "glossy", "cornea", "hair"}
 

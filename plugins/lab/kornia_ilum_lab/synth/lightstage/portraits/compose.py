@@ -200,7 +200,7 @@ def inner_crop_boxes(
         ``(n, 4)`` float64 boxes ``(x0, y0, x1, y1)`` in the crop's pixels.
 
     Examples:
-        >>> box = inner_crop_boxes(3, 256, torch.Generator().manual_seed(0))
+        >>> box = inner_crop_boxes(3, 256, generator=torch.Generator().manual_seed(0))
         >>> side = box[:, 2] - box[:, 0]
         >>> bool((box >= 0).all() and (box <= 256).all()), bool((side >= 256 * math.exp(-0.3) - 1e-9).all())
         (True, True)
@@ -247,7 +247,7 @@ def random_crop_boxes(
 
     Examples:
         >>> g = torch.Generator().manual_seed(0)
-        >>> box = random_crop_boxes(torch.tensor([[32.0, 32.0, 96.0, 96.0]]), 128, g)
+        >>> box = random_crop_boxes(torch.tensor([[32.0, 32.0, 96.0, 96.0]]), 128, generator=g)
         >>> bool(((box[:, 2] - box[:, 0]) <= 64).all())
         True
     """
@@ -343,7 +343,8 @@ def add_relit(frame: torch.Tensor, field: ReflectanceField, *, lighting: torch.T
         >>> rf = ReflectanceField(torch.ones(3, 4, 16, dtype=torch.bfloat16), torch.ones(1, 2, 2),
         ...                       torch.tensor([0.0, 0.0, 2.0, 2.0]), Camera(30.0, 1.0, 0.0, 0.0, size=2), 7)
         >>> frame = torch.ones(1, 3, 2, 2)
-        >>> out = add_relit(frame, rf, torch.ones(1, 3, 4, 4) * mirror_ball_valid(4))  # 12 valid lights
+        >>> lighting = torch.ones(1, 3, 4, 4) * mirror_ball_valid(4)  # 12 valid lights
+        >>> out = add_relit(frame, rf, lighting=lighting)
         >>> out is frame, frame[0, 0].flatten().tolist()
         (True, [13.0, 13.0, 13.0, 13.0])
     """

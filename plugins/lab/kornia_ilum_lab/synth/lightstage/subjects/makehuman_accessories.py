@@ -403,8 +403,8 @@ def beard_parts(
         >>> uv = (0.5 + 0.5 * v[:, :2]).astype(np.float32)  # any atlas will do here
         >>> skin = MeshPart("skin", 0.1 * v, f, Material("skin", (0.5, 0.4, 0.3)), v, uv)
         >>> p = dict(accessory_params(np.random.default_rng(0), male=1.0, years=30.0), facial_hair="beard")
-        >>> parts = beard_parts(p, skin, np.ones(len(v)), np.ones((4, 4), np.float32), np.array([0.02, 0.015, 0.01]),
-        ...                     np.random.default_rng(0), size=64)
+        >>> parts = beard_parts(p, skin, weight=np.ones(len(v)), island=np.ones((4, 4), np.float32),
+        ...                     colour=np.array([0.02, 0.015, 0.01]), rng=np.random.default_rng(0), size=64)
         >>> [part.name for part in parts], parts[0].material.kind, parts[0].material.opacity_texture.shape
         (['beard0', 'beard1', 'beard2'], 'hair', (64, 64))
     """

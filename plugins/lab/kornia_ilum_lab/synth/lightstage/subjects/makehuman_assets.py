@@ -485,7 +485,7 @@ def macro_target_weights(
         ``"universal-male-young-averagemuscle-averageweight"``.
 
     Examples:
-        >>> w = macro_target_weights((0.0, 0.0, 1.0), 1.0, 0.5)
+        >>> w = macro_target_weights((0.0, 0.0, 1.0), gender=1.0, age=0.5)
         >>> w["caucasian-male-young"], w["universal-male-young-averagemuscle-averageweight"]
         (1.0, 1.0)
     """
