@@ -219,6 +219,20 @@ def test_tests_mirror_the_package() -> None:
     assert missing == []
 
 
+def test_no_function_takes_more_than_five_positional_parameters() -> None:
+    """Keyword-only arguments after the first one or two wherever a function takes more than four: in the library,
+    the lab and the plugins, no function takes more than 5 positional parameters (``self``/``cls`` aside)."""
+    over = []
+    for module, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                names = [a.arg for a in node.args.posonlyargs + node.args.args]
+                positional = [n for n in names if n not in ("self", "cls")]
+                if len(positional) > 5:
+                    over.append(f"{module}.{node.name} ({len(positional)})")
+    assert over == []
+
+
 # ------------------------------------------------------------------------------------------ conventions page
 def _shared_spec() -> Path | None:
     candidates = [SHARED_DATA.parent / ("SPEC" + ".md"), ROOT.parent / "shared" / ("SPEC" + ".md")]
