@@ -219,6 +219,18 @@ def test_tests_mirror_the_package() -> None:
     assert missing == []
 
 
+def test_the_library_stays_small() -> None:
+    """The library a user installs holds at most 7,000 lines of code (docstrings, comments and blank lines aside;
+    ``benchmarks/count_lines.py``): what makes the estimators is the lab's."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("count_lines", ROOT / "benchmarks" / "count_lines.py")
+    count_lines = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(count_lines)
+    total = sum(count_lines.code_lines(p) for p in (ROOT / "kornia_ilum").rglob("*.py"))
+    assert total <= 7000, total
+
+
 def test_no_function_takes_more_than_five_positional_parameters() -> None:
     """Keyword-only arguments after the first one or two wherever a function takes more than four: in the library,
     the lab and the plugins, no function takes more than 5 positional parameters (``self``/``cls`` aside)."""
