@@ -14,6 +14,7 @@ Convention:
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -370,6 +371,20 @@ def convert_yunet_weights(source: str | os.PathLike[str], out: str | os.PathLike
     return sha256_file(out)
 
 
+#: The anchors of Kornia's YuNet weights: their sizes per feature map and the maps' strides.
+_YUNET_MIN_SIZES = ((10, 16, 24), (32, 48), (64, 96), (128, 192, 256))
+_YUNET_STEPS = (8, 16, 32, 64)
+
+
+@functools.lru_cache(maxsize=8)
+def _yunet_priors(height: int, width: int, device: torch.device, dtype: torch.dtype) -> torch.Tensor:
+    """YuNet's anchors for an input of ``height x width`` (:class:`kornia.models.yunet.processors.PriorBox`), made
+    once per size, device and dtype (Kornia's post-processing builds them in a Python loop at every call); shared,
+    so never modified in place."""
+    priors = PriorBox([list(m) for m in _YUNET_MIN_SIZES], list(_YUNET_STEPS), False, image_size=(height, width))
+    return priors.to(device, dtype)()
+
+
 class YuNetFaceDetector(FaceDetector):
     r"""Kornia's YuNet face detector (Wu, Peng & Yu, "YuNet: A Tiny Millisecond-level Face Detector",
     Machine Intelligence Research 2023), with the weights that ship inside the package.
@@ -473,34 +488,21 @@ class YuNetFaceDetector(FaceDetector):
         self.model.load_state_dict(_read_yunet_state(path), strict=True)
         self.model.eval()
         # Kornia's post-processing settings for these weights (kornia.contrib.FaceDetector).
-        self.min_sizes = [[10, 16, 24], [32, 48], [64, 96], [128, 192, 256]]
-        self.steps = [8, 16, 32, 64]
+        self.min_sizes = [list(m) for m in _YUNET_MIN_SIZES]
+        self.steps = list(_YUNET_STEPS)
         self.variance = [0.1, 0.2]
         self.clip = False
         self.confidence_threshold = float(confidence_threshold)
         self.nms_threshold = float(nms_threshold)
         self.top_k = int(top_k)
         self.keep_top_k = int(keep_top_k)
-        self._prior_cache: dict[tuple, torch.Tensor] = {}
-
-    def _priors(self, height: int, width: int, like: torch.Tensor) -> torch.Tensor:
-        """YuNet's anchors for an input of ``height x width`` (:class:`kornia.models.yunet.processors.PriorBox`),
-        made once per size, device and dtype: Kornia's post-processing builds them in a Python loop at every
-        call, a fifth of the detection's time at 320 x 240 (docs/bench.rst, "The default detector")."""
-        key = (height, width, like.device, like.dtype)
-        if key not in self._prior_cache:
-            if len(self._prior_cache) >= 8:
-                self._prior_cache.pop(next(iter(self._prior_cache)))
-            boxes = PriorBox(self.min_sizes, self.steps, self.clip, image_size=(height, width))
-            self._prior_cache[key] = boxes.to(like.device, like.dtype)()
-        return self._prior_cache[key]
 
     def _postprocess(self, out: dict[str, torch.Tensor], height: int, width: int) -> list[torch.Tensor]:
         """Kornia's :meth:`kornia.contrib.FaceDetector.postprocess`, the same detections, with cached anchors and
         only the candidates above the confidence threshold decoded: ``B`` tensors ``(N, 15)`` (box, five
         landmarks, score)."""
         loc_all, conf_all, iou_all = out["loc"], out["conf"], out["iou"]
-        priors = self._priors(height, width, loc_all)
+        priors = _yunet_priors(height, width, loc_all.device, loc_all.dtype)
         scale = loc_all.new_tensor([width, height] * 7)
         found = []
         for loc, conf, iou in zip(loc_all, conf_all, iou_all, strict=True):
