@@ -39,7 +39,7 @@ import torch
 
 from kornia_ilum import __version__
 from kornia_ilum.api import cached_detector, cached_estimator, estimate_lighting
-from kornia_ilum.core.cli import nonnegative_float, positive_int
+from kornia_ilum.core.cli import LAB_INSTALL, nonnegative_float, positive_int
 from kornia_ilum.core.errors import BaseError, HDRIOError, NoFaceError
 from kornia_ilum.core.files import atomic_write
 from kornia_ilum.detection import DEFAULT_DETECTOR, describe_detector, list_detectors
@@ -121,8 +121,6 @@ LAB_COMMANDS = {
 #: The entry-point group of the lab's functions that a library command calls: ``write_training_probe``
 #: (``kornia-ilum export --probe``).
 LAB_ENTRY_POINT_GROUP = "kornia_ilum.lab"
-#: How to install the lab (kornia_ilum_lab, in this repository's plugins/lab).
-LAB_INSTALL = "pip install -c constraints.txt -e ./plugins/lab"
 
 
 def plugin_commands() -> dict[str, Any]:
@@ -461,10 +459,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_export_probe(args: argparse.Namespace) -> int:
-    found = [ep for ep in entry_points(group=LAB_ENTRY_POINT_GROUP) if ep.name == "write_training_probe"]
+    found = entry_points(group=LAB_ENTRY_POINT_GROUP, name="write_training_probe")
     if not found:
         raise _UsageError(f"export --probe renders light-stage portraits, which needs the lab: {LAB_INSTALL}")
-    write_training_probe = found[0].load()  # the lab's kornia_ilum_lab.train.data.write_training_probe
+    write_training_probe = next(iter(found)).load()  # the lab's kornia_ilum_lab.train.data.write_training_probe
 
     folder = Path(args.probe)
     if not folder.is_dir():

@@ -219,7 +219,7 @@ class TestErrors:
             assert main([name, "--anything"]) == 2
             line = _error_line(capsys)
             assert f"'{name}' is a command of the lab, which is not installed" in line and "./plugins/lab" in line
-        monkeypatch.setattr(cli_module, "entry_points", lambda group: [])
+        monkeypatch.setattr(cli_module, "entry_points", lambda group, **select: [])
         assert main(["export", "--probe", "."]) == 2
         assert "needs the lab" in _error_line(capsys)
 

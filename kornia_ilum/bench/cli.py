@@ -17,7 +17,7 @@ from typing import Any
 
 from kornia_ilum.bench.report import format_bench, write_bench
 from kornia_ilum.bench.run import BENCH_RUNTIMES, run_bench
-from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.cli import LAB_INSTALL, positive_int
 from kornia_ilum.core.errors import UnknownNameError, ValueCheckError
 from kornia_ilum.detection import list_detectors
 
@@ -26,15 +26,13 @@ __all__ = ["BENCH_ENTRY_POINT_GROUP", "add_bench_parser", "bench_error_part", "r
 #: The entry-point group of the bench's error part: ``error`` names a class built with ``(cache, hdri, *,
 #: samples, quick)`` (the lab's :class:`kornia_ilum_lab.bench.error.BenchError`).
 BENCH_ENTRY_POINT_GROUP = "kornia_ilum.bench"
-#: How to install the lab, which the error part needs.
-LAB_INSTALL = "pip install -c constraints.txt -e ./plugins/lab"
 
 
 def bench_error_part() -> Any | None:
     """The class of the bench's error part, from the ``kornia_ilum.bench`` entry point ``error`` (the lab's), or
     ``None`` where no installed package provides one (the bench then times only)."""
-    found = [ep for ep in entry_points(group=BENCH_ENTRY_POINT_GROUP) if ep.name == "error"]
-    return found[0].load() if found else None
+    found = entry_points(group=BENCH_ENTRY_POINT_GROUP, name="error")
+    return next(iter(found)).load() if found else None
 
 _HELP = """\
 Time every registered estimator under every runtime that runs here (eager float32, bf16, ONNX Runtime float32

@@ -13,7 +13,11 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["fraction", "nonnegative_float", "nonnegative_int", "positive_int"]
+__all__ = ["LAB_INSTALL", "fraction", "nonnegative_float", "nonnegative_int", "positive_int"]
+
+#: How to install the lab (``kornia_ilum_lab``, this repository's ``plugins/lab``), which the commands that
+#: render, train or score name when it is missing.
+LAB_INSTALL = "pip install -c constraints.txt -e ./plugins/lab"
 
 
 def positive_int(text: str) -> int:
