@@ -65,8 +65,9 @@ TONE_GROUPS = ((1, 3), (4, 6), (7, 8), (9, 10))
 
 
 def place(image: torch.Tensor, box: torch.Tensor, frame: int, shift: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
-    """The ``(3, S, S)`` uint8 render resized to ``frame`` pixels and centred on a black 640 x 480 photo, moved right
-    by ``shift`` pixels: the photo ``(1, 3, 480, 640)`` in ``[0, 1]`` and the face box in its pixels."""
+    """The ``(3, S, S)`` uint8 image resized to ``frame`` pixels and centred on a black 640 x 480 photo (cropped where
+    larger: ``F.pad`` crops by negative amounts), moved right by ``shift`` pixels: the photo ``(1, 3, 480, 640)`` in
+    ``[0, 1]`` and the face box in its pixels."""
     side = image.shape[-1]
     x = F.interpolate(image.float()[None] / 255.0, size=(frame, frame), mode="bilinear", antialias=True,
                       align_corners=False).clamp(0, 1)
@@ -105,29 +106,22 @@ PEOPLE = {"astronaut": (177.0, 62.0, 273.0, 170.0), "camera": (199.0, 111.0, 259
 
 
 def people_photos() -> list[tuple[str, torch.Tensor, torch.Tensor]]:
-    """:data:`PEOPLE` at four scales, as they are and mirrored, centred on a black 640 x 480 canvas (cropped where
-    larger): ``(name, (1, 3, 480, 640) photo, face box)``."""
+    """:data:`PEOPLE` at four scales, as they are and mirrored, centred on a black 640 x 480 canvas (:func:`place`;
+    cropped where larger): ``(name, (1, 3, 480, 640) photo, face box)``."""
     import skimage.data
 
     out = []
     for name, face in PEOPLE.items():
-        pixels = torch.from_numpy(getattr(skimage.data, name)()).float() / 255.0
-        image = (pixels[None].expand(3, -1, -1) if pixels.dim() == 2 else pixels.permute(2, 0, 1))[None]
+        pixels = torch.from_numpy(getattr(skimage.data, name)())
+        image = pixels[None].expand(3, -1, -1) if pixels.dim() == 2 else pixels.permute(2, 0, 1)
+        side = image.shape[-1]
+        box = torch.tensor(face)
         for scale in (0.35, 0.5, 0.7, 0.94):
-            side = round(image.shape[-1] * scale)
-            small = F.interpolate(image, size=(side, side), mode="bilinear", antialias=True, align_corners=False)
             for mirrored in (False, True):
-                x = small.flip(-1) if mirrored else small
-                box = torch.tensor(face) * scale
-                if mirrored:
-                    box = torch.stack([side - box[2], box[1], side - box[0], box[3]])
-                left, top = (WIDTH - side) // 2, (HEIGHT - side) // 2
-                canvas = torch.zeros(1, 3, HEIGHT, WIDTH)
-                y0, x0 = max(0, top), max(0, left)
-                canvas[..., y0 : min(HEIGHT, top + side), x0 : min(WIDTH, left + side)] = x[
-                    ..., y0 - top : min(HEIGHT, top + side) - top, x0 - left : min(WIDTH, left + side) - left]
-                out.append((f"{name} x{scale}{' mirrored' if mirrored else ''}", canvas.clamp(0, 1),
-                            box + torch.tensor([left, top, left, top])))
+                x, b = (image.flip(-1), torch.stack([side - box[2], box[1], side - box[0], box[3]])) if mirrored \
+                    else (image, box)
+                photo, placed = place(x, b, round(side * scale))
+                out.append((f"{name} x{scale}{' mirrored' if mirrored else ''}", photo, placed))
     return out
 
 
