@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
+from kornia.metrics import mean_iou_bbox
 
 from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, pick_faces
 from kornia_ilum.core.check import check_positive_int
@@ -161,14 +162,6 @@ class VideoFrame:
 SWITCH_IOU = 0.3
 
 
-def _iou(a: torch.Tensor, b: torch.Tensor) -> float:
-    """The intersection over union of two ``(1, 4)`` boxes ``(x0, y0, x1, y1)``."""
-    lo, hi = torch.maximum(a[0, :2], b[0, :2]), torch.minimum(a[0, 2:], b[0, 2:])
-    inter = float((hi - lo).clamp(min=0).prod())
-    area = lambda x: float((x[0, 2] - x[0, 0]) * (x[0, 3] - x[0, 1]))  # noqa: E731
-    return inter / max(area(a) + area(b) - inter, 1e-12)
-
-
 class LightingTracker:
     r"""Per-frame lighting with temporal reuse (the module docstring says how).
 
@@ -207,7 +200,8 @@ class LightingTracker:
     """
 
     def __init__(self, estimator: str | LightingEstimator | None = None,
-                 detector: str | FaceDetector = DEFAULT_DETECTOR, *, detect_every: int = 5, reuse_below: float = 0.002, time_constant: float = 2.0,
+                 detector: str | FaceDetector = DEFAULT_DETECTOR, *, detect_every: int = 5,
+                 reuse_below: float = 0.002, time_constant: float = 2.0,
                  cut_above: float = 0.03, fallback: str | None = None, runtime: str = "eager") -> None:
         check_positive_int(detect_every, "detect_every")
         for name, value in (("reuse_below", reuse_below), ("time_constant", time_constant),
@@ -263,7 +257,7 @@ class LightingTracker:
             if box is None:
                 raise NoFaceError(f"no face found in frame {index} by detector {self.detector.name!r}, and none "
                                   "before it; try fallback='full_image'")
-            switched = self._box is not None and _iou(box, self._box) < SWITCH_IOU
+            switched = self._box is not None and float(mean_iou_bbox(box, self._box)) < SWITCH_IOU
             self._box, self._since = box, 0
         self._since += 1
         size = self.estimator.info.input_size
