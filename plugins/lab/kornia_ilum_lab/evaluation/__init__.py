@@ -9,6 +9,12 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
   check (:func:`transfer_check`), exposure equivariance (:func:`exposure_equivariance`) and crop stability
   (:func:`crop_stability`), and the calibration of the spread of the log energy (:func:`spread_calibration`),
   with the lighting's energy and dominant direction they compare.
+- :mod:`~kornia_ilum_lab.evaluation.measures`: what the checks measure (:func:`dominant_direction`,
+  :func:`estimates`, :func:`angle_degrees`, :func:`quantiles`).
+- :mod:`~kornia_ilum_lab.evaluation.colour`: the colour check (:func:`colour_check`): the same portraits through
+  the colour looks users apply, and how far the main light turns.
+- :mod:`~kornia_ilum_lab.evaluation.flash`: the real-flash check (:func:`real_flash_check`): real faces under one
+  flash of known direction (:func:`load_flash_set`, :func:`flash_crops`).
 - :mod:`~kornia_ilum_lab.evaluation.bootstrap`: intervals over subjects (:func:`subject_interval`,
   :func:`ratio_interval`) for the per-tone figures.
 - :mod:`~kornia_ilum_lab.evaluation.curve`: the learning curve of a run's snapshots (:func:`learning_curve`,
@@ -27,6 +33,7 @@ from kornia_ilum_lab.evaluation.checks import (
     SPREAD_NOMINAL,
     check_runner,
     composite_background,
+    flash_checks,
     crop_stability,
     darken,
     default_photos,
@@ -39,6 +46,9 @@ from kornia_ilum_lab.evaluation.checks import (
     transfer_check,
 )
 from kornia_ilum_lab.evaluation.bootstrap import ratio_interval, subject_interval, subject_resamples
+from kornia_ilum_lab.evaluation.colour import COLOUR_LOOKS, colour_check
+from kornia_ilum_lab.evaluation.flash import FlashSet, flash_crops, flash_direction, load_flash_set, real_flash_check
+from kornia_ilum_lab.evaluation.measures import angle_degrees, estimates, quantiles
 from kornia_ilum_lab.evaluation.curve import (
     CURVE_FIELDS,
     equal_budget,
@@ -70,6 +80,7 @@ __all__ = [
     "BACKGROUNDS",
     "BRDF_NAMES",
     "CHECKS",
+    "COLOUR_LOOKS",
     "CURVE_FIELDS",
     "DEFAULT_SAMPLES",
     "EVAL_SEED",
@@ -78,6 +89,16 @@ __all__ = [
     "ORACLES",
     "SPREAD_NOMINAL",
     "EvalSet",
+    "FlashSet",
+    "angle_degrees",
+    "colour_check",
+    "estimates",
+    "flash_checks",
+    "flash_crops",
+    "flash_direction",
+    "load_flash_set",
+    "quantiles",
+    "real_flash_check",
     "build_eval_set",
     "probe_eval_set",
     "fit_crops",

@@ -23,6 +23,12 @@ dominant direction (:func:`dominant_direction`).
 - :func:`spread_calibration`: for estimators that give the spread of their log energy
   (:attr:`~kornia_ilum.estimators.LightingEstimate.log_energy_spread`), the share of portraits whose true
   energy lies within one and two spreads, per skin tone, against the share a calibrated spread gives.
+- ``"colour"``, the colour check (:func:`~kornia_ilum_lab.evaluation.colour.colour_check`): the same portraits
+  greyscale, desaturated, white-balanced warmer and cooler and graded; how far the main light turns and how its
+  strength changes, on the eval crops and on the real photos (and the real-flash photographs, when given).
+- ``"flash"``, the real-flash check (:func:`~kornia_ilum_lab.evaluation.flash.real_flash_check`): real faces
+  under one flash of known direction each; the main light's direction error, its sign agreement, the spread of
+  the strength across people under one flash.
 
 The per-tone figures of the transfer and spread checks carry 95 % intervals over subjects
 (:mod:`~kornia_ilum_lab.evaluation.bootstrap`): the portraits of one face are not independent.
@@ -55,8 +61,10 @@ from kornia_ilum.detection import (
     square_crop_boxes,
 )
 from kornia_ilum_lab.evaluation.bootstrap import ratio_interval, subject_interval
-from kornia_ilum_lab.evaluation.evaluate import EvalSet, fit_crops
-from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
+from kornia_ilum_lab.evaluation.colour import colour_check
+from kornia_ilum_lab.evaluation.flash import FlashSet, real_flash_check
+from kornia_ilum_lab.evaluation.evaluate import EvalSet
+from kornia_ilum_lab.evaluation.measures import Estimator, as_floats, dominant_direction, estimates, median_of, quantiles
 from kornia_ilum.io import read_ldr
 from kornia_ilum.metrics import lighting_energy
 from kornia_ilum_lab.synth.lightstage.portraits import crop_images
@@ -68,6 +76,7 @@ __all__ = [
     "INTERVAL_RATIOS",
     "SPREAD_NOMINAL",
     "check_runner",
+    "flash_checks",
     "composite_background",
     "crop_stability",
     "darken",
@@ -82,7 +91,7 @@ __all__ = [
 ]
 
 #: The checks by name, in the order :func:`run_checks` runs them.
-CHECKS: tuple[str, ...] = ("transfer", "exposure", "crop", "spread")
+CHECKS: tuple[str, ...] = ("transfer", "exposure", "crop", "spread", "colour", "flash")
 #: The share of portraits whose true log energy lies within ``+-k b`` of the estimate's, for a calibrated
 #: Laplace spread ``b``: ``1 - e^-k`` (:func:`spread_calibration`).
 SPREAD_NOMINAL: dict[int, float] = {k: 1.0 - math.exp(-k) for k in (1, 2)}
@@ -93,86 +102,6 @@ INTERVAL_RATIOS: tuple[str, ...] = ("with/true", "black/with")
 #: The backgrounds of :func:`transfer_check`: name to the sRGB value that replaces the background.
 BACKGROUNDS: dict[str, float] = {"black": 0.0, "grey": 0.5}
 
-Estimator = Callable[[torch.Tensor], Any]
-
-
-# ----------------------------------------------------------------------------------------------
-# energy and direction
-
-
-def dominant_direction(mirror_ball: torch.Tensor) -> torch.Tensor:
-    r"""The lighting's dominant direction: the energy-weighted mean of the directions, normalised.
-
-    :math:`d = \mathrm{normalize}(\sum_p \Omega_p \bar L_p \, \omega_p)`, with :math:`\bar L` the mean over R,
-    G, B and :math:`\omega_p` the direction of pixel ``p``
-    (:func:`~kornia_ilum.geometry.mirror_ball_directions`; light arriving *from* :math:`\omega_p`, in the
-    camera frame: +X right, +Y up, +Z toward the camera). A lighting whose weighted sum of directions is
-    below 1e-3 of its energy (black, or uniform: the grid's rim leaves 1.5e-4 at ``S = 32``) gives the zero
-    vector.
-
-    Args:
-        mirror_ball: linear lighting.
-
-    Returns:
-        ``(B, 3)`` unit vectors (or zero).
-
-    Shape:
-        - mirror_ball: :math:`(B, 3, S, S)`
-        - Output: :math:`(B, 3)`
-
-    Convention:
-        docs/conventions.rst, "Frames" (light arriving from the direction) and "Mirror ball".
-
-    Examples:
-        >>> from kornia_ilum.geometry import direction_to_mirror_ball, mirror_ball_valid, uv_to_pixel
-        >>> ball = torch.zeros(1, 3, 32, 32)
-        >>> pixel = uv_to_pixel(direction_to_mirror_ball(torch.tensor([0.6, 0.8, 0.0])), 32)
-        >>> col, row = pixel.long().tolist()
-        >>> ball[..., row, col] = 100.0  # a small source up and to the right
-        >>> d = dominant_direction(ball)[0]
-        >>> bool(d @ torch.tensor([0.6, 0.8, 0.0]) > 0.99), round(d.norm().item(), 6)
-        (True, 1.0)
-        >>> dominant_direction(torch.ones(1, 3, 32, 32) * mirror_ball_valid(32))  # uniform: no direction
-        tensor([[0., 0., 0.]])
-    """
-    check_tensor(mirror_ball, "mirror_ball", ["B", "3", "S", "S"])
-    s = mirror_ball.shape[-1]
-    d, _ = mirror_ball_directions(s, device=mirror_ball.device, dtype=mirror_ball.dtype)
-    omega = mirror_ball_solid_angles(s, device=mirror_ball.device, dtype=mirror_ball.dtype)
-    w = mirror_ball.mean(1) * omega  # (B, S, S), 0 off the ball
-    v = torch.einsum("bhw,hwc->bc", w, d)
-    norm = v.norm(dim=-1, keepdim=True)
-    vanishes = norm <= 1e-3 * w.abs().sum((-2, -1))[:, None]  # a uniform lighting (up to the grid), or black
-    return torch.where(vanishes, torch.zeros_like(v), v / norm.clamp(min=torch.finfo(v.dtype).tiny))
-
-
-def _energies(estimator: Estimator, batches: Iterator[torch.Tensor], directions: bool = False,
-              spreads: bool = False) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
-    """The estimator on each batch of float crops: energies ``(N,)`` float64 (and directions ``(N, 3)``, and
-    the estimates' ``log_energy_spread`` ``(N,)`` float64). With ``spreads``, an estimator that gives no spread
-    stops the pass at the first batch: its energies so far, ``None``, ``None``."""
-    energy, direction, spread = [], [], []
-    with torch.inference_mode():
-        for crops in batches:
-            out = estimator(fit_crops(estimator, crops))
-            ball = getattr(out, "mirror_ball", out).double()
-            energy.append(lighting_energy(ball))
-            if directions:
-                direction.append(dominant_direction(ball))
-            if spreads:
-                b = getattr(out, "log_energy_spread", None)
-                if b is None:
-                    return torch.cat(energy), None, None
-                spread.append(b.double())
-    return (torch.cat(energy), torch.cat(direction) if directions else None,
-            torch.cat(spread) if spreads else None)
-
-
-def _floats(images: torch.Tensor) -> torch.Tensor:
-    """uint8 codes to float32 in ``[0, 1]``; float crops as they are (float32)."""
-    return images.float() / 255.0 if images.dtype == torch.uint8 else images.float()
-
-
 def _check_images(images: Any, name: str = "images") -> None:
     if not isinstance(images, torch.Tensor):
         raise TypeCheckError(f"{name} must be a tensor, got {type(images).__name__}")
@@ -182,20 +111,6 @@ def _check_images(images: Any, name: str = "images") -> None:
 
 # ----------------------------------------------------------------------------------------------
 # summaries
-
-
-def _quantiles(x: torch.Tensor) -> dict[str, float | int | None]:
-    """Median and quartiles of the finite values of ``x`` (``None`` where there are none), and their count."""
-    x = x.double()
-    x = x[torch.isfinite(x)]
-    if x.numel() == 0:
-        return {"median": None, "q25": None, "q75": None, "count": 0}
-    q = torch.quantile(x, torch.tensor([0.5, 0.25, 0.75], dtype=torch.float64)).tolist()
-    return {"median": q[0], "q25": q[1], "q75": q[2], "count": int(x.numel())}
-
-
-def _median(x: torch.Tensor) -> float | None:
-    return _quantiles(x)["median"]  # type: ignore[return-value]
 
 
 def _groups(skin_tone: Sequence[int]) -> dict[str, torch.Tensor]:
@@ -249,8 +164,8 @@ def composite_background(images: torch.Tensor, alpha: torch.Tensor, value: float
                          f"{getattr(alpha, 'shape', type(alpha).__name__)}")
     if not 0.0 <= value <= 1.0:
         raise ValueCheckError(f"value must be in [0, 1], got {value!r}")
-    a = _floats(alpha)
-    return _floats(images) * a + (1.0 - a) * value
+    a = as_floats(alpha)
+    return as_floats(images) * a + (1.0 - a) * value
 
 
 def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch.Tensor | None = None,
@@ -311,16 +226,16 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
     def batches(value: float | None) -> Iterator[torch.Tensor]:
         for i in range(0, n, batch_size):
             x = images[i : i + batch_size]
-            yield _floats(x) if value is None else composite_background(x, alpha[i : i + batch_size], value)
+            yield as_floats(x) if value is None else composite_background(x, alpha[i : i + batch_size], value)
 
     energy: dict[str, torch.Tensor] = {}
     if prediction is not None:
         check_tensor(prediction, "prediction", [str(n), "3", "S", "S"])
         energy["with"] = lighting_energy(prediction.double())
     else:
-        energy["with"] = _energies(estimator, batches(None))[0]
+        energy["with"] = estimates(estimator, batches(None))[0]
     for name, value in BACKGROUNDS.items():
-        energy[name] = _energies(estimator, batches(value))[0]
+        energy[name] = estimates(estimator, batches(value))[0]
     energy["true"] = lighting_energy(eval_set.mirror_ball.double())
     ratios = {"with/true": energy["with"] / energy["true"], "black/true": energy["black"] / energy["true"],
               "grey/true": energy["grey"] / energy["true"], "black/with": energy["black"] / energy["with"],
@@ -328,7 +243,7 @@ def transfer_check(estimator: Estimator, eval_set: EvalSet, *, prediction: torch
     groups = _groups(eval_set.skin_tone)
     subjects = torch.tensor(list(eval_set.subject_seed))
     table = {g: {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
-                 **{k: _median(r[m]) for k, r in ratios.items()},
+                 **{k: median_of(r[m]) for k, r in ratios.items()},
                  **{f"{k}_ci": subject_interval(ratios[k][m], subjects[m]) for k in INTERVAL_RATIOS}}
              for g, m in groups.items() if m.any()}
     tones = {g: m for g, m in groups.items() if g != "all" and int(g) > 0 and m.any()}
@@ -371,7 +286,7 @@ def darken(images: torch.Tensor, k: float) -> torch.Tensor:
     _check_images(images)
     if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
         raise ValueCheckError(f"k must be a positive finite number, got {k!r}")
-    return linear_to_srgb(srgb_to_linear(_floats(images)) * k)
+    return linear_to_srgb(srgb_to_linear(as_floats(images)) * k)
 
 
 def exposure_equivariance(
@@ -430,19 +345,19 @@ def exposure_equivariance(
     def batches(k: float | None) -> Iterator[torch.Tensor]:
         for i in range(0, n, batch_size):
             x = images[i : i + batch_size]
-            yield _floats(x) if k is None else darken(x, k)
+            yield as_floats(x) if k is None else darken(x, k)
 
     if prediction is not None:
         check_tensor(prediction, "prediction", [str(n), "3", "S", "S"])
         base = lighting_energy(prediction.double())
     else:
-        base = _energies(estimator, batches(None))[0]
+        base = estimates(estimator, batches(None))[0]
     energy, ratio, table = {"1": base}, {}, {}
     for k in ks:
         key = f"{k:g}"
-        energy[key] = _energies(estimator, batches(k))[0]
+        energy[key] = estimates(estimator, batches(k))[0]
         ratio[key] = energy[key] / (k * base)
-        table[key] = _quantiles(ratio[key])
+        table[key] = quantiles(ratio[key])
     return {"energy": energy, "ratio": ratio, "table": table}
 
 
@@ -684,10 +599,10 @@ def crop_stability(
 
     def batches() -> Iterator[torch.Tensor]:
         for i in range(0, n, per):
-            x = _floats(images[i : i + per]).repeat_interleave(jitters, 0)
+            x = as_floats(images[i : i + per]).repeat_interleave(jitters, 0)
             yield crop_images(x, boxes[i : i + per].reshape(-1, 4), size).clamp_(0.0, 1.0)
 
-    flat_energy, flat_direction, _ = _energies(estimator, batches(), directions=True)
+    flat_energy, flat_direction, _ = estimates(estimator, batches(), directions=True)
     energy = flat_energy.reshape(n, jitters)
     direction = flat_direction.reshape(n, jitters, 3)  # type: ignore[union-attr]
     log_e = torch.where(energy > 0, energy.clamp(min=1e-300).log(), torch.nan)
@@ -700,7 +615,7 @@ def crop_stability(
         "max_min_ratio": energy.amax(1) / energy.amin(1),
         "angle_deg": angle,
     }
-    table = {g: {"count": int(m.sum()), **{k: _median(v[m]) for k, v in per_portrait.items()}}
+    table = {g: {"count": int(m.sum()), **{k: median_of(v[m]) for k, v in per_portrait.items()}}
              for g, m in _groups(context_set.skin_tone).items()}
     return {"boxes": boxes, "energy": energy, "direction": direction, "per_portrait": per_portrait,
             "table": table}
@@ -755,8 +670,8 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
     """
     check_positive_int(batch_size, "batch_size")
     images = eval_set.images
-    batches = (_floats(images[i : i + batch_size]) for i in range(0, len(images), batch_size))
-    energy, _, b = _energies(estimator, batches, spreads=True)
+    batches = (as_floats(images[i : i + batch_size]) for i in range(0, len(images), batch_size))
+    energy, _, b = estimates(estimator, batches, spreads=True)
     if b is None:
         return {"table": None, "reason": "the estimator gives no log_energy_spread"}
     z = (lighting_energy(eval_set.mirror_ball.double()).log() - energy.log()).abs() / b
@@ -766,7 +681,7 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
         if not m.any():
             continue
         row: dict[str, Any] = {"count": int(m.sum()), "subjects": len(set(subjects[m].tolist())),
-                               "spread": _median(b[m])}
+                               "spread": median_of(b[m])}
         for k, nominal in SPREAD_NOMINAL.items():
             inside = (z[m] <= k).double()
             row[f"within_{k}"] = float(inside.mean())
@@ -780,6 +695,50 @@ def spread_calibration(estimator: Estimator, eval_set: EvalSet, *, batch_size: i
 # all of them
 
 
+def _check_names(checks: Sequence[str], *, context_set: EvalSet | None, flash: Any) -> None:
+    unknown = [c for c in checks if c not in CHECKS]
+    if unknown:
+        raise ValueCheckError(f"unknown checks {unknown}; the checks are {', '.join(CHECKS)}")
+    if "crop" in checks and context_set is None:
+        raise ValueCheckError("the crop check needs context_set (build_eval_set(..., context=...))")
+    if "flash" in checks and flash is None:
+        raise ValueCheckError("the flash check needs flash: the real-flash photographs and their crops "
+                              "(load_flash_set, flash_crops)")
+
+
+#: The colour check on real-flash photographs takes every ``COLOUR_FLASH_STEP``-th of them (each person's
+#: flashes spread over the sphere): seven looks on every photograph would cost seven real-flash checks.
+COLOUR_FLASH_STEP = 4
+
+
+def flash_checks(estimator: Estimator, flash: tuple[FlashSet, torch.Tensor, torch.Tensor], checks: Sequence[str],
+                 *, batch_size: int = 32) -> dict[str, Any]:
+    r"""The checks on real-flash photographs: ``"flash"`` (the real-flash check) and ``"colour"`` (the colour
+    check on every :data:`COLOUR_FLASH_STEP`-th photograph).
+
+    Args:
+        estimator: the estimator.
+        flash: the photographs, their crops and which fell back
+            (:func:`~kornia_ilum_lab.evaluation.flash.load_flash_set`,
+            :func:`~kornia_ilum_lab.evaluation.flash.flash_crops`).
+        checks: ``"flash"`` and / or ``"colour"``.
+        batch_size: crops per pass.
+
+    Returns:
+        ``{"flash": table, "colour": {"flash": table}}``, the checks asked for.
+    """
+    flash_set, crops, fell_back = flash
+    out: dict[str, Any] = {}
+    if "flash" in checks:
+        out["flash"] = real_flash_check(estimator, flash_set, crops=crops, fell_back=fell_back,
+                                        batch_size=batch_size)["table"]
+    if "colour" in checks:
+        step = slice(None, None, COLOUR_FLASH_STEP)
+        out["colour"] = {"flash": colour_check(estimator, crops[step], subjects=flash_set.people[step],
+                                               batch_size=batch_size)["table"]}
+    return out
+
+
 def run_checks(
     estimator: Estimator,
     eval_set: EvalSet,
@@ -787,6 +746,7 @@ def run_checks(
     checks: Sequence[str] = CHECKS,
     context_set: EvalSet | None = None,
     photos: torch.Tensor | None = None,
+    flash: tuple[FlashSet, torch.Tensor, torch.Tensor] | None = None,
     prediction: torch.Tensor | None = None,
     ks: Sequence[float] = EXPOSURE_FACTORS,
     jitters: int = 8,
@@ -802,19 +762,26 @@ def run_checks(
         eval_set: the eval set (its crops and matte).
         checks: names of :data:`CHECKS`.
         context_set: the context crops for ``"crop"`` (required by it).
-        photos: ``(M, 3, 256, 256)`` float crops of real photos (:func:`face_crops`) for ``"exposure"``.
+        photos: ``(M, 3, 256, 256)`` float crops of real photos (:func:`face_crops`) for ``"exposure"`` and
+            ``"colour"``.
+        flash: the real-flash photographs, their crops and which fell back
+            (:func:`~kornia_ilum_lab.evaluation.flash.load_flash_set`,
+            :func:`~kornia_ilum_lab.evaluation.flash.flash_crops`), for ``"flash"`` (required by it) and
+            ``"colour"``.
         prediction: the estimator's lighting on ``eval_set.images``, if already made (saves two passes).
         ks, jitters, position, extent, seed, batch_size: the settings of the checks.
 
     Returns:
         a dict of the checks run, ``transfer`` (a table) and ``tone_spread``, ``exposure``
         (``{"eval": table, "photos": table}``, ``"photos"`` only with photos), ``crop`` (a table), ``spread``
-        (``{"table", "reason"}``) and ``seconds`` (``{name: float}``): the tables are the ``"table"`` of
-        :func:`transfer_check`, :func:`exposure_equivariance`, :func:`crop_stability` and
-        :func:`spread_calibration`.
+        (``{"table", "reason"}``), ``colour`` (``{"eval": table, "photos": table, "flash": table}``, the last two
+        where given), ``flash`` (a table) and ``seconds`` (``{name: float}``): the tables are the ``"table"`` of
+        :func:`transfer_check`, :func:`exposure_equivariance`, :func:`crop_stability`,
+        :func:`spread_calibration`, :func:`~kornia_ilum_lab.evaluation.colour.colour_check` and
+        :func:`~kornia_ilum_lab.evaluation.flash.real_flash_check`.
 
     Raises:
-        ValueCheckError: an unknown check, or ``"crop"`` without ``context_set``.
+        ValueCheckError: an unknown check, ``"crop"`` without ``context_set`` or ``"flash"`` without ``flash``.
 
     Shape:
         - photos: :math:`(M, 3, 256, 256)`; prediction: :math:`(N, 3, S, S)`
@@ -830,11 +797,7 @@ def run_checks(
         >>> sorted(out), sorted(out["exposure"]["eval"]), out["exposure"]["eval"]["0.5"]["count"]
         (['exposure', 'seconds'], ['0.25', '0.5'], 4)
     """
-    unknown = [c for c in checks if c not in CHECKS]
-    if unknown:
-        raise ValueCheckError(f"unknown checks {unknown}; the checks are {', '.join(CHECKS)}")
-    if "crop" in checks and context_set is None:
-        raise ValueCheckError("the crop check needs context_set (build_eval_set(..., context=...))")
+    _check_names(checks, context_set=context_set, flash=flash)
     out: dict[str, Any] = {}
     seconds: dict[str, float] = {}
     for name in (c for c in CHECKS if c in checks):
@@ -852,6 +815,15 @@ def run_checks(
             if photos is not None and len(photos):
                 on_photos = exposure_equivariance(estimator, photos, ks=ks, batch_size=batch_size)
                 out[name]["photos"] = on_photos["table"]
+        elif name == "colour":
+            out[name] = {"eval": colour_check(estimator, eval_set.images, subjects=eval_set.subject_seed,
+                                              batch_size=batch_size)["table"]}
+            if photos is not None and len(photos):
+                out[name]["photos"] = colour_check(estimator, photos, batch_size=batch_size)["table"]
+            if flash is not None:
+                out[name].update(flash_checks(estimator, flash, ["colour"], batch_size=batch_size)["colour"])
+        elif name == "flash" and flash is not None:  # with its photographs (checked above)
+            out[name] = flash_checks(estimator, flash, ["flash"], batch_size=batch_size)["flash"]
         elif context_set is not None:  # "crop", with its set (checked above)
             out[name] = crop_stability(estimator, context_set, jitters=jitters, position=position,
                                        extent=extent, seed=seed,
@@ -869,7 +841,7 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
     Args:
         eval_set: the eval set that is scored.
         checks: names of :data:`CHECKS`.
-        **options: the keyword arguments of :func:`run_checks` (``context_set``, ``photos``, ``ks``,
+        **options: the keyword arguments of :func:`run_checks` (``context_set``, ``photos``, ``flash``, ``ks``,
             ``jitters``, ``position``, ``extent``, ``seed``, ``batch_size``).
 
     Returns:
@@ -877,8 +849,8 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
         ``eval_set.images`` is ``prediction``.
 
     Raises:
-        ValueCheckError: an unknown check, or ``"crop"`` without ``context_set`` or with ``jitters`` below 2
-            (at once, before any estimator runs).
+        ValueCheckError: an unknown check, ``"crop"`` without ``context_set`` or with ``jitters`` below 2, or
+            ``"flash"`` without ``flash`` (at once, before any estimator runs).
 
     Shape:
         - prediction (of the returned callable): :math:`(N, 3, S, S)`, ``N = len(eval_set)``
@@ -898,11 +870,7 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
         ...
         kornia.core.exceptions.ValueCheckError: the crop check needs context_set (build_eval_set(..., context=...))
     """
-    unknown = [c for c in checks if c not in CHECKS]
-    if unknown:
-        raise ValueCheckError(f"unknown checks {unknown}; the checks are {', '.join(CHECKS)}")
-    if "crop" in checks and options.get("context_set") is None:
-        raise ValueCheckError("the crop check needs context_set (build_eval_set(..., context=...))")
+    _check_names(checks, context_set=options.get("context_set"), flash=options.get("flash"))
     if "crop" in checks and options.get("jitters", 8) < 2:
         raise ValueCheckError(f"jitters must be at least 2 (a spread), got {options['jitters']}")
     names = list(checks)

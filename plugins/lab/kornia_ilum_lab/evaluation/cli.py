@@ -12,21 +12,31 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import Any
 
 from kornia_ilum.core.cli import positive_int
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR
 from kornia_ilum.estimators import RUNTIMES
-from kornia_ilum_lab.evaluation.checks import CHECKS, EXPOSURE_FACTORS, check_runner, default_photos, face_crops
+from kornia_ilum_lab.evaluation.checks import (
+    CHECKS,
+    EXPOSURE_FACTORS,
+    check_runner,
+    default_photos,
+    face_crops,
+    flash_checks,
+)
 from kornia_ilum_lab.evaluation.curve import equal_budget, format_equal_budget, learning_curve, read_curve, write_curve
-from kornia_ilum_lab.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate
+from kornia_ilum_lab.evaluation.evaluate import BRDF_NAMES, build_eval_set, evaluate, load_checkpoint, load_estimator
+from kornia_ilum_lab.evaluation.colour import colour_markdown
+from kornia_ilum_lab.evaluation.flash import flash_crops, flash_markdown, load_flash_set
 from kornia_ilum_lab.evaluation.report import format_markdown, summarize, write_report
 
 __all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "print_curve",
            "run_evaluate"]
 
-#: The checks run unless ``--checks`` says otherwise.
-DEFAULT_CHECKS: tuple[str, ...] = CHECKS
+#: The checks run unless ``--checks`` says otherwise (and ``"flash"`` with ``--flash``).
+DEFAULT_CHECKS: tuple[str, ...] = tuple(c for c in CHECKS if c != "flash")
 
 _HELP = """\
 Evaluate lighting estimators on the project's held-out eval set, which no training uses: the eval subjects
@@ -44,7 +54,13 @@ with 95 % intervals over subjects and the spread across tones);
 scikit-image's astronaut, cut by --detector); "crop", the spread of the estimate over --jitters crops jittered
 as a detector's boxes are, on the first --jitter-samples portraits rendered again as wider context crops;
 "spread", whether the estimator's spread of the log energy holds the truth as often as it says (within +-1
-and +-2 spreads, per skin tone; estimators without a spread are reported as such).
+and +-2 spreads, per skin tone; estimators without a spread are reported as such); "colour", the same crops
+greyscale, desaturated, white-balanced warmer and cooler and graded (teal-orange, faded, sepia): how far the
+main light turns and how its strength changes, on the eval crops, the real photos and the real-flash photos;
+"flash" (with --flash DIR, which adds it), real faces under one flash of known direction each (the Extended
+Yale Face Database B's names: yaleB01_P00A+035E+40.pgm): the main light's direction error by the flash's
+angle to the camera axis, left/right and up/down sign agreement, the spread of the strength across people
+under one flash. With --flash and no --cache, only the real-flash and colour checks on those photographs run.
 
 examples:
   kornia-ilum evaluate --cache lightstage/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out eval/
@@ -52,6 +68,8 @@ examples:
   kornia-ilum evaluate --cache lightstage/ --weights ours=runs/a/best.safetensors --json eval.json
   kornia-ilum evaluate --cache lightstage/ --background black --estimator sipr --estimator ours
   kornia-ilum evaluate --cache lightstage/ --checks transfer,exposure --photos me.jpg group.png --out eval/
+  kornia-ilum evaluate --cache lightstage/ --flash ../shared/data/yaleb_dev --weights ours=runs/a/ours.safetensors
+  kornia-ilum evaluate --flash ../shared/data/yaleb_dev --estimator ours --estimator sh   # real flashes only
   kornia-ilum evaluate --cache lightstage/ --curve runs/a --curve runs/b   # two curves, at equal budgets
   kornia-ilum evaluate --curve docs/_static/ours22_curve.csv --curve runs/b/curve.csv   # from written curves
 """
@@ -71,8 +89,8 @@ def parse_checks(text: str) -> tuple[str, ...]:
         argparse.ArgumentTypeError: an unknown check (argparse reports it as a usage error).
 
     Examples:
-        >>> parse_checks("crop,transfer"), parse_checks("none"), parse_checks("all")
-        (('transfer', 'crop'), (), ('transfer', 'exposure', 'crop', 'spread'))
+        >>> parse_checks("crop,transfer"), parse_checks("none"), parse_checks("all")[-2:]
+        (('transfer', 'crop'), (), ('colour', 'flash'))
     """
     names = [t.strip() for t in text.split(",") if t.strip()]
     if names in (["none"], []):
@@ -158,9 +176,12 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--weights", action="append", type=parse_weights, default=[], metavar="NAME=PATH",
                      help="also score a .safetensors checkpoint of the registered estimator class NAME "
                      "(its SHA-256 is printed and recorded)")
-    cmd.add_argument("--checks", type=parse_checks, default=DEFAULT_CHECKS, metavar="LIST",
-                     help="checks on every scored estimator: a comma list of transfer, exposure, crop, or "
-                     "all, or none (default: all)")
+    cmd.add_argument("--checks", type=parse_checks, default=None, metavar="LIST",
+                     help="checks on every scored estimator: a comma list of transfer, exposure, crop, spread, "
+                     "colour, flash, or all, or none (default: all but flash; flash too with --flash)")
+    cmd.add_argument("--flash", metavar="DIR",
+                     help="real photographs under one known flash each (e.g. ../shared/data/yaleb_dev, read in "
+                     "place): adds the flash check and the colour check on them")
     cmd.add_argument("--jitter-samples", type=positive_int, default=256, metavar="N",
                      help="portraits of the crop check: the first N of the eval set (256, at most --samples)")
     cmd.add_argument("--jitters", type=_jitters, default=8, metavar="J",
@@ -266,9 +287,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
     background = getattr(args, "background", "environment")
     curves = getattr(args, "curve", None) or []
     written = [c for c in curves if str(c).endswith(".csv")]  # curves scored before: read, not scored again
+    flash_dir = getattr(args, "flash", None)
+    checks = _checks(args, flash_dir)
+    if not getattr(args, "cache", None) and flash_dir and not curves:
+        return _flash_only(args, flash_dir, checks)
     if not getattr(args, "cache", None) and not (curves and len(written) == len(curves)):
         raise ValueCheckError("evaluate needs --cache DIR (a light-stage cache with eval subjects); only "
-                              "--curve with curve.csv files alone goes without")
+                              "--curve with curve.csv files, or --flash DIR, goes without")
     eval_set = None if len(written) == len(curves) and curves else build_eval_set(
         args.cache, hdri, samples=samples, background=background, progress=True)
     if curves:
@@ -283,7 +308,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
             print("\nat equal budgets (each run at its last snapshot within the budget):")
             print(format_equal_budget(equal_budget(found)), end="")
         return 0
-    checks = tuple(getattr(args, "checks", DEFAULT_CHECKS))
     options = {"ks": list(EXPOSURE_FACTORS), "jitters": getattr(args, "jitters", 8), "position": 0.10,
                "extent": 0.15, "seed": 0}
     context_set, photos, about_photos = None, None, {}
@@ -298,10 +322,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
         about_photos = {"photo_names": names, "photos_left_out": no_face, "detector": detector}
         for name, reason in no_face.items():
             print(f"exposure check: {name} left out: {reason}")
+    flash = _flash_photos(flash_dir, getattr(args, "detector", DEFAULT_DETECTOR)) if flash_dir else None
+    if flash is not None:
+        about_photos["flash"] = {"folder": str(flash_dir), "photos": len(flash[0]), "no_face": int(flash[2].sum())}
     weights = list(getattr(args, "weights", None) or [])
     batch_size = getattr(args, "batch_size", 32)
-    runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, batch_size=batch_size,
-                          **options) if checks else None
+    runner = check_runner(eval_set, checks, context_set=context_set, photos=photos, flash=flash,
+                          batch_size=batch_size, **options) if checks else None
     results = evaluate(eval_set, getattr(args, "estimator", None), weights=weights,
                        oracles=not getattr(args, "no_oracles", False), batch_size=batch_size, checks=runner,
                        tta=getattr(args, "tta", None), runtimes=getattr(args, "runtime", None) or ())
@@ -317,4 +344,50 @@ def run_evaluate(args: argparse.Namespace) -> int:
     for path in write_report(summary, markdown, json_path):
         print(f"wrote {path}")
     print(f"eval set built in {eval_set.description['build_seconds']:.1f} s; total {summary['seconds']['total']:.1f} s")
+    return 0
+
+
+def _checks(args: argparse.Namespace, flash_dir: str | None) -> tuple[str, ...]:
+    """The checks to run: ``--checks``, else the defaults (and ``"flash"`` with ``--flash``)."""
+    given = getattr(args, "checks", None)
+    checks = tuple(given) if given is not None else DEFAULT_CHECKS + (("flash",) if flash_dir else ())
+    if "flash" in checks and not flash_dir:
+        raise ValueCheckError("the flash check needs --flash DIR: real photographs under one known flash each "
+                              "(e.g. ../shared/data/yaleb_dev)")
+    return checks
+
+
+def _flash_photos(folder: str, detector: str) -> tuple:
+    """The real-flash photographs of ``folder`` and their crops, cut once for every estimator."""
+    flash_set = load_flash_set(folder)
+    print(f"real-flash check: {len(flash_set)} photographs of {len(set(flash_set.subjects))} people in {folder}")
+    crops, fell_back = flash_crops(flash_set, detector)
+    return flash_set, crops, fell_back
+
+
+def _flash_only(args: argparse.Namespace, folder: str, checks: tuple[str, ...]) -> int:
+    """``--flash`` without ``--cache``: the real-flash check (and the colour check on the same photographs) for
+    the chosen estimators and weight files; prints the tables and writes them where asked."""
+    flash = _flash_photos(folder, getattr(args, "detector", DEFAULT_DETECTOR))
+    chosen = [c for c in checks if c in ("flash", "colour")]
+    methods: dict[str, Any] = {}
+    names = list(getattr(args, "estimator", None) or ["ours"])
+    loaded = [(name, load_estimator(name)) for name in names]
+    for name, path in getattr(args, "weights", None) or []:
+        estimator, digest = load_checkpoint(name, path)
+        loaded.append((f"{name}@{digest[:8]}", estimator))
+    for label, estimator in loaded:
+        methods[label] = flash_checks(estimator, flash, chosen, batch_size=getattr(args, "batch_size", 32))
+    lines = [f"# Real photographs under one known flash: {folder}"]
+    lines += colour_markdown({n: t["colour"] for n, t in methods.items() if "colour" in t})
+    lines += flash_markdown({n: t["flash"] for n, t in methods.items() if "flash" in t})
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    summary = {"flash": {"folder": str(folder), "photos": len(flash[0]), "no_face": int(flash[2].sum())},
+               "checks": methods}
+    out = getattr(args, "out", None)
+    markdown = getattr(args, "markdown", None) or (Path(out) / "evaluation.md" if out else None)
+    json_path = getattr(args, "json", None) or (Path(out) / "evaluation.json" if out else None)
+    for path in write_report(summary, markdown, json_path, text=text):
+        print(f"wrote {path}")
     return 0

@@ -27,7 +27,9 @@ from typing import Any
 import torch
 
 from kornia_ilum_lab.evaluation.bootstrap import subject_interval
+from kornia_ilum_lab.evaluation.colour import colour_markdown
 from kornia_ilum_lab.evaluation.evaluate import BRDF_NAMES, EvalSet
+from kornia_ilum_lab.evaluation.flash import flash_markdown
 
 __all__ = ["format_markdown", "paired_differences", "summarize", "write_report"]
 
@@ -342,6 +344,8 @@ def _check_tables(summary: dict[str, Any]) -> list[str]:
                 lines.append(f"| {name} | {tone} | {row['count']} | {_f(row['spread'], 3)} | "
                              f"{_f(row['within_1'], 3)}{_interval(row['within_1_ci'])} | "
                              f"{_f(row['within_2'], 3)}{_interval(row['within_2_ci'])} |")
+    lines += colour_markdown({n: c["colour"] for n, c in checks.items() if "colour" in c})
+    lines += flash_markdown({n: c["flash"] for n, c in checks.items() if "flash" in c})
     if checks:
         spent = ("; ".join(f"{n}: " + ", ".join(f"{k} {v:.1f}" for k, v in c.get("seconds", {}).items())
                            for n, c in checks.items()))
@@ -350,12 +354,13 @@ def _check_tables(summary: dict[str, Any]) -> list[str]:
 
 
 def write_report(summary: dict[str, Any], markdown: str | os.PathLike[str] | None = None,
-                 json_path: str | os.PathLike[str] | None = None) -> list[Path]:
+                 json_path: str | os.PathLike[str] | None = None, *, text: str | None = None) -> list[Path]:
     """Write the Markdown and / or JSON files (parents created); returns the paths written.
 
     Args:
         summary: from :func:`summarize`.
-        markdown: where to write :func:`format_markdown`'s text; ``None`` writes none.
+        markdown: where to write :func:`format_markdown`'s text (or ``text``); ``None`` writes none.
+        text: the Markdown to write instead of :func:`format_markdown`'s (a report of another shape).
         json_path: where to write ``summary`` as JSON; ``None`` writes none.
 
     Returns:
@@ -375,7 +380,7 @@ def write_report(summary: dict[str, Any], markdown: str | os.PathLike[str] | Non
     if markdown is not None:
         path = Path(markdown)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(format_markdown(summary))
+        path.write_text(format_markdown(summary) if text is None else text)
         written.append(path)
     if json_path is not None:
         path = Path(json_path)

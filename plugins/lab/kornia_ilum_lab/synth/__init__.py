@@ -6,6 +6,8 @@
   sRGB;
 - :mod:`~kornia_ilum_lab.synth.camera_effects`: phone-camera effects (lens blur, vignette, sensor noise, tone
   curve, JPEG);
+- :mod:`~kornia_ilum_lab.synth.colour_looks`: what users do to a photo's colours after the camera (greyscale,
+  desaturation, white balance, colour grades) and what that does to its lighting;
 - :mod:`~kornia_ilum_lab.synth.stats`: statistics of lighting environments, to compare generated sets with real
   maps;
 - :mod:`~kornia_ilum_lab.synth.lightstage`: the virtual light stage (synthetic subjects, their OLAT reflectance

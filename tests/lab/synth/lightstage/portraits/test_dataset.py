@@ -10,7 +10,7 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.color import LUMINANCE, srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
 from kornia_ilum.geometry import mirror_ball_valid
@@ -339,6 +339,29 @@ class TestSecondCrop:
             assert box.shape == (4,) and bool((box >= 0).all() and (box <= 32).all())
         sides = torch.stack([b["second_crop"][2] - b["second_crop"][0] for b in with_second])
         assert sides.std() > 0  # jittered
+
+
+class TestColourLooks:
+    def test_drawn_last_with_their_lighting_and_only_when_asked(self) -> None:
+        """A look changes a sample's photo and its lighting target together, and nothing else; at 0 no look
+        is drawn, so every other draw is what it was."""
+        base = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=16,
+                          sphere_sizes=(4,)))
+        looked = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=16,
+                            sphere_sizes=(4,), colour_looks=1.0))
+        assert all("look" not in b for b in base)
+        kinds = {b["look"] for b in looked}
+        assert kinds <= {1, 2, 4} and len(kinds) > 1
+        for a, b in zip(base, looked, strict=True):
+            assert torch.equal(a["crop_box"], b["crop_box"]) and a["exposure"] == b["exposure"]
+            luminance = (a["mirror_ball"] * torch.tensor(LUMINANCE).view(3, 1, 1)).sum(0)
+            if b["look"] == 1:  # greyscale: a grey photo, a grey lighting of the same luminance
+                assert torch.equal(b["image"][0], b["image"][1]) and torch.equal(b["image"][1], b["image"][2])
+                torch.testing.assert_close(b["mirror_ball"][0], luminance, rtol=1e-5, atol=1e-7)
+                torch.testing.assert_close(b["spheres"]["diffuse_4"][0], b["spheres"]["diffuse_4"][2])
+            if b["look"] == 4:  # a colour grade keeps the lighting; a toned black and white makes it grey
+                assert torch.equal(a["mirror_ball"], b["mirror_ball"]) or torch.allclose(
+                    b["mirror_ball"], luminance.expand(3, -1, -1), rtol=1e-5, atol=1e-7)
 
 
 class TestPlainBackdrop:

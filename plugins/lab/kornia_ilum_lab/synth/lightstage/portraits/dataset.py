@@ -30,6 +30,7 @@ from kornia_ilum.io import read_hdr
 from kornia_ilum.render import SparseField, check_eps
 from kornia_ilum_lab.synth.background import latlong_grid, lookup_latlong
 from kornia_ilum_lab.synth.camera_effects import CameraEffects
+from kornia_ilum_lab.synth.colour_looks import apply_looks, draw_looks
 from kornia_ilum_lab.synth.environments import (
     Environment,
     EnvironmentSampler,
@@ -112,6 +113,12 @@ class PortraitConfig:
             ``crop_position`` and ``crop_extent``; training's crop-consistency term cuts it,
             :attr:`~kornia_ilum_lab.train.TrainConfig.lambda_crop`). Drawn last and only when asked for, so every
             other field of a sample is what it was without it.
+        colour_looks: the fraction of samples whose photo goes through a random colour look after the camera
+            (:func:`~kornia_ilum_lab.synth.colour_looks.draw_looks`: greyscale, desaturated, a toned black and
+            white or a colour grade), with the lighting target changed as the look changes the photo's units
+            (:func:`~kornia_ilum_lab.synth.colour_looks.apply_looks`; ``sample["look"]`` is the look's kind, 0
+            for none): where the light comes from must then be read from the shading, not from the colours.
+            Drawn last and only when positive, so at 0 every sample is what it was without the option.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -156,6 +163,7 @@ class PortraitConfig:
     plain_background: float = 0.0
     plain_level: tuple[float, float] = (0.01, 3.0)
     second_crop: bool = False
+    colour_looks: float = 0.0
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -199,6 +207,7 @@ class PortraitConfig:
         _probability(self.flip_probability, "flip_probability")
         _probability(self.background_sharp_probability, "background_sharp_probability")
         _probability(self.plain_background, "plain_background")
+        _probability(self.colour_looks, "colour_looks")
         _pair(self.plain_level, "plain_level", 0.0, strict=True)
         object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
@@ -611,6 +620,12 @@ class PortraitDataset(IterableDataset):
         if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
             second = inner_crop_boxes(n, cfg.size, generator=g, position=cfg.crop_position,
                                       extent=cfg.crop_extent).float()
+        look = None
+        if cfg.colour_looks > 0:  # drawn after everything else, and only when asked for
+            look = draw_looks(n, cfg.colour_looks, g)
+            for view in views:
+                view["image"], view["mirror_ball"] = apply_looks(view["image"], view["mirror_ball"], look)
+                view["spheres"] = sphere_targets(view["mirror_ball"], cfg.sphere_sizes)
         samples = []
         for j in range(n):
             rf = self.fields[field_ids[j // nl]]
@@ -631,6 +646,8 @@ class PortraitDataset(IterableDataset):
                 sample["pair"] = one[1]
             if second is not None:
                 sample["second_crop"] = second[j]
+            if look is not None:
+                sample["look"] = int(look.kind[j])
             if cfg.pairs or cfg.matte:
                 sample["alpha"] = alphas[j // nl][j % nl]
             samples.append(sample)
