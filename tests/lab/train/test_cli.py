@@ -24,6 +24,7 @@ class TestParser:
         assert args.cache == ["a", "b"] and args.hdri == [] and args.data == [] and args.model == []
         for name in ("estimator", "steps", "batch", "lr", "seed", "device", "bf16", "channels_last",
                      "checkpoint_every", "log_every", "snapshot_every", "lambda_adv", "lambda_crop", "crop_pairs",
+                     "lambda_colour", "colour_pairs",
                      "lambda_energy", "init", "workers", "threads"):
             assert getattr(args, name) == getattr(d, name), name
         assert args.brdf_weights == BRDF_WEIGHTS and args.func is run_train

@@ -16,6 +16,7 @@ import torch
 from torch import nn
 
 import kornia_ilum_lab.train.recipes as recipes
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.render import mirror_ball_pyramid
@@ -31,12 +32,15 @@ from kornia_ilum_lab.train import (
     list_recipes,
     train_step,
 )
+from kornia_ilum_lab.synth.colour_looks import greyscale
 from kornia_ilum_lab.train.losses import log_l2_loss
 from kornia_ilum_lab.train.recipes import (
     RECIPE_ENTRY_POINT_GROUP,
     OursRecipe,
     batch_images,
     crop_consistency,
+    colour_consistency,
+    colour_pairs,
     crop_pairs,
 )
 
@@ -258,6 +262,24 @@ class TestCropConsistency:
         assert off[column] == 0 and on[column] > 0
         torch.testing.assert_close(on["loss"], on["rec"] + value * on[column])
 
+    def test_the_colour_term_joins_with_its_weight(self) -> None:
+        """Greyscale twins between the crop pairs' ends, with their term."""
+        torch.manual_seed(0)
+        model = _Tiny()
+        batch = {"image": torch.randint(0, 256, (8, 3, 8, 8), dtype=torch.uint8),
+                 "mirror_ball": torch.rand(8, 3, 32, 32) * mirror_ball_valid(32),
+                 "second_crop": torch.tensor([[2.0, 2.0, 6.0, 6.0]]).repeat(8, 1)}
+        config = TrainConfig(out="-", cache=("-",), batch=8, crop_pairs=2, lambda_crop=1.0, lambda_colour=3.0,
+                             colour_pairs=2)
+        runtime = RuntimeSettings(bf16=False, channels_last=True, workers=0)
+        out = Recipe().step(model=model, disc=None, opt_g=torch.optim.Adam(model.parameters()), opt_d=None,
+                            batch=batch, device=torch.device("cpu"), config=config, runtime=runtime)
+        assert out["colour"] > 0
+        torch.testing.assert_close(out["loss"], out["rec"] + out["crop"] + 3.0 * out["colour"])
+        with pytest.raises(ValueCheckError, match="must fit in the batch"):
+            TrainConfig(out="-", cache=("-",), batch=8, crop_pairs=2, lambda_crop=1.0, lambda_colour=1.0,
+                        colour_pairs=3)
+
     def test_the_ablations_change_the_lighting_loss_only(self) -> None:
         full = self._default_step()
         finest = self._default_step(multi_scale=False)
@@ -328,3 +350,26 @@ class TestTheScaleApart:
             self._step(model, lambda_nll=1.0)
         with pytest.raises(ValueCheckError, match="albedo head"):
             self._step(model, lambda_albedo=1.0)
+
+
+class TestColourConsistency:
+    def test_twins_are_greyscale_with_a_grey_target_and_leave_the_crop_pairs_alone(self) -> None:
+        torch.manual_seed(0)
+        crops, target = torch.rand(10, 3, 8, 8), torch.rand(10, 3, 32, 32)
+        c, t, p = colour_pairs(crops, target, 2, start=2)
+        assert p == 2 and torch.equal(c[:6], crops[:6]) and torch.equal(c[8:], crops[8:])
+        assert torch.equal(t[:6], target[:6]) and torch.equal(t[8:], target[8:])
+        torch.testing.assert_close(c[6:8], greyscale(crops[2:4]))
+        luminance = (target[2:4] * torch.tensor(LUMINANCE).view(1, 3, 1, 1)).sum(1, keepdim=True)
+        torch.testing.assert_close(t[6:8], luminance.expand(2, 3, 32, 32))
+        assert colour_pairs(crops, target, 9, start=2)[2] == 3  # at most what lies between the crop pairs
+
+    def test_the_term_compares_main_lights_only(self) -> None:
+        torch.manual_seed(0)
+        light = torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)
+        same_shape = torch.cat([light[:2], 5.0 * light[:2]])  # the same lights, brighter: no term
+        assert abs(float(colour_consistency({32: same_shape}, 2))) < 1e-6
+        x = light.clone().requires_grad_()
+        term = colour_consistency({32: x}, 2)
+        term.backward()
+        assert term > 0 and x.grad[:2].abs().sum() > 0 and x.grad[2:].abs().sum() > 0

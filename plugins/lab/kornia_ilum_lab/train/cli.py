@@ -101,6 +101,11 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="weight of the crop-consistency term (default: 0, off; docs/training.rst)")
     cmd.add_argument("--crop-pairs", type=positive_int, default=d.crop_pairs, metavar="P",
                      help=f"crop pairs per step with --lambda-crop (default: {d.crop_pairs})")
+    cmd.add_argument("--lambda-colour", type=float, default=d.lambda_colour,
+                     help="weight of the colour-consistency term: portraits and their greyscale twins asked for "
+                     "one main light (default: 0, off; docs/training.rst)")
+    cmd.add_argument("--colour-pairs", type=positive_int, default=d.colour_pairs, metavar="P",
+                     help=f"greyscale twins per step with --lambda-colour (default: {d.colour_pairs})")
     cmd.add_argument("--lambda-energy", type=float, default=d.lambda_energy,
                      help="weight of the log-energy term (default: 0, off: the paper's loss; docs/training.rst)")
     cmd.add_argument("--lambda-nll", type=float, default=d.lambda_nll,
@@ -145,6 +150,7 @@ def run_train(args: argparse.Namespace) -> int:
                          average_tail=args.average_tail, calibrate_energy=args.calibrate_energy,
                          fit_spread=args.fit_spread,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
+                         lambda_colour=args.lambda_colour, colour_pairs=args.colour_pairs,
                          lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll,
                          lambda_albedo=args.lambda_albedo, init=args.init, model=dict(args.model),
                          data=dict(args.data))

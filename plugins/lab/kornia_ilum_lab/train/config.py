@@ -53,6 +53,14 @@ class TrainConfig:
             detector's box (docs/training.rst, "Measured"). Recipes that keep the default
             :meth:`~kornia_ilum_lab.train.recipes.Recipe.step` have it.
         crop_pairs: the pairs per step with ``lambda_crop`` (8 of a batch of 32).
+        lambda_colour: the weight of the colour-consistency term (0: off). With it, ``colour_pairs`` samples of
+            each step (after the crop pairs' first crops) get a greyscale twin in place of as many samples at the
+            end of the batch (before the crop pairs' second crops), with the greyscale lighting target
+            (:func:`~kornia_ilum_lab.synth.colour_looks.apply_looks`), and the generator is also asked for one
+            main light from both: ``1 - cos`` of the two predictions' luminance dipoles
+            (:func:`~kornia_ilum_lab.train.recipes.colour_consistency`). Recipes that keep the default
+            :meth:`~kornia_ilum_lab.train.recipes.Recipe.step` have it.
+        colour_pairs: the pairs per step with ``lambda_colour`` (4).
         lambda_energy: the weight of the energy term (0: off, the paper's loss): the log of each channel's
             energy against the truth's (:func:`~kornia_ilum_lab.train.losses.energy_loss`), which ``L_rec`` on
             gamma-encoded spheres lets drift low (docs/training.rst, "Why the energy drifts low"). Recipes
@@ -142,6 +150,8 @@ class TrainConfig:
     lambda_adv: float = 0.004
     lambda_crop: float = 0.0
     crop_pairs: int = 8
+    lambda_colour: float = 0.0
+    colour_pairs: int = 4
     lambda_energy: float = 0.0
     lambda_nll: float = 0.0
     lambda_albedo: float = 0.0
@@ -165,7 +175,7 @@ class TrainConfig:
     data: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("steps", "batch", "checkpoint_every", "log_every", "crop_pairs"):
+        for name in ("steps", "batch", "checkpoint_every", "log_every", "crop_pairs", "colour_pairs"):
             v = getattr(self, name)
             zero_ok = name == "steps" and self.init is not None  # 0 steps from --init: an export alone
             if isinstance(v, bool) or not isinstance(v, int) or v < 0 or (v == 0 and not zero_ok):
@@ -193,6 +203,8 @@ class TrainConfig:
             )
         if not self.lambda_crop >= 0:
             raise ValueCheckError(f"lambda_crop must be non-negative, got {self.lambda_crop!r}")
+        if not self.lambda_colour >= 0:
+            raise ValueCheckError(f"lambda_colour must be non-negative, got {self.lambda_colour!r}")
         if not self.lambda_energy >= 0:
             raise ValueCheckError(f"lambda_energy must be non-negative, got {self.lambda_energy!r}")
         if not self.lambda_nll >= 0:
@@ -205,6 +217,10 @@ class TrainConfig:
             raise ValueCheckError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
         if self.lambda_crop > 0 and 2 * self.crop_pairs > self.batch:
             raise ValueCheckError(f"crop_pairs ({self.crop_pairs}) must be at most half the batch ({self.batch})")
+        paired = 2 * self.crop_pairs * (self.lambda_crop > 0) + 2 * self.colour_pairs
+        if self.lambda_colour > 0 and paired > self.batch:
+            raise ValueCheckError(f"twice the crop pairs and the colour pairs ({paired}) must fit in the batch "
+                                  f"({self.batch})")
         if self.init is not None:
             object.__setattr__(self, "init", str(self.init))
         object.__setattr__(self, "cache", tuple(str(c) for c in self.cache))

@@ -263,7 +263,8 @@ def train(config: TrainConfig) -> dict[str, Any]:
                           samples=step * config.batch, elapsed_s=elapsed + time.perf_counter() - run_t0)
         if step % config.checkpoint_every == 0 or step == config.steps:
             if rank == 0:
-                terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("energy", config.lambda_energy),
+                terms = tuple(name for name, weight in (("crop", config.lambda_crop), ("colour", config.lambda_colour),
+                                                        ("energy", config.lambda_energy),
                                                         ("nll", config.lambda_nll), ("spread", config.lambda_nll),
                                                         ("albedo", config.lambda_albedo))
                               if weight > 0)  # a term is logged where it is on

@@ -30,9 +30,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
+from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
 from kornia_ilum.render import mirror_ball_pyramid
+from kornia_ilum_lab.synth.colour_looks import Look, apply_looks
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum_lab.train.data import batch_loader, collate
@@ -54,6 +57,8 @@ __all__ = [
     "OursRecipe",
     "Recipe",
     "batch_images",
+    "colour_consistency",
+    "colour_pairs",
     "crop_consistency",
     "crop_pairs",
     "get_recipe",
@@ -159,14 +164,20 @@ class Recipe:
         crops = batch_images(batch, "image", device, runtime.memory_format)
         target = batch["mirror_ball"].to(device, non_blocking=True).float()
         tones = batch.get("skin_tone")
-        pairs = 0
+        pairs = twins = 0
         if config.lambda_crop > 0:
             crops, target, pairs = crop_pairs(crops, target, batch["second_crop"], config.crop_pairs)
             crops = crops.contiguous(memory_format=runtime.memory_format)
             if tones is not None:  # a pair's second crop shows its first crop's face
                 tones = torch.cat([tones[: len(tones) - pairs], tones[:pairs]])
+        if config.lambda_colour > 0:
+            crops, target, twins = colour_pairs(crops, target, config.colour_pairs, start=pairs)
+            crops = crops.contiguous(memory_format=runtime.memory_format)
+            if tones is not None:  # a greyscale twin shows its first's face
+                b = len(tones)
+                tones = torch.cat([tones[: b - pairs - twins], tones[pairs:pairs + twins], tones[b - pairs:]])
         return train_step(model=model, disc=disc, opt_g=opt_g, opt_d=opt_d, crops=crops, target=target,
-                          config=config, runtime=runtime, recipe=self, pairs=pairs, skin_tone=tones)
+                          config=config, runtime=runtime, recipe=self, pairs=pairs, twins=twins, skin_tone=tones)
 
     def extra_losses(self, pred: dict[int, torch.Tensor]) -> dict[str, torch.Tensor]:
         """Terms added to the generator's loss, by name, from its multi-scale prediction (default: none).
@@ -294,10 +305,79 @@ def crop_consistency(pred: dict[int, torch.Tensor], pairs: int, brdf_weights: di
     return training_losses({size: second}, first, brdf_weights=brdf_weights, truth={size: first})[0]
 
 
+def colour_pairs(crops: torch.Tensor, target: torch.Tensor, pairs: int, *, start: int = 0
+                 ) -> tuple[torch.Tensor, torch.Tensor, int]:
+    r"""The batch with ``P`` samples before its last ``start`` replaced by greyscale twins of the ``P`` samples
+    after its first ``start`` (colour consistency), with the greyscale lighting target.
+
+    Sample ``B - start - P + i`` becomes the greyscale photo of sample ``start + i``
+    (:func:`~kornia_ilum_lab.synth.colour_looks.greyscale`), and its target that sample's lighting in grey
+    (:func:`~kornia_ilum_lab.synth.colour_looks.look_lighting`). ``start`` is the crop pairs' count
+    (:func:`crop_pairs`), whose first and second crops the twins leave alone.
+
+    Args:
+        crops: ``(B, 3, S, S)`` sRGB crops in ``[0, 1]``.
+        target: ``(B, 3, 32, 32)`` their lighting.
+        pairs: the number of twins ``P`` asked for.
+        start: the samples left alone at each end of the batch.
+
+    Returns:
+        ``(crops, target, P)``: new contiguous tensors (the inputs are left alone); ``P`` at most
+        ``(B - 2 start) / 2``.
+
+    Examples:
+        >>> crops, target = torch.rand(8, 3, 16, 16), torch.rand(8, 3, 32, 32)
+        >>> c, t, p = colour_pairs(crops, target, 2, start=1)
+        >>> p, torch.equal(c[:5], crops[:5]), torch.equal(c[5, 0], c[5, 2]), torch.equal(c[7], crops[7])
+        (2, True, True, True)
+    """
+    b = len(crops)
+    p = min(int(pairs), (b - 2 * start) // 2)
+    first = slice(start, start + p)
+    grey, grey_target = apply_looks(crops[first].float(), target[first], Look.named("greyscale", p))
+    keep = b - start - p
+    crops = torch.cat([crops[:keep], grey.to(crops.dtype), crops[b - start:]])
+    return crops, torch.cat([target[:keep], grey_target.to(target.dtype), target[b - start:]]), p
+
+
+def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int = 0) -> torch.Tensor:
+    r"""How far apart the main lights of each portrait and its greyscale twin are: the mean of ``1 - cos`` of the
+    angle between the luminance dipoles ``sum_p Omega_p Y_p omega_p`` of the two predictions at the finest scale
+    (samples ``start + i`` and ``B - start - P + i``, :func:`colour_pairs`; both get gradients).
+
+    Args:
+        pred: ``{size: (B, 3, size, size)}`` the generator's linear lighting per scale.
+        twins: the pairs ``P``.
+        start: as :func:`colour_pairs`.
+
+    Returns:
+        the term, a scalar in ``[0, 2]``.
+
+    Shape:
+        - pred[size]: :math:`(B, 3, size, size)`
+        - Output: :math:`()`
+
+    Examples:
+        >>> light = torch.rand(6, 3, 32, 32)
+        >>> same = light[[0, 1, 2, 3, 0, 1]]  # the last two are the first two again
+        >>> float(colour_consistency({32: light}, 2)) > 0, abs(float(colour_consistency({32: same}, 2))) < 1e-6
+        (True, True)
+    """
+    size = max(pred)
+    x = pred[size].float()
+    b = len(x)
+    d, _ = mirror_ball_directions(size, device=x.device, dtype=x.dtype)
+    omega = mirror_ball_solid_angles(size, device=x.device, dtype=x.dtype)
+    y = (x * torch.tensor(LUMINANCE, device=x.device, dtype=x.dtype).view(1, 3, 1, 1)).sum(1)
+    dipole = torch.einsum("bhw,hwc->bc", y * omega, d)
+    first, second = dipole[start:start + twins], dipole[b - start - twins:b - start]
+    return (1.0 - F.cosine_similarity(first, second, dim=-1, eps=1e-8)).mean()
+
+
 def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
                opt_d: torch.optim.Optimizer | None, crops: torch.Tensor, target: torch.Tensor,
                config: TrainConfig, runtime: RuntimeSettings, recipe: Recipe | None = None, pairs: int = 0,
-               skin_tone: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+               twins: int = 0, skin_tone: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     r"""One discriminator step, then one generator step; returns the detached losses (the default
     :meth:`Recipe.step`).
 
@@ -315,7 +395,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
        the recipe's :meth:`Recipe.extra_losses`. The paper's ablations change the first term: without
        ``config.multi_scale`` it is taken at 32 px only, and ``config.loss == "log_l2"`` puts
        :func:`~kornia_ilum_lab.train.losses.log_l2_loss` in place of ``L_rec``. With ``pairs`` (:func:`crop_pairs`), plus
-       ``lambda_crop`` times :func:`crop_consistency`; with ``lambda_energy``, plus that times
+       ``lambda_crop`` times :func:`crop_consistency`; with ``twins`` (:func:`colour_pairs`), plus
+       ``lambda_colour`` times :func:`colour_consistency`; with ``lambda_energy``, plus that times
        :func:`~kornia_ilum_lab.train.losses.energy_loss` at 32 px. With ``lambda_nll``, every scale's prediction is
        first brought to the truth's energy (:func:`~kornia_ilum_lab.train.losses.to_true_energy`: ``L_rec``, the
        discriminator and the crop term see the lighting's shape only), and ``lambda_nll`` times
@@ -332,11 +413,12 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         runtime: ``bf16`` and the memory format.
         recipe: its :meth:`Recipe.extra_losses` join the generator's loss (none for ``None``).
         pairs: the crop pairs at the ends of the batch (:func:`crop_pairs`; 0: none).
+        twins: the greyscale twins inside them (:func:`colour_pairs`; 0: none).
         skin_tone: ``(B,)`` the subjects' Monk tones, for ``lambda_albedo``.
 
     Returns:
         the detached ``loss``, ``rec``, ``adv``, ``disc``, ``extra``, ``crop`` (:func:`crop_consistency`, 0
-        without pairs), ``energy`` (:func:`~kornia_ilum_lab.train.losses.energy_loss`, 0 without
+        without pairs), ``colour`` (:func:`colour_consistency`, 0 without twins), ``energy`` (:func:`~kornia_ilum_lab.train.losses.energy_loss`, 0 without
         ``lambda_energy``), ``nll`` and ``spread`` (:func:`~kornia_ilum_lab.train.losses.energy_nll` and the batch's
         mean ``b``, 0 without ``lambda_nll``), ``albedo`` (:func:`~kornia_ilum_lab.train.losses.albedo_loss`, 0
         without ``lambda_albedo``) and ``rec_<brdf>`` (at 32 px).
@@ -363,7 +445,7 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
         ...                     target=torch.ones(2, 3, 32, 32), config=config,
         ...                     runtime=RuntimeSettings(bf16=False, channels_last=False, workers=0))  # doctest: +SKIP
         >>> sorted(losses)  # doctest: +SKIP
-        ['adv', 'albedo', 'crop', 'disc', 'energy', 'extra', 'loss', 'nll', 'rec', 'rec_mirror', 'spread']
+        ['adv', 'albedo', 'colour', 'crop', 'disc', 'energy', 'extra', 'loss', 'nll', 'rec', 'rec_mirror', 'spread']
         >>> round(losses["loss"].item(), 6)  # doctest: +SKIP
         0.0
     """
@@ -413,14 +495,17 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
             adv = F.softplus(-fake_logits).mean()
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
+    colour = colour_consistency(pred, twins, start=pairs) if twins else rec.new_zeros(())
     energy = energy_loss(pred[finest], truth[finest]) if config.lambda_energy > 0 else rec.new_zeros(())
-    loss = (rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_energy * energy
+    loss = (rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_colour * colour
+            + config.lambda_energy * energy
             + config.lambda_nll * nll + config.lambda_albedo * albedo)
     opt_g.zero_grad(set_to_none=True)
     loss.backward()
     opt_g.step()
     return {"loss": loss.detach(), "rec": rec.detach(), "adv": adv.detach(), "disc": disc_loss.detach(),
-            "extra": extra.detach(), "crop": crop.detach(), "energy": energy.detach(), "nll": nll.detach(),
+            "extra": extra.detach(), "crop": crop.detach(), "colour": colour.detach(), "energy": energy.detach(),
+            "nll": nll.detach(),
             "spread": spread, "albedo": albedo.detach(), **parts}
 
 
