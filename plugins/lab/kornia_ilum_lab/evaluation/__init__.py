@@ -15,6 +15,7 @@ r"""The project's own held-out evaluation (``kornia-ilum evaluate``).
   the colour looks users apply, and how far the main light turns.
 - :mod:`~kornia_ilum_lab.evaluation.flash`: the real-flash check (:func:`real_flash_check`): real faces under one
   flash of known direction (:func:`load_flash_set`, :func:`flash_crops`).
+- :mod:`~kornia_ilum_lab.evaluation.rule`: the shipping rule (:func:`shipping_rule`), read from one evaluation.
 - :mod:`~kornia_ilum_lab.evaluation.bootstrap`: intervals over subjects (:func:`subject_interval`,
   :func:`ratio_interval`) for the per-tone figures.
 - :mod:`~kornia_ilum_lab.evaluation.curve`: the learning curve of a run's snapshots (:func:`learning_curve`,
@@ -49,6 +50,7 @@ from kornia_ilum_lab.evaluation.bootstrap import ratio_interval, subject_interva
 from kornia_ilum_lab.evaluation.colour import COLOUR_LOOKS, colour_check
 from kornia_ilum_lab.evaluation.flash import FlashSet, flash_crops, flash_direction, load_flash_set, real_flash_check
 from kornia_ilum_lab.evaluation.measures import angle_degrees, estimates, quantiles
+from kornia_ilum_lab.evaluation.rule import shipping_rule
 from kornia_ilum_lab.evaluation.curve import (
     CURVE_FIELDS,
     equal_budget,
@@ -127,6 +129,7 @@ __all__ = [
     "read_curve",
     "ratio_interval",
     "run_checks",
+    "shipping_rule",
     "spread_calibration",
     "subject_interval",
     "subject_resamples",

@@ -31,6 +31,7 @@ from kornia_ilum_lab.evaluation.evaluate import BRDF_NAMES, build_eval_set, eval
 from kornia_ilum_lab.evaluation.colour import colour_markdown
 from kornia_ilum_lab.evaluation.flash import flash_crops, flash_markdown, load_flash_set
 from kornia_ilum_lab.evaluation.report import format_markdown, summarize, write_report
+from kornia_ilum_lab.evaluation.rule import shipping_rule
 
 __all__ = ["DEFAULT_CHECKS", "add_evaluate_parser", "parse_checks", "parse_weights", "print_curve",
            "run_evaluate"]
@@ -204,6 +205,10 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                      "--snapshot-every, L_rec of each snapshot, written to RUN/curve.csv and RUN/curve.png "
                      "(repeatable; with several, also the runs at equal portraits seen and equal wall time; "
                      "a path ending in .csv is a curve.csv written before, read instead of scored)")
+    cmd.add_argument("--rule", action="store_true",
+                     help="judge each --weights file NAME=FILE against the shipped weights of NAME by the shipping "
+                     "rule (L_rec limits, tone spread, real flash, colour check; docs/training.rst); needs the "
+                     "transfer and colour checks and --flash")
     cmd.add_argument("--no-oracles", action="store_true", help="leave out the two oracles")
     cmd.add_argument("--batch-size", type=positive_int, default=32, metavar="B", help="crops per batch (32)")
     cmd.add_argument("--out", metavar="DIR", help="write DIR/evaluation.md and DIR/evaluation.json")
@@ -336,6 +341,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         results["checks"] = {"names": list(checks), **options, **about_photos,
                              "context_set": None if context_set is None else context_set.description}
     summary = summarize(results, eval_set)
+    if getattr(args, "rule", False):
+        summary["rule"] = [shipping_rule(summary, name, name.split("@")[0]) for name in summary["table1_l_rec"]
+                           if "@" in name and name.split("@")[0] in summary["table1_l_rec"]]
     summary["seconds"]["total"] = round(time.perf_counter() - t0, 2)
     print(format_markdown(summary), end="")
     out = getattr(args, "out", None)

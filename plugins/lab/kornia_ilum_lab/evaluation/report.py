@@ -30,6 +30,7 @@ from kornia_ilum_lab.evaluation.bootstrap import subject_interval
 from kornia_ilum_lab.evaluation.colour import colour_markdown
 from kornia_ilum_lab.evaluation.evaluate import BRDF_NAMES, EvalSet
 from kornia_ilum_lab.evaluation.flash import flash_markdown
+from kornia_ilum_lab.evaluation.rule import rule_markdown
 
 __all__ = ["format_markdown", "paired_differences", "summarize", "write_report"]
 
@@ -172,7 +173,7 @@ def format_markdown(summary: dict[str, Any]) -> str:
 
     Returns:
         the Markdown text, ending in a newline: Table 1, Table 2, the skin-tone table, and where the summary has
-        them the paired differences, the checks' tables, the skipped methods, the weight files and the held-out
+        them the paired differences, the checks' tables, the shipping rule's verdicts, the skipped methods, the weight files and the held-out
         maps.
 
     Examples:
@@ -242,6 +243,7 @@ def format_markdown(summary: dict[str, Any]) -> str:
                      for r in (rows[b] for b in BRDF_NAMES)]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += _check_tables(summary)
+    lines += rule_markdown(summary.get("rule") or [])
     if summary["skipped"]:
         lines += ["", "Skipped:"] + [f"- {n}: {' '.join(r.split())}" for n, r in summary["skipped"].items()]
     if summary.get("weights"):
