@@ -220,10 +220,16 @@ class TestCrop:
 class TestRunChecks:
     def test_tables(self, eval_set, context_set) -> None:
         photos = torch.rand(2, 3, 256, 256)
-        out = run_checks(brightness, eval_set, checks=CHECKS, context_set=context_set, photos=photos,
-                         jitters=2)
-        assert set(out) == {*CHECKS, "tone_spread", "seconds"} and set(out["seconds"]) == set(CHECKS)
+        checks = [c for c in CHECKS if c != "flash"]  # the real-flash check: tests/lab/evaluation/test_flash.py
+        out = run_checks(brightness, eval_set, checks=checks, context_set=context_set, photos=photos,
+                         jitters=2, colour_samples=6)
+        assert set(out) == {*checks, "tone_spread", "seconds"} and set(out["seconds"]) == set(checks)
         assert set(out["exposure"]) == {"eval", "photos"} and out["exposure"]["photos"]["0.5"]["count"] == 2
+        assert set(out["colour"]) == {"eval", "photos"}
+        assert out["colour"]["eval"]["greyscale"]["angle"]["count"] + out["colour"]["eval"]["greyscale"][
+            "no_direction"] == 6
+        with pytest.raises(ValueCheckError, match="needs flash"):
+            run_checks(constant, eval_set, checks=["flash"])
         transfer = run_checks(constant, eval_set, checks=["transfer"])
         assert set(transfer) == {"transfer", "tone_spread", "seconds"}
         with pytest.raises(ValueCheckError, match="unknown checks"):

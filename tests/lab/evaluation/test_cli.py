@@ -8,7 +8,7 @@ import json
 import pytest
 
 from kornia_ilum_lab.evaluation import CHECKS, ORACLES
-from kornia_ilum_lab.evaluation.cli import add_evaluate_parser, parse_checks, parse_weights, run_evaluate
+from kornia_ilum_lab.evaluation.cli import DEFAULT_CHECKS, add_evaluate_parser, parse_checks, parse_weights, run_evaluate
 
 
 class TestEvaluateCommand:
@@ -18,7 +18,7 @@ class TestEvaluateCommand:
         args = parser.parse_args(["evaluate", "--cache", str(caches[0]), "--cache", str(caches[1]), "--hdri",
                                   str(hdri), "--samples", "8", "--estimator", "uniform", "--estimator", "ours",
                                   "--jitter-samples", "3", "--jitters", "2", "--out", str(tmp_path)])
-        assert args.checks == CHECKS  # all of them by default
+        assert args.checks is None  # all of them but the real flash by default (DEFAULT_CHECKS)
         assert args.func(args) == 0
         printed = capsys.readouterr().out
         assert "## Table 1" in printed and "| ours |" in printed
@@ -30,7 +30,8 @@ class TestEvaluateCommand:
             assert title in markdown and title in printed
         assert "| ours | real photos | 1 |" in markdown and "| uniform | all | 3 |" in markdown
         assert set(summary["checks"]) == {"uniform", "ours"}
-        assert set(summary["checks"]["ours"]) == {*CHECKS, "tone_spread", "seconds"}
+        assert set(summary["checks"]["ours"]) == {*DEFAULT_CHECKS, "tone_spread", "seconds"}
+        assert "## Colour check" in markdown
         assert summary["checks"]["ours"]["transfer"]["all"]["count"] == 8
         assert summary["checks"]["ours"]["crop"]["all"]["count"] == 3
         settings = summary["check_settings"]

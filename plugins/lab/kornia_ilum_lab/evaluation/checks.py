@@ -750,6 +750,7 @@ def run_checks(
     prediction: torch.Tensor | None = None,
     ks: Sequence[float] = EXPOSURE_FACTORS,
     jitters: int = 8,
+    colour_samples: int | None = None,
     position: float = 0.10,
     extent: float = 0.15,
     seed: int = 0,
@@ -769,6 +770,7 @@ def run_checks(
             :func:`~kornia_ilum_lab.evaluation.flash.flash_crops`), for ``"flash"`` (required by it) and
             ``"colour"``.
         prediction: the estimator's lighting on ``eval_set.images``, if already made (saves two passes).
+        colour_samples: the colour check runs on the first ``colour_samples`` eval portraits (``None``: all).
         ks, jitters, position, extent, seed, batch_size: the settings of the checks.
 
     Returns:
@@ -816,7 +818,9 @@ def run_checks(
                 on_photos = exposure_equivariance(estimator, photos, ks=ks, batch_size=batch_size)
                 out[name]["photos"] = on_photos["table"]
         elif name == "colour":
-            out[name] = {"eval": colour_check(estimator, eval_set.images, subjects=eval_set.subject_seed,
+            first = slice(None, colour_samples)
+            out[name] = {"eval": colour_check(estimator, eval_set.images[first],
+                                              subjects=list(eval_set.subject_seed)[first],
                                               batch_size=batch_size)["table"]}
             if photos is not None and len(photos):
                 out[name]["photos"] = colour_check(estimator, photos, batch_size=batch_size)["table"]
@@ -841,7 +845,8 @@ def check_runner(eval_set: EvalSet, checks: Sequence[str] = CHECKS, **options: A
     Args:
         eval_set: the eval set that is scored.
         checks: names of :data:`CHECKS`.
-        **options: the keyword arguments of :func:`run_checks` (``context_set``, ``photos``, ``flash``, ``ks``,
+        **options: the keyword arguments of :func:`run_checks` (``context_set``, ``photos``, ``flash``,
+            ``colour_samples``, ``ks``,
             ``jitters``, ``position``, ``extent``, ``seed``, ``batch_size``).
 
     Returns:

@@ -187,6 +187,8 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                      help="portraits of the crop check: the first N of the eval set (256, at most --samples)")
     cmd.add_argument("--jitters", type=_jitters, default=8, metavar="J",
                      help="jittered crops per portrait in the crop check (at least 2; 8)")
+    cmd.add_argument("--colour-samples", type=positive_int, default=256, metavar="N",
+                     help="portraits of the colour check: the first N of the eval set (256; seven looks each)")
     cmd.add_argument("--context", type=_factor, default=1.5, metavar="F",
                      help="the crop check's context crops: F times the nominal face crop (1.5)")
     cmd.add_argument("--photos", nargs="+", default=None, metavar="FILE",
@@ -314,7 +316,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
             print(format_equal_budget(equal_budget(found)), end="")
         return 0
     options = {"ks": list(EXPOSURE_FACTORS), "jitters": getattr(args, "jitters", 8), "position": 0.10,
-               "extent": 0.15, "seed": 0}
+               "extent": 0.15, "seed": 0, "colour_samples": getattr(args, "colour_samples", 256)}
     context_set, photos, about_photos = None, None, {}
     if "crop" in checks:
         subset = min(getattr(args, "jitter_samples", 256), samples)
