@@ -80,7 +80,11 @@ def test_the_error_of_a_frontal_estimate_is_the_flashs_angle_to_the_axis(folder:
     assert float((expected - flash_set.axis_angle).abs().max()) < 6
     table = out["table"]
     assert table["people"] == 3 and table["photos"] == 24 and table["no_direction"] == 0
-    assert table["direction"]["within 25"]["count"] == 3 * 2  # (0, 0) and (-10, 10)
+    front = table["direction"]["within 25"]
+    assert front["count"] == 3 * 2  # (0, 0) and (-10, 10)
+    elevation = torch.rad2deg(torch.asin(main[0, 1])).item()  # the straight estimate's own elevation
+    assert front["elevation_bias"] == pytest.approx(elevation - 5.0, abs=0.01)  # the median of -0 and -10
+    assert 0 <= front["azimuth_error"] < 12
     sided = flash_set.directions[:, 0].abs() >= math.sin(math.radians(10))
     agree = (flash_set.directions[sided, 0] > 0) == (main[0, 0] > 0)
     assert table["left_right"]["count"] == int(sided.sum()) == 15  # the five flashes 10 degrees or more aside

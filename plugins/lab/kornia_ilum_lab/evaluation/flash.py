@@ -17,7 +17,9 @@ acknowledgement).
   ``fallback="full_image"``; the photographs are tight face crops, so some need it), and records which fell back.
 - :func:`real_flash_check` runs an estimator on them and reports the main light's direction error (the angle
   between the estimate's dominant direction, its l = 1 "dipole", and the flash's), its median over all flashes
-  and for flashes within 25 degrees of the camera axis, 25 to 60 and beyond 60; the left/right and up/down sign
+  and for flashes within 25 degrees of the camera axis, 25 to 60 and beyond 60, split into its elevation bias
+  (the estimate's elevation minus the flash's: a light put above where it is) and its azimuth error; the
+  left/right and up/down sign
   agreement (over flashes at least 10 degrees off the vertical, resp. horizontal, plane); and, for each flash
   across the people, the spread (standard deviation) of the estimated log energy against the spread of the
   faces' own log brightness: one flash has one strength, so an estimator that reads the light and not the skin
@@ -217,7 +219,9 @@ def real_flash_check(estimator: Estimator, flash_set: FlashSet, *, crops: torch.
 
     Returns:
         ``{"table": {...}, "error": (N,)}``: ``table`` has ``"direction"`` (per band of :data:`AXIS_BANDS` and
-        ``"all"``: the quantiles of the error in degrees and the median's interval over people),
+        ``"all"``: the quantiles of the error in degrees, the median's interval over people, and the error's two
+        parts: ``"elevation_bias"``, the median of the estimate's elevation minus the flash's, and
+        ``"azimuth_error"``, the median absolute difference of their azimuths),
         ``"left_right"`` and ``"up_down"`` (the share of agreeing signs, its interval, the count),
         ``"energy_spread"`` (per flash, over people: the median over flashes of the standard deviation of the
         estimated log energy, of the faces' log brightness, and of their ratio; and the frontal flash's, where
@@ -243,11 +247,18 @@ def real_flash_check(estimator: Estimator, flash_set: FlashSet, *, crops: torch.
     axis = flash_set.axis_angle
     bands = {"all": torch.ones(len(error), dtype=torch.bool)}
     bands.update({name: (axis >= lo) & (axis < hi) for name, lo, hi in AXIS_BANDS})
+    elevation = torch.rad2deg(torch.asin(direction[:, 1].double().clamp(-1.0, 1.0))) - flash_set.elevation
+    azimuth = torch.rad2deg(torch.atan2(-direction[:, 0].double(), direction[:, 2].double())) - flash_set.azimuth
+    azimuth = torch.remainder(azimuth + 180.0, 360.0) - 180.0
+    none = direction.norm(dim=-1) == 0
+    elevation, azimuth = elevation.masked_fill(none, float("nan")), azimuth.masked_fill(none, float("nan"))
     table: dict[str, Any] = {"direction": {}}
     for name, members in bands.items():
         ids = [p for p, m in zip(people, members.tolist(), strict=True) if m]
         table["direction"][name] = {**quantiles(error[members]),
-                                    "ci": subject_interval(error[members], ids) if ids else None}
+                                    "ci": subject_interval(error[members], ids) if ids else None,
+                                    "elevation_bias": quantiles(elevation[members])["median"],
+                                    "azimuth_error": quantiles(azimuth[members].abs())["median"]}
     margin = math.sin(math.radians(SIGN_MARGIN_DEG))
     for key, axis_index in (("left_right", 0), ("up_down", 1)):
         t, p = truth[:, axis_index], direction[:, axis_index].double()
@@ -297,8 +308,9 @@ def flash_markdown(tables: dict[str, dict[str, Any]]) -> list[str]:
              "flash each; the main light's direction error in degrees (median [95 % interval over people]) by "
              "the flash's angle to the camera axis; sign agreement; the spread over people of the estimated log "
              "energy under one flash against that of the faces' log brightness (median over flashes)", ""]
-    lines += ["| method | " + " | ".join(bands) + " | left/right | up/down | sd log E / sd log face | "
-              "no direction | no face found |", "|---|" + "---:|" * (len(bands) + 5)]
+    lines += ["| method | " + " | ".join(bands) + " | elevation bias / azimuth error, within 25 | left/right | "
+              "up/down | sd log E / sd log face | no direction | no face found |",
+              "|---|" + "---:|" * (len(bands) + 6)]
 
     def interval(ci: list[float] | None, digits: int) -> str:
         return "" if ci is None else f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
@@ -308,6 +320,9 @@ def flash_markdown(tables: dict[str, dict[str, Any]]) -> list[str]:
         for band in bands:
             row = t["direction"][band]
             cells.append("-" if row["median"] is None else f"{row['median']:.1f}{interval(row['ci'], 1)}")
+        front = t["direction"].get("within 25") or {}
+        bias, az = front.get("elevation_bias"), front.get("azimuth_error")
+        cells.append("-" if bias is None else f"{bias:+.1f} / {az:.1f}")
         for key in ("left_right", "up_down"):
             row = t[key]
             cells.append("-" if row["rate"] is None else f"{row['rate']:.3f}{interval(row['ci'], 2)}")
