@@ -1,4 +1,4 @@
-"""kornia_ilum_lab.evaluation.checks: energy and direction, the transfer check, exposure equivariance, crop
+"""kornia_ilum_lab.evaluation.checks: energy, the transfer check, exposure equivariance, crop
 stability, the real photos' crops and run_checks."""
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from kornia_ilum_lab.evaluation import (
     crop_stability,
     darken,
     default_photos,
-    dominant_direction,
     evaluate,
     exposure_equivariance,
     face_crops,
@@ -77,15 +76,6 @@ class TestEnergyAndDirection:
         torch.testing.assert_close(lighting_energy(channel), torch.tensor([4 * math.pi / 3]))
         ones = torch.ones(1, 3, 32, 32)
         assert lighting_energy(ones)[0] == lighting_energy(ones * VALID)[0]  # the invalid pixels count for 0
-
-    def test_direction(self) -> None:
-        for d in ((0.0, 0.0, 1.0), (0.6, 0.8, 0.0), (-0.8, 0.0, -0.6)):
-            got = dominant_direction(source(d))[0]
-            assert float(got @ torch.tensor(d)) > 0.99 and math.isclose(float(got.norm()), 1.0, rel_tol=1e-6)
-        both = source((1.0, 0.0, 0.0)) + source((0.0, 1.0, 0.0))
-        assert float(dominant_direction(both)[0] @ torch.tensor([0.7071, 0.7071, 0.0])) > 0.99
-        assert dominant_direction(torch.zeros(1, 3, 32, 32)).abs().max() == 0
-        assert dominant_direction(torch.ones(1, 3, 32, 32) * VALID).abs().max() == 0
 
 
 class TestTransfer:
