@@ -31,7 +31,7 @@ def test_greyscale_is_opencvs_luma(photo: torch.Tensor) -> None:
     cv2 = pytest.importorskip("cv2")
     codes = (photo[0].permute(1, 2, 0) * 255).round().byte().numpy()
     theirs = torch.from_numpy(cv2.cvtColor(codes, cv2.COLOR_RGB2GRAY)).float()
-    ours = greyscale((torch.from_numpy(codes).permute(2, 0, 1)[None].float() / 255))[0, 0] * 255
+    ours = greyscale(torch.from_numpy(codes).permute(2, 0, 1)[None].float() / 255)[0, 0] * 255
     assert (ours - theirs).abs().max() <= 1.0
 
 
