@@ -173,7 +173,7 @@ class TestTrainStep:
 
     def test_the_generator_steps_on_rec_plus_the_recipes_extra_terms(self) -> None:
         plain, moved = self._run(None)
-        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "energy", "nll", "spread", "albedo",
+        assert set(plain) == {"loss", "rec", "adv", "disc", "extra", "crop", "colour", "energy", "nll", "spread", "albedo",
                               "rec_diffuse", "rec_matte_silver", "rec_mirror"}
         assert plain["adv"] == 0 and plain["disc"] == 0 and plain["extra"] == 0 and plain["crop"] == 0
         assert plain["energy"] == 0

@@ -45,9 +45,10 @@ def colour_check(estimator: Estimator, images: torch.Tensor, *, subjects: Sequen
         batch_size: crops per pass.
 
     Returns:
-        ``{"table": {look: {"angle": quantiles, "ratio": quantiles, "angle_ci": [lo, hi] or None,
-        "no_direction": int}}, "angle": {look: (N,)}, "ratio": {look: (N,)}}``, the angles in degrees (NaN where
-        either estimate has no main direction), the ratios ``E(look) / E(original)``.
+        a dict: ``"table"`` maps each look to ``"angle"`` and ``"ratio"`` (their quantiles), ``"angle_ci"`` (the
+        median angle's interval, or ``None`` without ``subjects``) and ``"no_direction"`` (a count); ``"angle"``
+        and ``"ratio"`` map each look to ``(N,)`` values: the angles in degrees (NaN where either estimate has no
+        main direction) and the ratios ``E(look) / E(original)``.
 
     Raises:
         ValueCheckError: an unknown look, or ``subjects`` of another length than ``images``.

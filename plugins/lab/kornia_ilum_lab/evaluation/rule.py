@@ -55,8 +55,8 @@ def shipping_rule(summary: dict[str, Any], candidate: str, reference: str) -> di
         candidate, reference: the two methods' names in it (``"ours@run.safetensors"``, ``"ours"``).
 
     Returns:
-        ``{"candidate", "reference", "clauses": [{"clause", "candidate", "reference", "bound", "pass",
-        "measured"}], "ships": bool}``.
+        a dict of ``"candidate"``, ``"reference"``, ``"ships"`` (bool) and ``"clauses"``, a list of dicts with
+        ``"clause"``, ``"candidate"``, ``"reference"``, ``"bound"``, ``"pass"`` and ``"measured"``.
 
     Raises:
         KeyError: a method that the summary did not score.
