@@ -192,7 +192,7 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--context", type=_factor, default=1.5, metavar="F",
                      help="the crop check's context crops: F times the nominal face crop (1.5)")
     cmd.add_argument("--photos", nargs="+", default=None, metavar="FILE",
-                     help="real photos of the exposure check (default: scikit-image's astronaut)")
+                     help="real photos of the exposure and colour checks (default: scikit-image's astronaut)")
     cmd.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME",
                      help=f"the detector that cuts the real photos' face crops ({DEFAULT_DETECTOR})")
     cmd.add_argument("--tta", type=positive_int, default=None, metavar="N",
@@ -322,13 +322,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
         subset = min(getattr(args, "jitter_samples", 256), samples)
         context_set = build_eval_set(args.cache, hdri, samples=subset, background=background,
                                      context=getattr(args, "context", 1.5), progress=True)
-    if "exposure" in checks:
+    if "exposure" in checks or "colour" in checks:  # the real photos of both
         listed = getattr(args, "photos", None)
         detector = getattr(args, "detector", DEFAULT_DETECTOR)
         photos, names, no_face = face_crops(listed or default_photos(), detector)
         about_photos = {"photo_names": names, "photos_left_out": no_face, "detector": detector}
         for name, reason in no_face.items():
-            print(f"exposure check: {name} left out: {reason}")
+            print(f"real photos: {name} left out: {reason}")
     flash = _flash_photos(flash_dir, getattr(args, "detector", DEFAULT_DETECTOR)) if flash_dir else None
     if flash is not None:
         about_photos["flash"] = {"folder": str(flash_dir), "photos": len(flash[0]), "no_face": int(flash[2].sum())}
