@@ -29,19 +29,18 @@ from collections import defaultdict
 import torch
 
 from kornia_ilum.color import LUMINANCE
-from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
+from kornia_ilum.sh import sh_project
 from kornia_ilum_lab.synth.environments import EnvironmentSampler, HDRFolderSource, default_sources
 
 
 def dipoles(ball: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """The luminance and warm dipoles ``(3,)`` of a mirror ball ``(3, S, S)``."""
-    s = ball.shape[-1]
-    d, _ = mirror_ball_directions(s, dtype=torch.float64)
-    omega = mirror_ball_solid_angles(s, dtype=torch.float64)
-    ball = ball.double()
-    y = (ball * torch.tensor(LUMINANCE, dtype=torch.float64).view(3, 1, 1)).sum(0)
-    warm = (ball[0] - ball[2]) / 3.0
-    return torch.einsum("hw,hwc->c", y * omega, d), torch.einsum("hw,hwc->c", warm * omega, d)
+    """The luminance and warm dipoles ``(3,)`` of a mirror ball ``(3, S, S)``, as ``(x, y, z)``: the l = 1 band of
+    their SH (:func:`~kornia_ilum.sh.sh_project`, in the order y, z, x), up to a constant."""
+    sh = sh_project(ball[None].double())[0]  # (9, 3)
+    y = sh[1:4] @ torch.tensor(LUMINANCE, dtype=torch.float64)
+    warm = (sh[1:4, 0] - sh[1:4, 2]) / 3.0
+    order = [2, 0, 1]  # (y, z, x) -> (x, y, z)
+    return y[order], warm[order]
 
 
 def main() -> None:

@@ -821,6 +821,7 @@ def run_checks(
             first = slice(None, colour_samples)
             out[name] = {"eval": colour_check(estimator, eval_set.images[first],
                                               subjects=list(eval_set.subject_seed)[first],
+                                              prediction=None if prediction is None else prediction[first],
                                               batch_size=batch_size)["table"]}
             if photos is not None and len(photos):
                 out[name]["photos"] = colour_check(estimator, photos, batch_size=batch_size)["table"]

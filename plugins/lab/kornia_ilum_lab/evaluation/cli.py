@@ -348,10 +348,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                            if "@" in name and name.split("@")[0] in summary["table1_l_rec"]]
     summary["seconds"]["total"] = round(time.perf_counter() - t0, 2)
     print(format_markdown(summary), end="")
-    out = getattr(args, "out", None)
-    markdown = getattr(args, "markdown", None) or (Path(out) / "evaluation.md" if out else None)
-    json_path = getattr(args, "json", None) or (Path(out) / "evaluation.json" if out else None)
-    for path in write_report(summary, markdown, json_path):
+    for path in write_report(summary, *_report_paths(args)):
         print(f"wrote {path}")
     print(f"eval set built in {eval_set.description['build_seconds']:.1f} s; total {summary['seconds']['total']:.1f} s")
     return 0
@@ -395,9 +392,13 @@ def _flash_only(args: argparse.Namespace, folder: str, checks: tuple[str, ...]) 
     print(text, end="")
     summary = {"flash": {"folder": str(folder), "photos": len(flash[0]), "no_face": int(flash[2].sum())},
                "checks": methods}
-    out = getattr(args, "out", None)
-    markdown = getattr(args, "markdown", None) or (Path(out) / "evaluation.md" if out else None)
-    json_path = getattr(args, "json", None) or (Path(out) / "evaluation.json" if out else None)
-    for path in write_report(summary, markdown, json_path, text=text):
+    for path in write_report(summary, *_report_paths(args), text=text):
         print(f"wrote {path}")
     return 0
+
+
+def _report_paths(args: argparse.Namespace) -> tuple[Path | None, Path | None]:
+    """Where the Markdown and JSON go: ``--markdown`` and ``--json``, else ``--out``'s two files, else nowhere."""
+    out = getattr(args, "out", None)
+    markdown = getattr(args, "markdown", None) or (Path(out) / "evaluation.md" if out else None)
+    return markdown, getattr(args, "json", None) or (Path(out) / "evaluation.json" if out else None)

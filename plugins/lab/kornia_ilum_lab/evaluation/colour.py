@@ -23,7 +23,15 @@ import torch
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.evaluation.bootstrap import subject_interval
-from kornia_ilum_lab.evaluation.measures import Estimator, angle_degrees, as_floats, estimates, quantiles
+from kornia_ilum.metrics import lighting_energy
+from kornia_ilum_lab.evaluation.measures import (
+    Estimator,
+    angle_degrees,
+    as_floats,
+    dominant_direction,
+    estimates,
+    quantiles,
+)
 from kornia_ilum_lab.synth.colour_looks import LOOKS, Look, apply_look
 
 __all__ = ["COLOUR_LOOKS", "colour_check", "colour_markdown"]
@@ -33,7 +41,8 @@ COLOUR_LOOKS: tuple[str, ...] = ("greyscale", "desaturated", "warm", "cool", "te
 
 
 def colour_check(estimator: Estimator, images: torch.Tensor, *, subjects: Sequence[int] | None = None,
-                 looks: Sequence[str] = COLOUR_LOOKS, batch_size: int = 32) -> dict[str, Any]:
+                 looks: Sequence[str] = COLOUR_LOOKS, prediction: torch.Tensor | None = None,
+                 batch_size: int = 32) -> dict[str, Any]:
     r"""How far each colour look turns the estimated main light, and how it changes its strength.
 
     Args:
@@ -42,6 +51,7 @@ def colour_check(estimator: Estimator, images: torch.Tensor, *, subjects: Sequen
         subjects: the subject of each crop: the medians then carry a 95 % interval over subjects
             (:func:`~kornia_ilum_lab.evaluation.bootstrap.subject_interval`).
         looks: names of :data:`~kornia_ilum_lab.synth.colour_looks.LOOKS`.
+        prediction: the estimator's lighting on ``images`` as they are, if already made (saves a pass).
         batch_size: crops per pass.
 
     Returns:
@@ -54,7 +64,7 @@ def colour_check(estimator: Estimator, images: torch.Tensor, *, subjects: Sequen
         ValueCheckError: an unknown look, or ``subjects`` of another length than ``images``.
 
     Shape:
-        - images: :math:`(N, 3, H, W)`
+        - images: :math:`(N, 3, H, W)`; prediction: :math:`(N, 3, S, S)`
 
     Convention:
         Directions in the camera frame (docs/conventions.rst, "Frames"); sRGB crops ("Images").
@@ -77,7 +87,11 @@ def colour_check(estimator: Estimator, images: torch.Tensor, *, subjects: Sequen
             crops = as_floats(images[i:i + batch_size])
             yield crops if name is None else apply_look(crops, Look.named(name, len(crops)))
 
-    energy, direction, _ = estimates(estimator, batches(None), directions=True)
+    if prediction is None:
+        energy, direction, _ = estimates(estimator, batches(None), directions=True)
+    else:
+        ball = prediction.double()
+        energy, direction = lighting_energy(ball), dominant_direction(ball)
     table, angles, ratios = {}, {}, {}
     for name in looks:
         e, d, _ = estimates(estimator, batches(name), directions=True)

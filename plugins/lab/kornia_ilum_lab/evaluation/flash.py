@@ -37,12 +37,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import kornia
 import torch
 
-from kornia_ilum.api import find_faces
+from kornia_ilum.api import find_faces, full_image_box
 from kornia_ilum.color import LUMINANCE, srgb_to_linear
 from kornia_ilum.core.check import check_positive_int
-from kornia_ilum.core.errors import NoFaceError, ValueCheckError
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, crop_faces
 from kornia_ilum.io import read_ldr
 from kornia_ilum_lab.evaluation.bootstrap import median, subject_interval
@@ -172,12 +173,10 @@ def flash_crops(flash_set: FlashSet, detector: str | FaceDetector = DEFAULT_DETE
     crops, fell_back = [], []
     for path in flash_set.paths:
         image = read_ldr(path)[None]
-        try:
-            found, missed = find_faces(image, detector), False
-        except NoFaceError:
-            found, missed = find_faces(image, detector, fallback="full_image"), True
+        found = find_faces(image, detector, fallback="full_image")
         crops.append(crop_faces(image, found.crop_boxes, size=size).clamp(0.0, 1.0))
-        fell_back.append(missed)
+        # the fallback's square is the full image's (a detection's square never is exactly)
+        fell_back.append(bool(torch.equal(found.crop_boxes.cpu(), full_image_box(*image.shape[-2:]))))
     return torch.cat(crops), torch.tensor(fell_back)
 
 
@@ -185,8 +184,8 @@ def _face_brightness(crops: torch.Tensor) -> torch.Tensor:
     """The log mean linear luminance of each crop's central half (the face), float64."""
     s = crops.shape[-1]
     centre = srgb_to_linear(crops[..., s // 4: s - s // 4, s // 4: s - s // 4].double())
-    weights = torch.tensor(LUMINANCE, dtype=torch.float64).view(1, 3, 1, 1)
-    return torch.log((centre * weights).sum(1).mean((-2, -1)).clamp(min=1e-6))
+    luminance = kornia.color.rgb_to_grayscale(centre, torch.tensor(LUMINANCE, dtype=centre.dtype))
+    return torch.log(luminance.mean((1, 2, 3)).clamp(min=1e-6))
 
 
 def _rate(hits: torch.Tensor, subjects: Sequence[str]) -> dict[str, Any]:

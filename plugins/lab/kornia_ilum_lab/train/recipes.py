@@ -26,6 +26,7 @@ import warnings
 from collections.abc import Iterator
 from typing import Any
 
+import kornia
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -33,8 +34,8 @@ from torch import nn
 from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
-from kornia_ilum.geometry import mirror_ball_directions, mirror_ball_solid_angles
 from kornia_ilum.render import mirror_ball_pyramid
+from kornia_ilum.sh import sh_project
 from kornia_ilum_lab.synth.colour_looks import Look, apply_looks
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset, crop_images
 from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
@@ -342,7 +343,8 @@ def colour_pairs(crops: torch.Tensor, target: torch.Tensor, pairs: int, *, start
 
 def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int = 0) -> torch.Tensor:
     r"""How far apart the main lights of each portrait and its greyscale twin are: the mean of ``1 - cos`` of the
-    angle between the luminance dipoles ``sum_p Omega_p Y_p omega_p`` of the two predictions at the finest scale
+    angle between the luminance dipoles ``sum_p Omega_p Y_p omega_p`` (the l = 1 band of
+    :func:`~kornia_ilum.sh.sh_project`) of the two predictions at the finest scale
     (samples ``start + i`` and ``B - start - P + i``, :func:`colour_pairs`; both get gradients).
 
     Args:
@@ -363,13 +365,11 @@ def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int 
         >>> float(colour_consistency({32: light}, 2)) > 0, abs(float(colour_consistency({32: same}, 2))) < 1e-6
         (True, True)
     """
-    size = max(pred)
-    x = pred[size].float()
+    x = pred[max(pred)].float()
     b = len(x)
-    d, _ = mirror_ball_directions(size, device=x.device, dtype=x.dtype)
-    omega = mirror_ball_solid_angles(size, device=x.device, dtype=x.dtype)
-    y = (x * torch.tensor(LUMINANCE, device=x.device, dtype=x.dtype).view(1, 3, 1, 1)).sum(1)
-    dipole = torch.einsum("bhw,hwc->bc", y * omega, d)
+    # the luminance's l = 1 SH band is its dipole, up to a constant and the order (y, z, x)
+    y = kornia.color.rgb_to_grayscale(x, torch.tensor(LUMINANCE, dtype=x.dtype, device=x.device))
+    dipole = sh_project(y.expand(b, 3, *x.shape[-2:]))[:, 1:4, 0]
     first, second = dipole[start:start + twins], dipole[b - start - twins:b - start]
     return (1.0 - F.cosine_similarity(first, second, dim=-1, eps=1e-8)).mean()
 
