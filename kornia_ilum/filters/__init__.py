@@ -1,12 +1,10 @@
 """Filters of the network and the loss: soft clip and blur-pool.
 
-Blur-pool is Kornia's (:func:`kornia.filters.blur_pool2d`), wrapped only to add typed shape checks;
-max-blur-pool is Kornia's, re-exported unchanged (it already checks its input's shape).
+Blur-pool and max-blur-pool are Kornia's (:func:`kornia.filters.blur_pool2d`,
+:func:`kornia.filters.max_blur_pool2d`), wrapped only to add typed shape checks.
 """
 
-from kornia.filters import MaxBlurPool2D, max_blur_pool2d
-
-from kornia_ilum.filters.blur_pool import BlurPool2D, blur_pool2d
+from kornia_ilum.filters.blur_pool import BlurPool2D, MaxBlurPool2D, blur_pool2d, max_blur_pool2d
 from kornia_ilum.filters.soft_clip import SoftClip, soft_clip, soft_clip_unchecked
 
 __all__ = [
