@@ -9,6 +9,7 @@ import pytest
 import torch
 
 import kornia_ilum_lab.train.recipes as recipes
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators import OursEstimator
 from kornia_ilum_lab.train import Recipe, TrainConfig, read_log, train
@@ -44,6 +45,21 @@ def test_ours_gain_is_exact_and_brings_the_median_ratio_to_one(dataset) -> None:
     with torch.no_grad():
         after = est(crops).mirror_ball
     torch.testing.assert_close(after, before * gain.view(1, 3, 1, 1), rtol=1e-5, atol=1e-30)  # no direction moves
+
+
+def test_the_white_balance_alone_keeps_the_luminance(dataset) -> None:
+    """``keep_luminance``: the gains are the energy's, over their luminance-weighted geometric mean."""
+    torch.manual_seed(0)
+    est = OursEstimator().eval()
+    ratios = energy_log_ratios(est, dataset, 4)
+    result = calibrate_energy(est, OursRecipe(), dataset, 4, keep_luminance=True)
+    log_gain = torch.tensor(result["gain"], dtype=torch.float64).log()
+    luminance = torch.tensor(LUMINANCE, dtype=torch.float64)
+    assert abs(float(log_gain @ luminance)) < 1e-6
+    full = ratios.median(0).values
+    torch.testing.assert_close(log_gain, full - full @ luminance, rtol=0, atol=1e-6)
+    with pytest.raises(ValueCheckError, match="calibrate_colour"):
+        TrainConfig(out="x", cache=("c",), calibrate_energy=4, calibrate_colour=4)
 
 
 def test_refusals(dataset) -> None:

@@ -373,3 +373,11 @@ class TestColourConsistency:
         term = colour_consistency({32: x}, 2)
         term.backward()
         assert term > 0 and x.grad[:2].abs().sum() > 0 and x.grad[2:].abs().sum() > 0
+
+    def test_with_a_teacher_only_the_twin_moves(self) -> None:
+        torch.manual_seed(0)
+        x = (torch.rand(4, 3, 32, 32) * mirror_ball_valid(32)).requires_grad_()
+        term = colour_consistency({32: x}, 2, teacher=True)
+        term.backward()
+        torch.testing.assert_close(term, colour_consistency({32: x.detach()}, 2))  # the same value
+        assert x.grad[:2].abs().sum() == 0 and x.grad[2:].abs().sum() > 0

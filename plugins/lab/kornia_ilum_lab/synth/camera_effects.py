@@ -79,8 +79,14 @@ __all__ = [
     "read_noise_for_shot",
     "sensor_noise",
     "tone_curve",
+    "LINEAR_RESPONSE_GAMMA",
     "vignette",
 ]
+
+#: The :func:`tone_curve` gamma (contrast 0) that undoes the sRGB curve: a camera with a **linear response**
+#: (machine-vision and scientific cameras, raw dumps; codes proportional to the light), within 7 % of linear
+#: above 5 % of white and darker below (the sRGB curve's linear toe).
+LINEAR_RESPONSE_GAMMA = 2.2
 
 
 def _per_image(value: torch.Tensor | float, b: int, name: str) -> torch.Tensor:

@@ -38,6 +38,7 @@ from typing import Any
 
 import torch
 
+from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.metrics import total_radiance
@@ -119,14 +120,21 @@ def _estimates(estimator: torch.nn.Module, dataset: PortraitDataset, samples: in
 
 
 def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: PortraitDataset,
-                     samples: int) -> dict[str, Any]:
+                     samples: int, *, keep_luminance: bool = False) -> dict[str, Any]:
     r"""Scale ``estimator``'s output per channel, in place, by the gain of the module's docstring.
+
+    With ``keep_luminance``, only the estimate's white balance is calibrated: the gains are divided by their
+    geometric mean weighted by the luminance's coefficients (:data:`~kornia_ilum.color.LUMINANCE`),
+    ``g_c / exp(sum_k w_k log g_k)``, so a grey light's luminance is unchanged and only the colour's cast is
+    taken out (``kornia-ilum train --calibrate-colour N``): what a per-channel bias costs the rendered spheres
+    without moving the overall level that ``L_rec`` prefers.
 
     Args:
         estimator: the trained estimator (float32, on the CPU), changed in place.
         recipe: its training recipe, which applies the gain (:meth:`~kornia_ilum_lab.train.recipes.Recipe.scale_output`).
         dataset: the training portraits (:func:`~kornia_ilum_lab.train.data.training_dataset`).
         samples: the portraits the gain is measured on (:func:`energy_log_ratios`).
+        keep_luminance: calibrate the colour alone.
 
     Returns:
         ``{"samples", "gain", "median_ratio_before", "median_ratio_after"}`` (the ratios are
@@ -148,7 +156,10 @@ def calibrate_energy(estimator: torch.nn.Module, recipe: Recipe, dataset: Portra
         ['gain', 'median_ratio_after', 'median_ratio_before', 'samples']
     """
     before = energy_log_ratios(estimator, dataset, samples)
-    gain = torch.exp(before.median(0).values)
+    log_gain = before.median(0).values
+    if keep_luminance:
+        log_gain = log_gain - log_gain @ torch.tensor(LUMINANCE, dtype=log_gain.dtype)
+    gain = torch.exp(log_gain)
     recipe.scale_output(estimator, gain)
     after = before - torch.log(gain)  # a recipe's gain is exact: no second pass over the portraits
     return {"samples": samples, "gain": gain.tolist(),

@@ -91,6 +91,9 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="at export, scale each colour channel so that the median estimated energy is the "
                      "truth's on N fresh training portraits (L_rec's bias to dark; docs/training.rst; "
                      "rerunning a finished run with it only re-exports; default: 0, off)")
+    cmd.add_argument("--calibrate-colour", type=int, default=d.calibrate_colour, metavar="N",
+                     help="at export, the same gains with their luminance kept: the estimate's white balance "
+                     "alone (not with --calibrate-energy; default: 0, off)")
     cmd.add_argument("--fit-spread", type=int, default=d.fit_spread, metavar="N",
                      help="at export, fit the spread head alone (the rest frozen) on N fresh training portraits: "
                      "the Laplace likelihood of the true log energy (needs --model spread_head=True; with "
@@ -106,6 +109,9 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      "one main light (default: 0, off; docs/training.rst)")
     cmd.add_argument("--colour-pairs", type=positive_int, default=d.colour_pairs, metavar="P",
                      help=f"greyscale twins per step with --lambda-colour (default: {d.colour_pairs})")
+    cmd.add_argument("--colour-teacher", action="store_true",
+                     help="with --lambda-colour, the colour photo's main light is its twin's target and is not "
+                     "pulled toward the twin's (default: both pulled)")
     cmd.add_argument("--lambda-energy", type=float, default=d.lambda_energy,
                      help="weight of the log-energy term (default: 0, off: the paper's loss; docs/training.rst)")
     cmd.add_argument("--lambda-nll", type=float, default=d.lambda_nll,
@@ -148,9 +154,10 @@ def run_train(args: argparse.Namespace) -> int:
                          channels_last=args.channels_last, checkpoint_every=args.checkpoint_every,
                          log_every=args.log_every, snapshot_every=args.snapshot_every,
                          average_tail=args.average_tail, calibrate_energy=args.calibrate_energy,
-                         fit_spread=args.fit_spread,
+                         calibrate_colour=args.calibrate_colour, fit_spread=args.fit_spread,
                          lambda_adv=args.lambda_adv, lambda_crop=args.lambda_crop, crop_pairs=args.crop_pairs,
                          lambda_colour=args.lambda_colour, colour_pairs=args.colour_pairs,
+                         colour_teacher=args.colour_teacher,
                          lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll,
                          lambda_albedo=args.lambda_albedo, init=args.init, model=dict(args.model),
                          data=dict(args.data))

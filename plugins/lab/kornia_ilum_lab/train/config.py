@@ -61,6 +61,9 @@ class TrainConfig:
             (:func:`~kornia_ilum_lab.train.recipes.colour_consistency`). Recipes that keep the default
             :meth:`~kornia_ilum_lab.train.recipes.Recipe.step` have it.
         colour_pairs: the pairs per step with ``lambda_colour`` (4).
+        colour_teacher: with ``lambda_colour``, the colour photo's main light is the twin's target and gets no
+            gradient from the term (``teacher`` of :func:`~kornia_ilum_lab.train.recipes.colour_consistency`);
+            off, the two are pulled toward each other.
         lambda_energy: the weight of the energy term (0: off, the paper's loss): the log of each channel's
             energy against the truth's (:func:`~kornia_ilum_lab.train.losses.energy_loss`), which ``L_rec`` on
             gamma-encoded spheres lets drift low (docs/training.rst, "Why the energy drifts low"). Recipes
@@ -107,6 +110,9 @@ class TrainConfig:
             true energy is 1 on this many fresh portraits of the training distribution (0: off;
             :func:`~kornia_ilum_lab.train.calibration.calibrate_energy`, which says why ``L_rec`` leaves a bias).
             Only the export depends on it, as for ``average_tail``.
+        calibrate_colour: the same with the gains' luminance kept: the estimate's white balance alone
+            (``keep_luminance`` of :func:`~kornia_ilum_lab.train.calibration.calibrate_energy`); not with
+            ``calibrate_energy``.
         fit_spread: after training, fit the estimator's spread head alone, the rest frozen, on this many fresh
             portraits of the training distribution (0: off; :func:`~kornia_ilum_lab.train.calibration.fit_spread`;
             the model needs ``spread_head``). With ``steps=0`` and ``init``, the only thing the run does.
@@ -152,6 +158,7 @@ class TrainConfig:
     crop_pairs: int = 8
     lambda_colour: float = 0.0
     colour_pairs: int = 4
+    colour_teacher: bool = False
     lambda_energy: float = 0.0
     lambda_nll: float = 0.0
     lambda_albedo: float = 0.0
@@ -168,6 +175,7 @@ class TrainConfig:
     snapshot_every: int = 0
     average_tail: float = 0.0
     calibrate_energy: int = 0
+    calibrate_colour: int = 0
     fit_spread: int = 0
     brdf_weights: dict[str, float] = field(default_factory=lambda: dict(BRDF_WEIGHTS))
     model: dict[str, Any] = field(default_factory=dict)
@@ -184,10 +192,12 @@ class TrainConfig:
         every = self.snapshot_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 0:
             raise ValueCheckError(f"snapshot_every must be a non-negative integer, got {self.snapshot_every!r}")
-        for name in ("calibrate_energy", "fit_spread"):
+        for name in ("calibrate_energy", "calibrate_colour", "fit_spread"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ValueCheckError(f"{name} must be a non-negative integer, got {v!r}")
+        if self.calibrate_energy and self.calibrate_colour:
+            raise ValueCheckError("calibrate_energy already sets each channel's gain: calibrate_colour is a part of it")
         if not 0 <= self.average_tail < 1:
             raise ValueCheckError(f"average_tail must be in [0, 1), got {self.average_tail!r}")
         if self.average_tail > 0 and not self.snapshot_every:
@@ -211,6 +221,8 @@ class TrainConfig:
             raise ValueCheckError(f"lambda_nll must be non-negative, got {self.lambda_nll!r}")
         if not self.lambda_albedo >= 0:
             raise ValueCheckError(f"lambda_albedo must be non-negative, got {self.lambda_albedo!r}")
+        if not isinstance(self.colour_teacher, bool):
+            raise ValueCheckError(f"colour_teacher must be True or False, got {self.colour_teacher!r}")
         if not isinstance(self.multi_scale, bool):
             raise ValueCheckError(f"multi_scale must be True or False, got {self.multi_scale!r}")
         if self.loss not in LOSSES:
@@ -231,7 +243,7 @@ class TrainConfig:
         """The settings that fix the data and the optimisation: a checkpoint resumes only if they agree (a
         setting that a checkpoint predates counts as its default there)."""
         skip = {"out", "steps", "threads", "checkpoint_every", "log_every", "snapshot_every", "average_tail",
-                "calibrate_energy", "fit_spread"}
+                "calibrate_energy", "calibrate_colour", "fit_spread"}
         return {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
 
 

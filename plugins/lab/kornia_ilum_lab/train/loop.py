@@ -302,10 +302,13 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, *, out: Path, recipe:
             averaged, steps = average_snapshots(out, after=(1 - config.average_tail) * step, upto=step)
             estimator.load_state_dict(averaged, strict=True)
             summary["averaged_snapshots"] = steps
-        if config.calibrate_energy or config.fit_spread:
+        if config.calibrate_energy or config.calibrate_colour or config.fit_spread:
             calibration = recipe.calibration_dataset(portraits)
             if config.calibrate_energy:
                 summary["energy_calibration"] = calibrate_energy(estimator, recipe, calibration, config.calibrate_energy)
+            if config.calibrate_colour:
+                summary["colour_calibration"] = calibrate_energy(estimator, recipe, calibration,
+                                                                 config.calibrate_colour, keep_luminance=True)
             if config.fit_spread:
                 summary["spread_fit"] = fit_spread(estimator, calibration, samples=config.fit_spread)
         summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors", recipe.probe(dataset))

@@ -341,16 +341,20 @@ def colour_pairs(crops: torch.Tensor, target: torch.Tensor, pairs: int, *, start
     return crops, torch.cat([target[:keep], grey_target.to(target.dtype), target[b - start:]]), p
 
 
-def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int = 0) -> torch.Tensor:
+def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int = 0,
+                       teacher: bool = False) -> torch.Tensor:
     r"""How far apart the main lights of each portrait and its greyscale twin are: the mean of ``1 - cos`` of the
     angle between the luminance dipoles ``sum_p Omega_p Y_p omega_p`` (the l = 1 band of
     :func:`~kornia_ilum.sh.sh_project`) of the two predictions at the finest scale
-    (samples ``start + i`` and ``B - start - P + i``, :func:`colour_pairs`; both get gradients).
+    (samples ``start + i`` and ``B - start - P + i``, :func:`colour_pairs`; both get gradients, or with
+    ``teacher`` only the twin: the colour photo's estimate, which sees more, is the twin's target and is not
+    pulled toward it).
 
     Args:
         pred: ``{size: (B, 3, size, size)}`` the generator's linear lighting per scale.
         twins: the pairs ``P``.
         start: as :func:`colour_pairs`.
+        teacher: detach the colour photos' dipoles.
 
     Returns:
         the term, a scalar in ``[0, 2]``.
@@ -371,6 +375,8 @@ def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int 
     y = kornia.color.rgb_to_grayscale(x, torch.tensor(LUMINANCE, dtype=x.dtype, device=x.device))
     dipole = sh_project(y.expand(b, 3, *x.shape[-2:]))[:, 1:4, 0]
     first, second = dipole[start:start + twins], dipole[b - start - twins:b - start]
+    if teacher:
+        first = first.detach()
     return (1.0 - F.cosine_similarity(first, second, dim=-1, eps=1e-8)).mean()
 
 
@@ -495,7 +501,8 @@ def train_step(*, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.O
             adv = F.softplus(-fake_logits).mean()
     extra = sum((recipe.extra_losses(pred) if recipe is not None else {}).values(), rec.new_zeros(()))
     crop = crop_consistency(pred, pairs, config.brdf_weights) if pairs else rec.new_zeros(())
-    colour = colour_consistency(pred, twins, start=pairs) if twins else rec.new_zeros(())
+    colour = (colour_consistency(pred, twins, start=pairs, teacher=config.colour_teacher) if twins
+              else rec.new_zeros(()))
     energy = energy_loss(pred[finest], truth[finest]) if config.lambda_energy > 0 else rec.new_zeros(())
     loss = (rec + config.lambda_adv * adv + extra + config.lambda_crop * crop + config.lambda_colour * colour
             + config.lambda_energy * energy

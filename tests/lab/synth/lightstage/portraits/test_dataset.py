@@ -364,6 +364,24 @@ class TestColourLooks:
                     b["mirror_ball"], luminance.expand(3, -1, -1), rtol=1e-5, atol=1e-7)
 
 
+class TestLinearResponse:
+    def test_a_linear_camera_darkens_the_midtones_and_keeps_the_lighting(self) -> None:
+        """Every photo of a linear camera (``linear_response=1``) has the sRGB curve undone: its codes are about
+        proportional to the light, so darker than the encoded photo's; the lighting target is the same."""
+        base = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8,
+                          sphere_sizes=(4,)))
+        linear = list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, length=8,
+                            sphere_sizes=(4,), linear_response=1.0))
+        for a, b in zip(base, linear, strict=True):
+            assert torch.equal(a["mirror_ball"], b["mirror_ball"]) and a["exposure"] == b["exposure"]
+            lit = a["image"] > 20
+            assert bool(lit.any()) and bool((b["image"][lit] < a["image"][lit]).all())
+            want = (srgb_to_linear(a["image"].float()[None] / 255.0)[0] * 255.0)[lit]
+            torch.testing.assert_close(b["image"][lit].float(), want, rtol=0.1, atol=2.0)
+        with pytest.raises(ValueCheckError, match="linear_response"):
+            PortraitConfig(linear_response=1.5)
+
+
 class TestPlainBackdrop:
     def _data(self, **kw) -> list[dict]:
         return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,

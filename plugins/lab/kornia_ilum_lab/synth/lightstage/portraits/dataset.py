@@ -29,7 +29,7 @@ from kornia_ilum.geometry import flip_lighting_horizontal, latlong_directions, l
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import SparseField, check_eps
 from kornia_ilum_lab.synth.background import latlong_grid, lookup_latlong
-from kornia_ilum_lab.synth.camera_effects import CameraEffects
+from kornia_ilum_lab.synth.camera_effects import LINEAR_RESPONSE_GAMMA, CameraEffects
 from kornia_ilum_lab.synth.colour_looks import apply_looks, draw_looks
 from kornia_ilum_lab.synth.environments import (
     Environment,
@@ -119,6 +119,11 @@ class PortraitConfig:
             (:func:`~kornia_ilum_lab.synth.colour_looks.apply_looks`; ``sample["look"]`` is the look's kind, 0
             for none): where the light comes from must then be read from the shading, not from the colours.
             Drawn last and only when positive, so at 0 every sample is what it was without the option.
+        linear_response: the fraction of samples taken by a camera with a linear response (machine-vision and
+            scientific cameras, raw dumps: codes proportional to the light, no tone curve, no highlight roll-off;
+            the camera of the real-flash photographs is one): their tone curve undoes the sRGB curve
+            (:data:`~kornia_ilum_lab.synth.camera_effects.LINEAR_RESPONSE_GAMMA`) and their roll-off is off.
+            Drawn from a stream of its own, so every other draw of a sample is what it was without the option.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -164,6 +169,7 @@ class PortraitConfig:
     plain_level: tuple[float, float] = (0.01, 3.0)
     second_crop: bool = False
     colour_looks: float = 0.0
+    linear_response: float = 0.0
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -208,6 +214,7 @@ class PortraitConfig:
         _probability(self.background_sharp_probability, "background_sharp_probability")
         _probability(self.plain_background, "plain_background")
         _probability(self.colour_looks, "colour_looks")
+        _probability(self.linear_response, "linear_response")
         _pair(self.plain_level, "plain_level", 0.0, strict=True)
         object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
@@ -581,6 +588,11 @@ class PortraitDataset(IterableDataset):
             plain = torch.rand(n, generator=g) < cfg.plain_background
             level = torch.exp(uniform_draws(n, *map(math.log, cfg.plain_level), g))
             backdrops = level[:, None] * torch.exp(0.1 * torch.randn(n, 3, generator=g, dtype=torch.float64))
+        if cfg.linear_response > 0:  # from a stream of its own: every other draw stays what it was
+            linear = torch.rand(n, generator=_generator(self.seed, worker, index, -2)) < cfg.linear_response
+            for fx in effects:
+                fx["tone"][linear] = torch.tensor([0.0, LINEAR_RESPONSE_GAMMA], dtype=fx["tone"].dtype)
+                fx["rolloff"][linear] = 0.0
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)

@@ -1,0 +1,115 @@
+"""The real-flash check's flashes on the light stage's own faces: is the error the faces', the colour's or the camera's?
+
+Run: ``python benchmarks/synthetic_flash.py --cache EVAL_CACHE --flash ../shared/data/yaleb_dev
+[--views 12] [--estimator ours] [--weights FILE ...]``
+
+The real-flash check (:mod:`kornia_ilum_lab.evaluation.flash`) finds every estimator putting near-frontal flashes
+far above where they are. This renders the same flashes (their directions only, read from the photographs'
+names) on the eval cache's frontal views (``|yaw| <= 12`` degrees): one small disk light (2 degrees across, 5500 K
+is not modelled: white) in a dark room (a uniform ambient of 1/100 of its irradiance), exposed on the face and
+cut through the view's face box as training crops are, and feeds each estimator three versions of each photo:
+
+- ``colour``: the photo as rendered (sRGB);
+- ``greyscale``: its luma in all three channels (:func:`~kornia_ilum_lab.synth.colour_looks.greyscale`);
+- ``linear grey``: the greyscale photo's values made linear (a camera with a linear response, as the real-flash
+  photographs have), fed as they are.
+
+It prints, per estimator and version, the median direction error over all flashes and within 25 degrees of the
+camera axis, the elevation bias there (estimate minus flash) and the up/down sign agreement. A bias that the
+rendered faces share with the real photographs is the estimator's (its prior, its reading of shading); one that
+only the real photographs show is theirs (real skin, the database's crops). A measurement, not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import torch
+
+from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
+from kornia_ilum.geometry import latlong_to_mirror_ball
+from kornia_ilum_lab.evaluation.evaluate import load_estimator
+from kornia_ilum_lab.evaluation.flash import load_flash_set
+from kornia_ilum_lab.evaluation.measures import angle_degrees, estimates
+from kornia_ilum_lab.synth.colour_looks import greyscale
+from kornia_ilum_lab.synth.environments import Environment
+from kornia_ilum_lab.synth.environments.sky import splat_disk
+from kornia_ilum_lab.synth.lightstage.cache import read_field, read_manifest
+from kornia_ilum_lab.synth.lightstage.preview import compose_portrait
+
+AMBIENT = 0.01  # the room's irradiance on any surface, a fraction of the flash's at normal incidence
+RADIUS = math.radians(1.0)
+
+
+def flash_environment(direction: torch.Tensor, height: int = 64) -> Environment:
+    """One white disk of irradiance 1 along ``direction`` over a uniform ambient of irradiance ``AMBIENT``."""
+    latlong = torch.full((3, height, 2 * height), AMBIENT / math.pi)
+    splat_disk(latlong, direction.tolist(), RADIUS, torch.ones(3))
+    ball = latlong_to_mirror_ball(latlong[None], 32)[0].clamp(min=0.0)
+    return Environment(latlong, ball, "indoor", "flash:synthetic")
+
+
+def elevation(d: torch.Tensor) -> torch.Tensor:
+    return torch.rad2deg(torch.asin(d[:, 1].clamp(-1.0, 1.0)))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cache", required=True, help="a light-stage cache (the eval split's)")
+    parser.add_argument("--flash", required=True, help="the real-flash folder (only its names are read)")
+    parser.add_argument("--views", type=int, default=12, help="frontal views to render (12)")
+    parser.add_argument("--estimator", default="ours")
+    parser.add_argument("--weights", nargs="*", default=[None], help="weight files (default: the shipped ones)")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    flashes = load_flash_set(args.flash)
+    pairs = sorted({(float(a), float(e)) for a, e in zip(flashes.azimuth, flashes.elevation, strict=True)})
+    angles = torch.tensor(pairs, dtype=torch.float64)
+    a, e = torch.deg2rad(angles[:, 0]), torch.deg2rad(angles[:, 1])
+    dirs = torch.stack([-torch.sin(a) * torch.cos(e), torch.sin(e), torch.cos(a) * torch.cos(e)], -1)
+    root = Path(args.cache)
+    entries = read_manifest(root)["entries"]
+    crops, truth = [], []
+    for entry in entries:
+        if len(crops) >= args.views * len(dirs):
+            break
+        field = read_field(root / entry["path"], dense=False)
+        if abs(field.camera.yaw_deg) > 12.0:
+            continue
+        box = square_crop_boxes(field.face_box[None].float(), CROP_SCALE)
+        for d in dirs:
+            shot = compose_portrait(field, flash_environment(d.float()))
+            crops.append(crop_faces(shot["image"][None].float() / 255.0, box, size=256)[0])
+            truth.append(d)
+    if not crops:
+        print("no frontal view in the cache", file=sys.stderr)
+        return 1
+    colour = torch.stack(crops)
+    grey = greyscale(colour)
+    versions = {"colour": colour, "greyscale": grey, "linear grey": srgb_to_linear(grey)}
+    truth_d = torch.stack(truth)
+    axis = torch.rad2deg(torch.acos(truth_d[:, 2].clamp(-1.0, 1.0)))
+    front, off = axis < 25.0, truth_d[:, 1].abs() > math.sin(math.radians(10.0))
+    print(f"{len(crops) // len(dirs)} frontal views x {len(dirs)} flashes = {len(crops)} crops; "
+          f"{int(front.sum())} within 25 degrees of the camera axis")
+    print("| estimator | version | all | within 25 | elevation bias, within 25 | up/down |")
+    print("|---|---|---:|---:|---:|---:|")
+    for weights in args.weights:
+        est = load_estimator(args.estimator, weights)
+        name = args.estimator if weights is None else f"{args.estimator}@{Path(weights).name}"
+        for version, images in versions.items():
+            _, pred, _ = estimates(est, (images[i:i + 64] for i in range(0, len(images), 64)), directions=True)
+            err = angle_degrees(pred, truth_d)
+            bias = (elevation(pred) - elevation(truth_d))[front].median()
+            up_down = ((pred[:, 1] > 0) == (truth_d[:, 1] > 0))[off].double().mean()
+            print(f"| {name} | {version} | {err.median():.1f} | {err[front].median():.1f} | {bias:+.1f} | "
+                  f"{up_down:.3f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

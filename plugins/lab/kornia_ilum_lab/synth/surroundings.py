@@ -1,0 +1,216 @@
+r"""Near surfaces lit by the same environment: a wall behind the subject and a floor below.
+
+A face crop cannot tell a dark skin under much light from a light skin under less; what the same light falls
+on, whose reflectance has nothing to do with the skin, can (issue 47: on a held-out head in front of a plain
+wall lit by the same map, the wall-to-face brightness ratio tells the skin's tone with R^2 0.86, the far
+background's with 0.12). The light stage's portraits stand in front of the environment at infinity; this
+module puts matte planes near them:
+
+- a **wall** behind the subject, facing the camera: the plane ``z = -d`` (``d`` metres behind the head),
+  from the floor up to ``top`` metres above the eyes (above it the environment shows), unbounded sideways;
+- a **floor** (or a table top) ``h`` metres below the eyes: the plane ``y = -h``.
+
+Each plane is Lambertian of albedo ``rho`` (RGB) and lit by the environment alone (one bounce: the planes see
+the map, not each other, and the subject casts no shadow on them): its radiance is uniform,
+``L = rho / pi * E(n)``, with ``E(n) = sum_p L_p Omega_p max(0, omega_p . n)`` the map's irradiance on a
+surface of normal ``n`` (``+Z`` for the wall, ``+Y`` for the floor; the lat-long's exact pixel solid angles).
+
+Both the photo and the lighting target change together, as they would in a real room:
+
+- :func:`with_surroundings`: the environment as the subject sees it, the planes in it (every direction
+  whose ray from the head meets a plane first shows that plane's radiance). This is the lighting that relights
+  the subject and the lighting target: the estimator is asked for the light that reaches the face, wall
+  included;
+- :func:`surroundings_view`: which pixels of the camera's frame see a plane (rays from the camera, ``D``
+  metres in front of the head) and their radiance, for the frame's background.
+
+The subject's head is at the origin of the camera frame of docs/conventions.rst (+X right, +Y up, +Z toward
+the camera; a direction is where light arrives from). Classification is per pixel centre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.geometry import latlong_directions, latlong_solid_angles
+
+__all__ = ["Surroundings", "plane_radiance", "surroundings_view", "with_surroundings"]
+
+_WALL_NORMAL = (0.0, 0.0, 1.0)
+_FLOOR_NORMAL = (0.0, 1.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """A wall behind the subject and a floor below it (module docstring), each optional.
+
+    Args:
+        wall_distance: metres from the head to the wall behind it (``None``: no wall).
+        wall_top: metres above the eyes where the wall ends (``math.inf``: a wall to the ceiling).
+        wall_albedo: the wall's RGB albedo, each in ``[0, 1]``.
+        floor_drop: metres from the eyes down to the floor or table top (``None``: none).
+        floor_albedo: the floor's RGB albedo, each in ``[0, 1]``.
+
+    Raises:
+        ValueCheckError: a distance that is not positive and finite, an albedo outside ``[0, 1]``, a wall top
+            below the floor.
+
+    Examples:
+        >>> Surroundings(wall_distance=1.0).has_wall, Surroundings(floor_drop=0.8).has_wall
+        (True, False)
+    """
+
+    wall_distance: float | None = None
+    wall_top: float = math.inf
+    wall_albedo: tuple[float, float, float] = (0.5, 0.5, 0.5)
+    floor_drop: float | None = None
+    floor_albedo: tuple[float, float, float] = (0.3, 0.3, 0.3)
+
+    def __post_init__(self) -> None:
+        for name in ("wall_distance", "floor_drop"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and 0.0 < value < math.inf):
+                raise ValueCheckError(f"Surroundings.{name} must be a positive finite number or None, got {value!r}")
+        if not (isinstance(self.wall_top, (int, float)) and not math.isnan(self.wall_top)):
+            raise ValueCheckError(f"Surroundings.wall_top must be a number, got {self.wall_top!r}")
+        if self.floor_drop is not None and self.wall_top <= -self.floor_drop:
+            raise ValueCheckError(f"Surroundings.wall_top ({self.wall_top}) must be above the floor "
+                                  f"({-self.floor_drop})")
+        for name in ("wall_albedo", "floor_albedo"):
+            rho = getattr(self, name)
+            if len(rho) != 3 or not all(isinstance(v, (int, float)) and 0.0 <= v <= 1.0 for v in rho):
+                raise ValueCheckError(f"Surroundings.{name} must be three numbers in [0, 1], got {rho!r}")
+
+    @property
+    def has_wall(self) -> bool:
+        """Whether there is a wall behind the subject."""
+        return self.wall_distance is not None
+
+    @property
+    def has_floor(self) -> bool:
+        """Whether there is a floor below the subject."""
+        return self.floor_drop is not None
+
+
+def plane_radiance(latlong: torch.Tensor, normal: tuple[float, float, float],
+                   albedo: tuple[float, float, float]) -> torch.Tensor:
+    r"""The radiance ``rho / pi * E(n)`` of a Lambertian plane of normal ``n`` lit by the map ``latlong``.
+
+    Args:
+        latlong: ``(3, H, 2H)`` linear lat-long radiance in the camera frame.
+        normal: the plane's unit normal (the side that faces the light it reflects).
+        albedo: its RGB albedo.
+
+    Returns:
+        ``(3,)`` the plane's radiance, float64.
+
+    Examples:
+        >>> white_sky = torch.ones(3, 32, 64)  # uniform radiance 1: E = pi on any plane
+        >>> plane_radiance(white_sky, (0.0, 1.0, 0.0), (0.5, 0.5, 0.5))
+        tensor([0.5000, 0.5000, 0.5000], dtype=torch.float64)
+    """
+    check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
+    h = latlong.shape[-2]
+    d = latlong_directions(h, dtype=torch.float64)
+    cos = (d @ torch.tensor(normal, dtype=torch.float64)).clamp(min=0.0)
+    weight = latlong_solid_angles(h, dtype=torch.float64) * cos
+    irradiance = (latlong.double().cpu() * weight).sum((-2, -1))
+    return torch.tensor(albedo, dtype=torch.float64) / math.pi * irradiance
+
+
+def _hits(origin: torch.Tensor, rays: torch.Tensor, s: Surroundings) -> tuple[torch.Tensor, torch.Tensor]:
+    """For rays ``(N, 3)`` from ``origin (3,)``: which meet the wall first and which the floor first."""
+    inf = torch.full(rays.shape[:-1], math.inf, dtype=torch.float64)
+    t_wall, t_floor = inf, inf.clone()
+    if s.has_wall:
+        going = rays[..., 2] < 0
+        t = torch.where(going, (origin[2] + s.wall_distance) / (-rays[..., 2]).clamp(min=1e-12), inf)
+        y = origin[1] + t * rays[..., 1]
+        below_floor = y < -s.floor_drop if s.has_floor else torch.zeros_like(going)
+        t_wall = torch.where(going & (y <= s.wall_top) & ~below_floor, t, inf)
+    if s.has_floor:
+        going = rays[..., 1] < 0
+        t_floor = torch.where(going, (origin[1] + s.floor_drop) / (-rays[..., 1]).clamp(min=1e-12), inf)
+        if s.has_wall:  # the floor ends at the wall
+            z = origin[2] + t_floor * rays[..., 2]
+            t_floor = torch.where(z >= -s.wall_distance, t_floor, inf)
+    wall = torch.isfinite(t_wall) & (t_wall <= t_floor)
+    floor = torch.isfinite(t_floor) & (t_floor < t_wall)
+    return wall, floor
+
+
+def _radiances(latlong: torch.Tensor, s: Surroundings) -> tuple[torch.Tensor, torch.Tensor]:
+    wall = plane_radiance(latlong, _WALL_NORMAL, s.wall_albedo) if s.has_wall else torch.zeros(3, dtype=torch.float64)
+    floor = (plane_radiance(latlong, _FLOOR_NORMAL, s.floor_albedo) if s.has_floor
+             else torch.zeros(3, dtype=torch.float64))
+    return wall, floor
+
+
+def with_surroundings(latlong: torch.Tensor, surroundings: Surroundings) -> torch.Tensor:
+    r"""The environment as the subject sees it with the wall and the floor of ``surroundings`` in it.
+
+    Args:
+        latlong: ``(3, H, 2H)`` linear lat-long radiance in the camera frame (the far environment).
+        surroundings: the planes.
+
+    Returns:
+        ``(3, H, 2H)`` a new map, ``latlong``'s dtype: each direction whose ray from the head meets a plane
+        first shows the plane's radiance (:func:`plane_radiance` of the far environment).
+
+    Examples:
+        >>> sky = torch.ones(3, 16, 32)
+        >>> room = with_surroundings(sky, Surroundings(wall_distance=1.0, wall_albedo=(0.2, 0.2, 0.2)))
+        >>> bool(room[:, :, 16].mean() < 1.0), bool(room[:, 0].eq(1.0).all())  # forward-ish: wall; zenith: sky
+        (True, True)
+    """
+    check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
+    if not (surroundings.has_wall or surroundings.has_floor):
+        return latlong.clone()
+    h = latlong.shape[-2]
+    wall, floor = _hits(torch.zeros(3, dtype=torch.float64), latlong_directions(h, dtype=torch.float64),
+                        surroundings)
+    l_wall, l_floor = _radiances(latlong, surroundings)
+    out = latlong.double().cpu().clone()
+    out = torch.where(wall, l_wall[:, None, None], out)
+    out = torch.where(floor, l_floor[:, None, None], out)
+    return out.to(latlong)
+
+
+def surroundings_view(latlong: torch.Tensor, surroundings: Surroundings, rays: torch.Tensor,
+                      camera_distance: float) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""What the camera sees of the planes: which of its ``rays`` meet one, and the radiance there.
+
+    Args:
+        latlong: ``(3, H, 2H)`` the far environment in the camera frame (it lights the planes).
+        surroundings: the planes.
+        rays: ``(..., 3)`` unit ray directions of the camera's pixels (camera frame, looking along ``-Z``).
+        camera_distance: metres from the camera to the head (the camera sits at ``(0, 0, D)``).
+
+    Returns:
+        ``(mask (...), radiance (3, ...))``: the pixels that see a plane, and their radiance (0 elsewhere),
+        float32.
+
+    Examples:
+        >>> rays = torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.9, -0.1]])
+        >>> rays = rays / rays.norm(dim=-1, keepdim=True)
+        >>> mask, radiance = surroundings_view(torch.ones(3, 16, 32), Surroundings(wall_distance=1.0, wall_top=1.0),
+        ...                                    rays, camera_distance=2.0)
+        >>> mask.tolist()  # straight ahead: the wall; steeply up: over the wall's top
+        [True, False]
+    """
+    check_tensor(rays, "rays", ["*", "3"])
+    if not 0.0 < camera_distance < math.inf:
+        raise ValueCheckError(f"camera_distance must be positive and finite, got {camera_distance!r}")
+    origin = torch.tensor([0.0, 0.0, float(camera_distance)], dtype=torch.float64)
+    wall, floor = _hits(origin, rays.double(), surroundings)
+    l_wall, l_floor = _radiances(latlong, surroundings)
+    shape = (3,) + tuple(rays.shape[:-1])
+    radiance = torch.zeros(shape, dtype=torch.float64)
+    radiance = torch.where(wall, l_wall.view(3, *([1] * wall.dim())), radiance)
+    radiance = torch.where(floor, l_floor.view(3, *([1] * floor.dim())), radiance)
+    return wall | floor, radiance.float()
