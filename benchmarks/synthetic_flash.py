@@ -28,10 +28,6 @@ import sys
 from pathlib import Path
 
 import torch
-
-from kornia_ilum.color import srgb_to_linear
-from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
-from kornia_ilum.geometry import latlong_to_mirror_ball
 from kornia_ilum_lab.evaluation.evaluate import load_estimator
 from kornia_ilum_lab.evaluation.flash import load_flash_set
 from kornia_ilum_lab.evaluation.measures import angle_degrees, estimates
@@ -40,6 +36,10 @@ from kornia_ilum_lab.synth.environments import Environment
 from kornia_ilum_lab.synth.environments.sky import splat_disk
 from kornia_ilum_lab.synth.lightstage.cache import read_field, read_manifest
 from kornia_ilum_lab.synth.lightstage.preview import compose_portrait
+
+from kornia_ilum.color import srgb_to_linear
+from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
+from kornia_ilum.geometry import latlong_to_mirror_ball
 
 AMBIENT = 0.01  # the room's irradiance on any surface, a fraction of the flash's at normal incidence
 RADIUS = math.radians(1.0)

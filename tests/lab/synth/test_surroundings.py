@@ -6,29 +6,34 @@ import math
 
 import pytest
 import torch
+from kornia_ilum_lab.synth.surroundings import (
+    Surroundings,
+    plane_radiance,
+    surroundings_view,
+    with_surroundings,
+)
 
 from kornia_ilum.core.errors import ShapeError, ValueCheckError
 from kornia_ilum.geometry import latlong_directions, latlong_solid_angles
-from kornia_ilum_lab.synth.surroundings import Surroundings, plane_radiance, surroundings_view, with_surroundings
 
 
-def _sun(height: int, direction: tuple[float, float, float]) -> torch.Tensor:
-    """A map that is black but for the one pixel nearest ``direction``, of irradiance 1 at normal incidence."""
-    d = latlong_directions(height, dtype=torch.float64)
-    cos = d @ torch.tensor(direction, dtype=torch.float64)
-    i = int(cos.argmax())
+def _sun(height: int, direction: tuple[float, float, float]) -> tuple[torch.Tensor, torch.Tensor]:
+    """A map that is black but for the one pixel nearest ``direction``, of irradiance 1 at normal incidence,
+    and that pixel's centre direction."""
+    d = latlong_directions(height, dtype=torch.float64).reshape(-1, 3)
+    i = int((d @ torch.tensor(direction, dtype=torch.float64)).argmax())
     out = torch.zeros(3, height * 2 * height, dtype=torch.float64)
     out[:, i] = 1.0 / latlong_solid_angles(height, dtype=torch.float64).flatten()[i]
-    return out.view(3, height, 2 * height), float(cos.flatten()[i])
+    return out.view(3, height, 2 * height), d[i]
 
 
 class TestPlaneRadiance:
-    def test_uniform_sky_gives_half_the_albedo(self):
-        """A uniform radiance 1 gives E = pi on any plane: rho / pi * pi = rho."""
+    def test_uniform_sky_gives_the_albedo(self):
+        """A uniform radiance 1 gives E = pi on any plane: rho / pi * pi = rho (pixel-centre cosines: 0.2 %)."""
         rho = (0.2, 0.5, 0.8)
         for normal in ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
             got = plane_radiance(torch.ones(3, 32, 64), normal, rho)
-            torch.testing.assert_close(got, torch.tensor(rho, dtype=torch.float64), rtol=1e-9, atol=0)
+            torch.testing.assert_close(got, torch.tensor(rho, dtype=torch.float64), rtol=2e-3, atol=0)
 
     def test_a_sun_behind_the_plane_lights_nothing(self):
         sun, _ = _sun(32, (0.0, 0.0, -1.0))  # behind the wall, which faces +Z
@@ -36,10 +41,10 @@ class TestPlaneRadiance:
 
     def test_a_sun_in_front_follows_lambert(self):
         d = (0.0, math.sin(0.5), math.cos(0.5))
-        sun, cos = _sun(64, d)
+        sun, centre = _sun(64, d)
         got = plane_radiance(sun, (0.0, 0.0, 1.0), (0.6, 0.6, 0.6))
-        want = 0.6 / math.pi * cos * 1.0  # the pixel's cosine to the wall's normal, irradiance 1
-        torch.testing.assert_close(got, torch.full((3,), want, dtype=torch.float64), rtol=2e-2, atol=0)
+        want = 0.6 / math.pi * float(centre[2])  # irradiance 1 times the cosine to the wall's normal
+        torch.testing.assert_close(got, torch.full((3,), want, dtype=torch.float64), rtol=1e-9, atol=0)
 
 
 class TestWithSurroundings:
@@ -75,8 +80,8 @@ class TestWithSurroundings:
 
     def test_energy_the_subject_receives_from_the_wall(self):
         """Under a uniform sky of radiance 1, a white wall to the ceiling returns the same radiance."""
-        y = with_surroundings(torch.ones(3, 16, 32), Surroundings(wall_distance=2.0, wall_albedo=(1.0, 1.0, 1.0)))
-        torch.testing.assert_close(y, torch.ones(3, 16, 32))
+        y = with_surroundings(torch.ones(3, 32, 64), Surroundings(wall_distance=2.0, wall_albedo=(1.0, 1.0, 1.0)))
+        torch.testing.assert_close(y, torch.ones(3, 32, 64), rtol=2e-3, atol=0)
 
     def test_errors(self):
         with pytest.raises(ShapeError):
@@ -97,8 +102,8 @@ class TestSurroundingsView:
         # straight ahead: the wall 2 m away; up 0.5 per metre: 1 m up at the wall, over its top; steeply down:
         # 1.2 m down after 1.33 m along, before the wall (2 m): the floor
         assert mask.tolist() == [True, False, True]
-        torch.testing.assert_close(radiance[:, 0], torch.full((3,), 0.5))
-        torch.testing.assert_close(radiance[:, 2], torch.full((3,), 0.2))
+        torch.testing.assert_close(radiance[:, 0], torch.full((3,), 0.5), rtol=1e-2, atol=0)  # 16 rows
+        torch.testing.assert_close(radiance[:, 2], torch.full((3,), 0.2), rtol=1e-2, atol=0)
         assert float(radiance[:, 1].abs().max()) == 0.0
 
     def test_image_shaped_rays(self):

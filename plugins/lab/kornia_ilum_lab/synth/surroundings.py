@@ -109,10 +109,13 @@ def plane_radiance(latlong: torch.Tensor, normal: tuple[float, float, float],
     Returns:
         ``(3,)`` the plane's radiance, float64.
 
+    The cosine is taken at the pixel centres: on a 32-row map a uniform sky's irradiance is ``pi`` to 0.2 %.
+
     Examples:
-        >>> white_sky = torch.ones(3, 32, 64)  # uniform radiance 1: E = pi on any plane
-        >>> plane_radiance(white_sky, (0.0, 1.0, 0.0), (0.5, 0.5, 0.5))
-        tensor([0.5000, 0.5000, 0.5000], dtype=torch.float64)
+        >>> white_sky = torch.ones(3, 32, 64)  # uniform radiance 1: E = pi on any plane, L = rho
+        >>> radiance = plane_radiance(white_sky, (0.0, 1.0, 0.0), (0.5, 0.5, 0.5))
+        >>> bool(torch.allclose(radiance, torch.full((3,), 0.5, dtype=torch.float64), rtol=2e-3))
+        True
     """
     check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
     h = latlong.shape[-2]
@@ -164,8 +167,9 @@ def with_surroundings(latlong: torch.Tensor, surroundings: Surroundings) -> torc
 
     Examples:
         >>> sky = torch.ones(3, 16, 32)
-        >>> room = with_surroundings(sky, Surroundings(wall_distance=1.0, wall_albedo=(0.2, 0.2, 0.2)))
-        >>> bool(room[:, :, 16].mean() < 1.0), bool(room[:, 0].eq(1.0).all())  # forward-ish: wall; zenith: sky
+        >>> wall = Surroundings(wall_distance=1.0, wall_top=1.0, wall_albedo=(0.2, 0.2, 0.2))
+        >>> room = with_surroundings(sky, wall)
+        >>> bool(room[:, 8, 16].lt(1.0).all()), bool(room[:, 0].eq(1.0).all())  # ahead: the wall; up: over it
         (True, True)
     """
     check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
