@@ -24,6 +24,17 @@ Both the photo and the lighting target change together, as they would in a real 
 - :func:`surroundings_view`: which pixels of the camera's frame see a plane (rays from the camera, ``D``
   metres in front of the head) and their radiance, for the frame's background.
 
+:func:`draw_surroundings` draws them for training portraits (``PortraitConfig.surroundings``), from what real
+portraits stand in front of:
+
+- a wall in 80 % of the draws, 0.3 to 3 m behind the head (log-uniform: against the wall to across a room),
+  to the ceiling in half of them, else ending 0.3 to 2 m above the eyes (a garden wall, a partition, a hedge);
+  its albedo a grey of 0.05 to 0.85 (log-uniform: black to white paint) tinted by ``exp(N(0, 0.15))`` per
+  channel (at most 0.9);
+- a floor in 60 % (and wherever there is no wall), 1.1 to 1.7 m below the eyes (seated to standing), or in
+  30 % of them a table top 0.25 to 0.5 m below; albedo 0.05 to 0.6 (asphalt, carpet, wood, concrete), tinted
+  the same way.
+
 The subject's head is at the origin of the camera frame of docs/conventions.rst (+X right, +Y up, +Z toward
 the camera; a direction is where light arrives from). Classification is per pixel centre.
 """
@@ -31,17 +42,19 @@ the camera; a direction is where light arrives from). Classification is per pixe
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
-from kornia_ilum.core.check import check_tensor
+from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import latlong_directions, latlong_solid_angles
 
-__all__ = ["Surroundings", "plane_radiance", "surroundings_view", "with_surroundings"]
+__all__ = ["Surroundings", "draw_surroundings", "plane_radiance", "surroundings_view", "with_surroundings"]
 
 _WALL_NORMAL = (0.0, 0.0, 1.0)
+_TINT = 0.15
 _FLOOR_NORMAL = (0.0, 1.0, 0.0)
 
 
@@ -218,3 +231,53 @@ def surroundings_view(latlong: torch.Tensor, surroundings: Surroundings, rays: t
     radiance = torch.where(wall, l_wall.view(3, *([1] * wall.dim())), radiance)
     radiance = torch.where(floor, l_floor.view(3, *([1] * floor.dim())), radiance)
     return wall | floor, radiance.float()
+
+
+def _albedo(grey_range: tuple[float, float], u: float, tint: Sequence[float]) -> tuple[float, float, float]:
+    lo, hi = (math.log(v) for v in grey_range)
+    grey = math.exp(lo + (hi - lo) * u)
+    return tuple(min(0.9, grey * math.exp(_TINT * t)) for t in tint)  # type: ignore[return-value]
+
+
+def draw_surroundings(n: int, share: float, generator: torch.Generator) -> list[Surroundings | None]:
+    r"""Near surfaces for ``n`` portraits: :class:`Surroundings` for a ``share`` of them (module docstring),
+    ``None`` for the rest.
+
+    Args:
+        n: the portraits.
+        share: the fraction that get surroundings, in ``[0, 1]``.
+        generator: the only source of randomness (the same draws for the same generator state).
+
+    Returns:
+        ``n`` entries.
+
+    Raises:
+        ValueCheckError: ``share`` outside ``[0, 1]``.
+
+    Examples:
+        >>> rooms = draw_surroundings(100, 0.5, torch.Generator().manual_seed(0))
+        >>> 30 < sum(r is not None for r in rooms) < 70, all(r is None or r.has_wall or r.has_floor for r in rooms)
+        (True, True)
+    """
+    check_positive_int(n, "n")
+    if not 0.0 <= share <= 1.0:
+        raise ValueCheckError(f"share must be in [0, 1], got {share!r}")
+    u = torch.rand(n, 10, generator=generator, dtype=torch.float64)
+    tint = torch.randn(n, 6, generator=generator, dtype=torch.float64)
+    out: list[Surroundings | None] = []
+    for row, t in zip(u.tolist(), tint.tolist(), strict=True):
+        if row[0] >= share:
+            out.append(None)
+            continue
+        wall = row[1] < 0.8
+        floor = row[2] < 0.6 or not wall
+        distance = math.exp(math.log(0.3) + (math.log(3.0) - math.log(0.3)) * row[3]) if wall else None
+        top = math.inf if row[4] < 0.5 else 0.3 + 1.7 * row[5]
+        drop = None
+        if floor:
+            drop = 0.25 + 0.25 * row[7] if row[6] < 0.3 else 1.1 + 0.6 * row[7]
+            top = max(top, 0.05 - drop)
+        out.append(Surroundings(wall_distance=distance, wall_top=top,
+                                wall_albedo=_albedo((0.05, 0.85), row[8], t[:3]),
+                                floor_drop=drop, floor_albedo=_albedo((0.05, 0.6), row[9], t[3:])))
+    return out

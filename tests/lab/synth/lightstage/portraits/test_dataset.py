@@ -382,6 +382,27 @@ class TestLinearResponse:
             PortraitConfig(linear_response=1.5)
 
 
+class TestSurroundings:
+    def test_a_wall_and_a_floor_darken_the_light_from_behind_and_below_and_show_behind_the_face(self) -> None:
+        """Under a uniform sky, near surfaces of albedo below 1 send back less than the sky: the lighting target
+        loses light from behind and below, keeps the light from the front and above, and the background
+        changes; nothing else is drawn differently."""
+        kw = {"split": None, "camera": OFF, "size": 32, "env_refresh": 2, "length": 8, "sphere_sizes": (4,),
+              "environments": uniform_sampler(), "crop_scale": 2.5, "flip_probability": 0.0}
+        base = list(small([_disc_field()], **kw))
+        rooms = list(small([_disc_field()], surroundings=1.0, **kw))
+        assert all("surroundings" not in b for b in base) and all(r["surroundings"] for r in rooms)
+        for a, b in zip(base, rooms, strict=True):
+            assert torch.equal(a["crop_box"], b["crop_box"])
+            la, lb = a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"]
+            assert bool((lb <= la * (1 + 1e-5) + 1e-9).all()) and bool((lb < la * 0.99).any())
+            s = la.shape[-1]  # above the ball's centre: toward the camera and up, neither wall nor floor
+            torch.testing.assert_close(lb[:, s // 2 - s // 6, s // 2], la[:, s // 2 - s // 6, s // 2])
+            assert not torch.equal(a["image"], b["image"])
+        with pytest.raises(ValueCheckError, match="surroundings"):
+            PortraitConfig(surroundings=-0.1)
+
+
 class TestPlainBackdrop:
     def _data(self, **kw) -> list[dict]:
         return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,

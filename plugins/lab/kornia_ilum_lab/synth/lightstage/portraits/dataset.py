@@ -28,9 +28,10 @@ from kornia_ilum.detection.crop import CROP_SCALE
 from kornia_ilum.geometry import flip_lighting_horizontal, latlong_directions, latlong_to_mirror_ball
 from kornia_ilum.io import read_hdr
 from kornia_ilum.render import SparseField, check_eps
-from kornia_ilum_lab.synth.background import latlong_grid, lookup_latlong
+from kornia_ilum_lab.synth.background import camera_rays, latlong_grid, lookup_latlong
 from kornia_ilum_lab.synth.camera_effects import LINEAR_RESPONSE_GAMMA, CameraEffects
 from kornia_ilum_lab.synth.colour_looks import apply_looks, draw_looks
+from kornia_ilum_lab.synth.surroundings import Surroundings, draw_surroundings, surroundings_view, with_surroundings
 from kornia_ilum_lab.synth.environments import (
     Environment,
     EnvironmentSampler,
@@ -63,6 +64,20 @@ __all__ = ["MAX_WORKERS", "PortraitConfig", "PortraitDataset", "environment_back
 #: Workers per dataset at most: worker ``w`` draws environment ``j`` of its own stream as the sampler's index
 #: ``j * MAX_WORKERS + w``, so workers never draw the same environment.
 MAX_WORKERS = 1024
+
+
+def _paint_surroundings(frame: torch.Tensor, far: torch.Tensor, rooms: Sequence[Surroundings | None],
+                        camera: Any) -> None:
+    """Put the near surfaces of ``rooms`` into the backgrounds ``frame (B, 3, S, S)``, in place, where the
+    camera's rays meet them (lit by the far environments ``far``); the planes are symmetric left-right, so a
+    mirrored background sees them where an unmirrored one does."""
+    if all(r is None for r in rooms):
+        return
+    rays = camera_rays((camera.size, camera.size), float(camera.fov_deg), torch.eye(3, dtype=torch.float64))
+    for j, room in enumerate(rooms):
+        if room is not None:
+            mask, radiance = surroundings_view(far[j], room, rays, float(camera.distance))
+            frame[j] = torch.where(mask, radiance.to(frame), frame[j])
 
 
 def _generator(seed: int, *key: int) -> torch.Generator:
@@ -124,6 +139,13 @@ class PortraitConfig:
             the camera of the real-flash photographs is one): their tone curve undoes the sRGB curve
             (:data:`~kornia_ilum_lab.synth.camera_effects.LINEAR_RESPONSE_GAMMA`) and their roll-off is off.
             Drawn from a stream of its own, so every other draw of a sample is what it was without the option.
+        surroundings: the fraction of samples with near surfaces lit by the same environment, a wall behind the
+            subject and a floor or table below (:func:`~kornia_ilum_lab.synth.surroundings.draw_surroundings`):
+            the subject is relit, and the lighting target is, the environment with them in it
+            (:func:`~kornia_ilum_lab.synth.surroundings.with_surroundings`), and the frame's background shows
+            them where the camera sees them (:func:`~kornia_ilum_lab.synth.surroundings.surroundings_view`); not
+            with a plain backdrop. ``sample["surroundings"]`` says which. Drawn from a stream of its own, so
+            every other draw of a sample is what it was without the option.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -170,6 +192,7 @@ class PortraitConfig:
     second_crop: bool = False
     colour_looks: float = 0.0
     linear_response: float = 0.0
+    surroundings: float = 0.0
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -215,6 +238,7 @@ class PortraitConfig:
         _probability(self.plain_background, "plain_background")
         _probability(self.colour_looks, "colour_looks")
         _probability(self.linear_response, "linear_response")
+        _probability(self.surroundings, "surroundings")
         _pair(self.plain_level, "plain_level", 0.0, strict=True)
         object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
@@ -593,6 +617,11 @@ class PortraitDataset(IterableDataset):
             for fx in effects:
                 fx["tone"][linear] = torch.tensor([0.0, LINEAR_RESPONSE_GAMMA], dtype=fx["tone"].dtype)
                 fx["rolloff"][linear] = 0.0
+        rooms: list[Surroundings | None] | None = None
+        if cfg.surroundings > 0:  # from a stream of its own: every other draw stays what it was
+            rooms = draw_surroundings(n, cfg.surroundings, _generator(self.seed, worker, index, -3))
+            if plain is not None:  # a plain backdrop is a studio's: no wall or floor besides
+                rooms = [None if p else r for r, p in zip(rooms, plain.tolist(), strict=True)]
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)
@@ -619,7 +648,8 @@ class PortraitDataset(IterableDataset):
                 backdrop = None if plain is None else (plain[rows], backdrops[rows])
                 out.append(self._render(rf, latlong[rows], backgrounds=backgrounds, turn=turns[rows],
                                         blur=blur[rows], flip=flips[rows], boxes=boxes[-1], key=key[rows],
-                                        effects=params, g=g, backdrop=backdrop))
+                                        effects=params, g=g, backdrop=backdrop,
+                                        rooms=None if rooms is None else rooms[rows]))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
             image, truth, gain = (torch.cat(parts) for parts in zip(*out, strict=True))
@@ -654,6 +684,8 @@ class PortraitDataset(IterableDataset):
                 "flip": bool(flips[j]),
                 "chunk": (worker, index),
             }
+            if rooms is not None:
+                sample["surroundings"] = rooms[j] is not None
             if cfg.pairs:
                 sample["pair"] = one[1]
             if second is not None:
@@ -687,25 +719,33 @@ class PortraitDataset(IterableDataset):
     def _render(self, rf: ReflectanceField, latlong: torch.Tensor, *, backgrounds: list | None,
                 turn: torch.Tensor, blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor,
                 key: torch.Tensor, effects: dict[str, torch.Tensor], g: torch.Generator,
-                backdrop: tuple[torch.Tensor, torch.Tensor] | None = None
+                backdrop: tuple[torch.Tensor, torch.Tensor] | None = None,
+                rooms: list[Surroundings | None] | None = None
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring).
 
         ``backgrounds`` are :meth:`_background` pairs (pyramid, direction map) or ``None`` (black);
         ``backdrop`` is ``(plain, colour)``: the samples whose background is replaced by a plain backdrop of
         ``colour`` (RGB) times the subject's mean linear luminance (``PortraitConfig.plain_background``);
+        ``rooms`` are the samples' near surfaces (``None``: none), in the lighting and in the background;
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
         with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
         the mirrored box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
         """
         cfg = self.config
         size = cfg.size
+        far = latlong
+        if rooms is not None and any(r is not None for r in rooms):
+            latlong = torch.stack([x if r is None else with_surroundings(x, r) for x, r in zip(far, rooms,
+                                                                                                 strict=True)])
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
         source_boxes = _source_boxes(boxes, flip, rf.size)
         if backgrounds is not None:
             pyramids, rotations = zip(*backgrounds, strict=True)
             frame = frame_backgrounds(pyramids, rf.camera, mirror=flip, turn=turn, sigma=blur,
                                       rotation=torch.stack(rotations))
+            if rooms is not None:
+                _paint_surroundings(frame, far, rooms, rf.camera)
             if cfg.subject:
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
