@@ -1,23 +1,23 @@
-"""The real-flash check's flashes on the light stage's own faces: is the error the faces', the colour's or the camera's?
+"""The real-flash check's flashes rendered on the light stage's own faces: whose error is it?
 
 Run: ``python benchmarks/synthetic_flash.py --cache EVAL_CACHE --flash ../shared/data/yaleb_dev
 [--views 12] [--estimator ours] [--weights FILE ...]``
 
-The real-flash check (:mod:`kornia_ilum_lab.evaluation.flash`) finds every estimator putting near-frontal flashes
-far above where they are. This renders the same flashes (their directions only, read from the photographs'
-names) on the eval cache's frontal views (``|yaw| <= 12`` degrees): one small disk light (2 degrees across, 5500 K
-is not modelled: white) in a dark room (a uniform ambient of 1/100 of its irradiance), exposed on the face and
-cut through the view's face box as training crops are, and feeds each estimator three versions of each photo:
+The real-flash check (:mod:`kornia_ilum_lab.evaluation.flash`) finds every estimator putting near-frontal
+flashes far above where they are. This renders the same flashes (their directions only, read from the
+photographs' names) on the eval cache's frontal views (``|yaw| <= 12`` degrees): one small white disk light
+(2 degrees across) in a dark room (a uniform ambient of 1/100 of its irradiance), exposed on the face and cut
+through the view's face box as training crops are, and feeds each estimator three versions of each photo:
 
 - ``colour``: the photo as rendered (sRGB);
 - ``greyscale``: its luma in all three channels (:func:`~kornia_ilum_lab.synth.colour_looks.greyscale`);
-- ``linear grey``: the greyscale photo's values made linear (a camera with a linear response, as the real-flash
-  photographs have), fed as they are.
+- ``linear grey``: the greyscale photo's values made linear (a camera with a linear response, as the
+  real-flash photographs have), fed as they are.
 
 It prints, per estimator and version, the median direction error over all flashes and within 25 degrees of the
 camera axis, the elevation bias there (estimate minus flash) and the up/down sign agreement. A bias that the
-rendered faces share with the real photographs is the estimator's (its prior, its reading of shading); one that
-only the real photographs show is theirs (real skin, the database's crops). A measurement, not a test.
+rendered faces share with the real photographs is the estimator's (its prior, its reading of shading); one
+that only the real photographs show is theirs (real skin, the database's crops). A measurement, not a test.
 """
 
 from __future__ import annotations
@@ -63,11 +63,12 @@ def main() -> int:
     parser.add_argument("--flash", required=True, help="the real-flash folder (only its names are read)")
     parser.add_argument("--views", type=int, default=12, help="frontal views to render (12)")
     parser.add_argument("--estimator", default="ours")
-    parser.add_argument("--weights", nargs="*", default=[None], help="weight files (default: the shipped ones)")
+    parser.add_argument("--weights", nargs="*", default=[None], help="weight files (default: the shipped)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     flashes = load_flash_set(args.flash)
-    pairs = sorted({(float(a), float(e)) for a, e in zip(flashes.azimuth, flashes.elevation, strict=True)})
+    pairs = sorted({(float(a), float(e))
+                    for a, e in zip(flashes.azimuth, flashes.elevation, strict=True)})
     angles = torch.tensor(pairs, dtype=torch.float64)
     a, e = torch.deg2rad(angles[:, 0]), torch.deg2rad(angles[:, 1])
     dirs = torch.stack([-torch.sin(a) * torch.cos(e), torch.sin(e), torch.cos(a) * torch.cos(e)], -1)
@@ -102,7 +103,8 @@ def main() -> int:
         est = load_estimator(args.estimator, weights)
         name = args.estimator if weights is None else f"{args.estimator}@{Path(weights).name}"
         for version, images in versions.items():
-            _, pred, _ = estimates(est, (images[i:i + 64] for i in range(0, len(images), 64)), directions=True)
+            batches = (images[i:i + 64] for i in range(0, len(images), 64))
+            _, pred, _ = estimates(est, batches, directions=True)
             err = angle_degrees(pred, truth_d)
             bias = (elevation(pred) - elevation(truth_d))[front].median()
             up_down = ((pred[:, 1] > 0) == (truth_d[:, 1] > 0))[off].double().mean()

@@ -68,8 +68,10 @@ class BlurPool2D(kornia.filters.BlurPool2D):
         return super().forward(input)
 
 
-def max_blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2, max_pool_size: int = 2) -> torch.Tensor:
-    r"""Max-pool ``max_pool_size`` at stride 1, then blur-pool (Kornia's :func:`kornia.filters.max_blur_pool2d`).
+def max_blur_pool2d(input: torch.Tensor, kernel_size: int = 3, stride: int = 2,
+                    max_pool_size: int = 2) -> torch.Tensor:
+    r"""Max-pool ``max_pool_size`` at stride 1, then blur-pool (Kornia's
+    :func:`kornia.filters.max_blur_pool2d`).
 
     Args:
         input: feature map.

@@ -31,7 +31,6 @@ from kornia_ilum.render import SparseField, check_eps
 from kornia_ilum_lab.synth.background import camera_rays, latlong_grid, lookup_latlong
 from kornia_ilum_lab.synth.camera_effects import LINEAR_RESPONSE_GAMMA, CameraEffects
 from kornia_ilum_lab.synth.colour_looks import apply_looks, draw_looks
-from kornia_ilum_lab.synth.surroundings import Surroundings, draw_surroundings, surroundings_view, with_surroundings
 from kornia_ilum_lab.synth.environments import (
     Environment,
     EnvironmentSampler,
@@ -44,7 +43,6 @@ from kornia_ilum_lab.synth.environments import (
 )
 from kornia_ilum_lab.synth.lightstage.cache import read_field, read_manifest
 from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
-from kornia_ilum_lab.synth.lightstage.sparse import read_sparse
 from kornia_ilum_lab.synth.lightstage.portraits.compose import (
     add_relit,
     auto_exposure,
@@ -57,6 +55,13 @@ from kornia_ilum_lab.synth.lightstage.portraits.compose import (
     random_crop_boxes,
     sphere_targets,
     uniform_draws,
+)
+from kornia_ilum_lab.synth.lightstage.sparse import read_sparse
+from kornia_ilum_lab.synth.surroundings import (
+    Surroundings,
+    draw_surroundings,
+    surroundings_view,
+    with_surroundings,
 )
 
 __all__ = ["MAX_WORKERS", "PortraitConfig", "PortraitDataset", "environment_background", "load_fields"]
