@@ -11,9 +11,10 @@ imports it.
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 
-__all__ = ["LAB_INSTALL", "fraction", "nonnegative_float", "nonnegative_int", "positive_int"]
+__all__ = ["LAB_INSTALL", "fraction", "key_value", "nonnegative_float", "nonnegative_int", "positive_int"]
 
 #: How to install the lab (``kornia_ilum_lab``, this repository's ``plugins/lab``), which the commands that
 #: render, train or score name when it is missing.
@@ -125,3 +126,30 @@ def fraction(text: str) -> float:
     if not 0.0 <= value < 1.0:
         raise argparse.ArgumentTypeError(f"must be a fraction in [0, 1), got {text!r}")
     return value
+
+
+def key_value(text: str) -> tuple[str, object]:
+    """A ``KEY=VALUE`` setting (``type=`` of ``train --data`` and ``--model``, ``evaluate --portraits``): the
+    key, an identifier, and the value read as a Python literal where it is one (``0.3``, ``True``,
+    ``(1, 2)``), else kept as text.
+
+    Args:
+        text: the option's text.
+
+    Returns:
+        ``(key, value)``.
+
+    Raises:
+        argparse.ArgumentTypeError: no ``=``, or a key that is not an identifier.
+
+    Examples:
+        >>> key_value("colour_looks=0.3"), key_value("crop=face")
+        (('colour_looks', 0.3), ('crop', 'face'))
+    """
+    key, sep, value = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"must be KEY=VALUE, got {text!r}")
+    try:
+        return key, ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        return key, value

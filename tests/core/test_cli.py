@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from kornia_ilum import cli
-from kornia_ilum.core.cli import fraction, nonnegative_int, positive_int
+from kornia_ilum.core.cli import fraction, key_value, nonnegative_int, positive_int
 from kornia_ilum_lab.evaluation import cli as evaluation_cli
 from kornia_ilum_lab.synth import cli as synth_cli
 from kornia_ilum_lab.train import cli as train_cli
@@ -51,8 +51,21 @@ class TestFraction:
             fraction(text)
 
 
+class TestKeyValue:
+    def test_values(self):
+        assert key_value("colour_looks=0.3") == ("colour_looks", 0.3)
+        assert key_value("crop=face") == ("crop", "face") and key_value("pairs=True") == ("pairs", True)
+        assert key_value("plain_level=(0.5, 2)") == ("plain_level", (0.5, 2))
+
+    @pytest.mark.parametrize("text", ["nothing", "=1", "two words=1"])
+    def test_rejects(self, text):
+        with pytest.raises(argparse.ArgumentTypeError, match="must be KEY=VALUE"):
+            key_value(text)
+
+
 def test_every_sub_command_uses_the_shared_types():
     """One definition: the sub-commands import the types, they do not define their own."""
     for module in (cli, synth_cli, train_cli, evaluation_cli):
         assert module.positive_int is positive_int, module.__name__
     assert synth_cli.nonnegative_int is nonnegative_int and synth_cli.fraction is fraction
+    assert train_cli.key_value is key_value and evaluation_cli.key_value is key_value

@@ -8,6 +8,7 @@ import json
 import pytest
 
 from kornia_ilum_lab.evaluation import CHECKS, ORACLES
+from kornia_ilum_lab.evaluation import cli as evaluation_cli
 from kornia_ilum_lab.evaluation.cli import DEFAULT_CHECKS, add_evaluate_parser, parse_checks, parse_weights, run_evaluate
 
 
@@ -53,3 +54,24 @@ class TestEvaluateCommand:
         assert parse_weights("a=b.safetensors") == ("a", "b.safetensors")
         with pytest.raises(argparse.ArgumentTypeError):
             parse_weights("nothing")
+
+
+def test_portraits_option_reaches_both_eval_sets(monkeypatch, caches, tmp_path) -> None:
+    """``--portraits KEY=VALUE``: the eval set and the crop check's context set are built with them, and the
+    report records them."""
+    real, seen = evaluation_cli.build_eval_set, []
+
+    def recording(*args, **kwargs):
+        seen.append(kwargs.get("portraits"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(evaluation_cli, "build_eval_set", recording)
+    parser = argparse.ArgumentParser(prog="kornia-ilum")
+    add_evaluate_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["evaluate", "--cache", str(caches[0]), "--samples", "4", "--estimator",
+                              "uniform", "--no-oracles", "--checks", "crop", "--jitter-samples", "2",
+                              "--jitters", "2", "--portraits", "surroundings=1.0", "--out", str(tmp_path)])
+    assert args.portraits == [("surroundings", 1.0)] and args.func(args) == 0
+    assert seen == [{"surroundings": 1.0}] * 2
+    summary = json.loads((tmp_path / "evaluation.json").read_text())
+    assert summary["eval_set"]["portraits"]["surroundings"] == "1.0"

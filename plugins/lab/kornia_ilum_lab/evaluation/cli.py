@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from kornia_ilum.core.cli import positive_int
+from kornia_ilum.core.cli import key_value, positive_int
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR
 from kornia_ilum.estimators import RUNTIMES
@@ -172,6 +172,10 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     cmd.add_argument("--background", choices=("environment", "black"), default="environment",
                      help="the portraits' background: the matching environment (default, as ours is trained) "
                      "or black (the same portraits, as SIPR is trained)")
+    cmd.add_argument("--portraits", nargs="*", default=[], metavar="KEY=VALUE", type=key_value,
+                     help="settings of the eval portraits (PortraitConfig's, e.g. surroundings=1.0: a wall "
+                     "and a floor lit by the same environment; linear_response=1.0; plain_background=1.0); "
+                     "the same draws otherwise, so every estimator is scored on the same portraits")
     cmd.add_argument("--estimator", action="append", default=None, metavar="NAME",
                      help="score only this registered estimator (repeatable; default: all)")
     cmd.add_argument("--weights", action="append", type=parse_weights, default=[], metavar="NAME=PATH",
@@ -301,8 +305,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if not getattr(args, "cache", None) and not (curves and len(written) == len(curves)):
         raise ValueCheckError("evaluate needs --cache DIR (a light-stage cache with eval subjects); only "
                               "--curve with curve.csv files, or --flash DIR, goes without")
+    portraits = dict(getattr(args, "portraits", None) or [])
     eval_set = None if len(written) == len(curves) and curves else build_eval_set(
-        args.cache, hdri, samples=samples, background=background, progress=True)
+        args.cache, hdri, samples=samples, background=background, progress=True, portraits=portraits)
     if curves:
         found = {}
         for run in curves:
@@ -321,7 +326,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if "crop" in checks:
         subset = min(getattr(args, "jitter_samples", 256), samples)
         context_set = build_eval_set(args.cache, hdri, samples=subset, background=background,
-                                     context=getattr(args, "context", 1.5), progress=True)
+                                     context=getattr(args, "context", 1.5), progress=True,
+                                     portraits=portraits)
     if "exposure" in checks or "colour" in checks:  # the real photos of both
         listed = getattr(args, "photos", None)
         detector = getattr(args, "detector", DEFAULT_DETECTOR)

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import ast
 
-from kornia_ilum.core.cli import nonnegative_int, positive_int
+from kornia_ilum.core.cli import key_value, nonnegative_int, positive_int
 from kornia_ilum_lab.train.config import TrainConfig
 from kornia_ilum_lab.train.loop import train
 from kornia_ilum_lab.train.losses import BRDF_WEIGHTS
@@ -27,16 +26,6 @@ examples:
   kornia-ilum train --cache cache/ --hdri ../shared/data/hdri ../shared/data/hdri_more --out runs/ours
   kornia-ilum train --cache cache/ --out runs/gpu --device cuda --workers 8 --steps 20000
 """
-
-
-def _setting(text: str) -> tuple[str, object]:
-    key, sep, value = text.partition("=")
-    if not sep or not key.isidentifier():
-        raise argparse.ArgumentTypeError(f"must be KEY=VALUE, got {text!r}")
-    try:
-        return key, ast.literal_eval(value)
-    except (ValueError, SyntaxError):
-        return key, value
 
 
 def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -123,9 +112,9 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      "--model albedo_head=True, a training-only head; default: 0, off; docs/training.rst)")
     cmd.add_argument("--init", default=None, metavar="WEIGHTS",
                      help="start from these .safetensors weights of the estimator (fine-tuning)")
-    cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
+    cmd.add_argument("--model", nargs="*", default=[], metavar="KEY=VALUE", type=key_value,
                      help="constructor arguments of the estimator, e.g. normalize_exposure=False")
-    cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=_setting,
+    cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=key_value,
                      help="PortraitConfig settings of the light-stage data, e.g. fields_per_chunk=8 shuffle=2")
     cmd.set_defaults(func=run_train, brdf_weights=dict(BRDF_WEIGHTS))
     return cmd
