@@ -26,7 +26,6 @@ import warnings
 from collections.abc import Iterator
 from typing import Any
 
-import kornia
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -371,9 +370,9 @@ def colour_consistency(pred: dict[int, torch.Tensor], twins: int, *, start: int 
     """
     x = pred[max(pred)].float()
     b = len(x)
-    # the luminance's l = 1 SH band is its dipole, up to a constant and the order (y, z, x)
-    y = kornia.color.rgb_to_grayscale(x, torch.tensor(LUMINANCE, dtype=x.dtype, device=x.device))
-    dipole = sh_project(y.expand(b, 3, *x.shape[-2:]))[:, 1:4, 0]
+    # the l = 1 SH band is the dipole, up to a constant and the order (y, z, x); the projection is linear, so
+    # the luminance's band is the channels' bands weighted by the luminance's coefficients
+    dipole = sh_project(x)[:, 1:4] @ torch.tensor(LUMINANCE, dtype=x.dtype, device=x.device)
     first, second = dipole[start:start + twins], dipole[b - start - twins:b - start]
     if teacher:
         first = first.detach()
