@@ -41,6 +41,7 @@ the camera; a direction is where light arrives from). Classification is per pixe
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -88,7 +89,8 @@ class Surroundings:
         for name in ("wall_distance", "floor_drop"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and 0.0 < value < math.inf):
-                raise ValueCheckError(f"Surroundings.{name} must be a positive finite number or None, got {value!r}")
+                raise ValueCheckError(f"Surroundings.{name} must be a positive finite number or None, "
+                                      f"got {value!r}")
         if not (isinstance(self.wall_top, (int, float)) and not math.isnan(self.wall_top)):
             raise ValueCheckError(f"Surroundings.wall_top must be a number, got {self.wall_top!r}")
         if self.floor_drop is not None and self.wall_top <= -self.floor_drop:
@@ -108,6 +110,20 @@ class Surroundings:
     def has_floor(self) -> bool:
         """Whether there is a floor below the subject."""
         return self.floor_drop is not None
+
+
+@functools.lru_cache(maxsize=8)
+def _directions(height: int) -> torch.Tensor:
+    """The lat-long pixels' directions ``(H, 2H, 3)``, float64 (cached: every portrait with surroundings asks;
+    read only)."""
+    return latlong_directions(height, dtype=torch.float64)
+
+
+@functools.lru_cache(maxsize=8)
+def _cosine_weights(height: int, normal: tuple[float, ...]) -> torch.Tensor:
+    """``Omega_p max(0, omega_p . n)`` per lat-long pixel ``(H, 2H)``, float64 (cached; read only)."""
+    cos = (_directions(height) @ torch.tensor(normal, dtype=torch.float64)).clamp(min=0.0)
+    return latlong_solid_angles(height, dtype=torch.float64) * cos
 
 
 def plane_radiance(latlong: torch.Tensor, normal: tuple[float, float, float],
@@ -131,11 +147,7 @@ def plane_radiance(latlong: torch.Tensor, normal: tuple[float, float, float],
         True
     """
     check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
-    h = latlong.shape[-2]
-    d = latlong_directions(h, dtype=torch.float64)
-    cos = (d @ torch.tensor(normal, dtype=torch.float64)).clamp(min=0.0)
-    weight = latlong_solid_angles(h, dtype=torch.float64) * cos
-    irradiance = (latlong.double().cpu() * weight).sum((-2, -1))
+    irradiance = (latlong.double().cpu() * _cosine_weights(latlong.shape[-2], tuple(normal))).sum((-2, -1))
     return torch.tensor(albedo, dtype=torch.float64) / math.pi * irradiance
 
 
@@ -161,9 +173,9 @@ def _hits(origin: torch.Tensor, rays: torch.Tensor, s: Surroundings) -> tuple[to
 
 
 def _radiances(latlong: torch.Tensor, s: Surroundings) -> tuple[torch.Tensor, torch.Tensor]:
-    wall = plane_radiance(latlong, _WALL_NORMAL, s.wall_albedo) if s.has_wall else torch.zeros(3, dtype=torch.float64)
-    floor = (plane_radiance(latlong, _FLOOR_NORMAL, s.floor_albedo) if s.has_floor
-             else torch.zeros(3, dtype=torch.float64))
+    none = torch.zeros(3, dtype=torch.float64)
+    wall = plane_radiance(latlong, _WALL_NORMAL, s.wall_albedo) if s.has_wall else none
+    floor = plane_radiance(latlong, _FLOOR_NORMAL, s.floor_albedo) if s.has_floor else none
     return wall, floor
 
 
@@ -189,7 +201,7 @@ def with_surroundings(latlong: torch.Tensor, surroundings: Surroundings) -> torc
     if not (surroundings.has_wall or surroundings.has_floor):
         return latlong.clone()
     h = latlong.shape[-2]
-    wall, floor = _hits(torch.zeros(3, dtype=torch.float64), latlong_directions(h, dtype=torch.float64),
+    wall, floor = _hits(torch.zeros(3, dtype=torch.float64), _directions(h),
                         surroundings)
     l_wall, l_floor = _radiances(latlong, surroundings)
     out = latlong.double().cpu().clone()
@@ -215,8 +227,8 @@ def surroundings_view(latlong: torch.Tensor, surroundings: Surroundings, rays: t
     Examples:
         >>> rays = torch.tensor([[0.0, 0.0, -1.0], [0.0, 0.9, -0.1]])
         >>> rays = rays / rays.norm(dim=-1, keepdim=True)
-        >>> mask, radiance = surroundings_view(torch.ones(3, 16, 32), Surroundings(wall_distance=1.0, wall_top=1.0),
-        ...                                    rays, camera_distance=2.0)
+        >>> wall = Surroundings(wall_distance=1.0, wall_top=1.0)
+        >>> mask, radiance = surroundings_view(torch.ones(3, 16, 32), wall, rays, camera_distance=2.0)
         >>> mask.tolist()  # straight ahead: the wall; steeply up: over the wall's top
         [True, False]
     """
@@ -256,7 +268,8 @@ def draw_surroundings(n: int, share: float, generator: torch.Generator) -> list[
 
     Examples:
         >>> rooms = draw_surroundings(100, 0.5, torch.Generator().manual_seed(0))
-        >>> 30 < sum(r is not None for r in rooms) < 70, all(r is None or r.has_wall or r.has_floor for r in rooms)
+        >>> drawn = [r for r in rooms if r is not None]
+        >>> 30 < len(drawn) < 70, all(r.has_wall or r.has_floor for r in drawn)
         (True, True)
     """
     check_positive_int(n, "n")

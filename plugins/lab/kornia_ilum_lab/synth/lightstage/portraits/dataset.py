@@ -71,6 +71,13 @@ __all__ = ["MAX_WORKERS", "PortraitConfig", "PortraitDataset", "environment_back
 MAX_WORKERS = 1024
 
 
+@functools.lru_cache(maxsize=16)
+def _camera_rays(size: int, fov_deg: float) -> torch.Tensor:
+    """The rays of an unrotated square camera (:func:`~kornia_ilum_lab.synth.background.camera_rays`), cached
+    per view's camera as :func:`frame_backgrounds` caches its lookups (read only)."""
+    return camera_rays((size, size), fov_deg, torch.eye(3, dtype=torch.float64))
+
+
 def _paint_surroundings(frame: torch.Tensor, far: torch.Tensor, rooms: Sequence[Surroundings | None],
                         camera: Any) -> None:
     """Put the near surfaces of ``rooms`` into the backgrounds ``frame (B, 3, S, S)``, in place, where the
@@ -78,7 +85,7 @@ def _paint_surroundings(frame: torch.Tensor, far: torch.Tensor, rooms: Sequence[
     mirrored background sees them where an unmirrored one does."""
     if all(r is None for r in rooms):
         return
-    rays = camera_rays((camera.size, camera.size), float(camera.fov_deg), torch.eye(3, dtype=torch.float64))
+    rays = _camera_rays(camera.size, float(camera.fov_deg))
     for j, room in enumerate(rooms):
         if room is not None:
             mask, radiance = surroundings_view(far[j], room, rays, float(camera.distance))
