@@ -29,7 +29,7 @@ from pathlib import Path
 
 import torch
 from kornia_ilum_lab.evaluation.evaluate import load_estimator
-from kornia_ilum_lab.evaluation.flash import load_flash_set
+from kornia_ilum_lab.evaluation.flash import SIGN_MARGIN_DEG, flash_direction, load_flash_set
 from kornia_ilum_lab.evaluation.measures import angle_degrees, estimates
 from kornia_ilum_lab.synth.colour_looks import greyscale
 from kornia_ilum_lab.synth.environments import Environment
@@ -70,8 +70,7 @@ def main() -> int:
     pairs = sorted({(float(a), float(e))
                     for a, e in zip(flashes.azimuth, flashes.elevation, strict=True)})
     angles = torch.tensor(pairs, dtype=torch.float64)
-    a, e = torch.deg2rad(angles[:, 0]), torch.deg2rad(angles[:, 1])
-    dirs = torch.stack([-torch.sin(a) * torch.cos(e), torch.sin(e), torch.cos(a) * torch.cos(e)], -1)
+    dirs = flash_direction(angles[:, 0], angles[:, 1])
     root = Path(args.cache)
     entries = read_manifest(root)["entries"]
     crops, truth = [], []
@@ -94,7 +93,7 @@ def main() -> int:
     versions = {"colour": colour, "greyscale": grey, "linear grey": srgb_to_linear(grey)}
     truth_d = torch.stack(truth)
     axis = torch.rad2deg(torch.acos(truth_d[:, 2].clamp(-1.0, 1.0)))
-    front, off = axis < 25.0, truth_d[:, 1].abs() > math.sin(math.radians(10.0))
+    front, off = axis < 25.0, truth_d[:, 1].abs() > math.sin(math.radians(SIGN_MARGIN_DEG))
     print(f"{len(crops) // len(dirs)} frontal views x {len(dirs)} flashes = {len(crops)} crops; "
           f"{int(front.sum())} within 25 degrees of the camera axis")
     print("| estimator | version | all | within 25 | elevation bias, within 25 | up/down |")

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import argparse
 
+import kornia
 import torch
-from kornia_ilum_lab.evaluation.evaluate import build_eval_set
 
 from kornia_ilum.color import LUMINANCE, srgb_to_linear
+from kornia_ilum_lab.evaluation.evaluate import build_eval_set
 
 KINDS = {"far environment": {}, "plain backdrop": {"plain_background": 1.0},
          "wall and floor": {"surroundings": 1.0}}
@@ -32,7 +33,7 @@ KINDS = {"far environment": {}, "plain backdrop": {"plain_background": 1.0},
 def log_ratios(images: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:
     """``log(face / background)`` mean linear luminance per photo (module docstring), float64 ``(N,)``."""
     linear = srgb_to_linear(images.double() / 255.0)
-    y = torch.einsum("nchw,c->nhw", linear, torch.tensor(LUMINANCE, dtype=torch.float64))
+    y = kornia.color.rgb_to_grayscale(linear, torch.tensor(LUMINANCE, dtype=linear.dtype))[:, 0]
     a = alpha[:, 0].double() / 255.0
     s = a.shape[-1]
     centre = torch.zeros_like(a, dtype=torch.bool)

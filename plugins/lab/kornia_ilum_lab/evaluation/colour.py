@@ -22,8 +22,8 @@ import torch
 
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import ValueCheckError
-from kornia_ilum_lab.evaluation.bootstrap import subject_interval
 from kornia_ilum.metrics import lighting_energy
+from kornia_ilum_lab.evaluation.bootstrap import subject_interval
 from kornia_ilum_lab.evaluation.measures import (
     Estimator,
     angle_degrees,
