@@ -200,14 +200,10 @@ def with_surroundings(latlong: torch.Tensor, surroundings: Surroundings) -> torc
     check_tensor(latlong, "latlong", ["3", "H", "W"], nonnegative=True)
     if not (surroundings.has_wall or surroundings.has_floor):
         return latlong.clone()
-    h = latlong.shape[-2]
-    wall, floor = _hits(torch.zeros(3, dtype=torch.float64), _directions(h),
-                        surroundings)
+    wall, floor = _hits(torch.zeros(3, dtype=torch.float64), _directions(latlong.shape[-2]), surroundings)
     l_wall, l_floor = _radiances(latlong, surroundings)
-    out = latlong.double().cpu().clone()
-    out = torch.where(wall, l_wall[:, None, None], out)
-    out = torch.where(floor, l_floor[:, None, None], out)
-    return out.to(latlong)
+    out = torch.where(wall, l_wall[:, None, None], latlong.double().cpu())  # new: latlong stays
+    return torch.where(floor, l_floor[:, None, None], out).to(latlong)
 
 
 def surroundings_view(latlong: torch.Tensor, surroundings: Surroundings, rays: torch.Tensor,
