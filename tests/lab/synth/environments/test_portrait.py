@@ -134,13 +134,17 @@ class TestPortraitLightSource:
         assert max(ratios) < AMBIENT_RATIOS["street"][1] and min(ratios) > 0
 
     def test_studio_fill_ratio_and_placement(self):
-        seen = set()
-        for params in params_of("studio", 40):
+        seen, clamshells = set(), 0
+        for params in params_of("studio", 80):
             key, *fill = params["lights"]
             seen.add(params["pattern"])
             d = key_direction(params)
             off = math.degrees(math.atan2(abs(float(d[0])), float(d[2])))
-            assert off <= 95.0 + 1e-6 and 10.0 - 1e-6 <= math.degrees(math.asin(float(d[1]))) <= 50.0 + 1e-6
+            elev = math.degrees(math.asin(float(d[1])))
+            if params["pattern"] == "under":  # an uplight: 10 to 45 degrees below the eyes
+                assert off <= 45.0 + 1e-6 and -45.0 - 1e-6 <= elev <= -10.0 + 1e-6
+            else:
+                assert off <= 95.0 + 1e-6 and 10.0 - 1e-6 <= elev <= 50.0 + 1e-6
             if key["shape"] == "rect":  # a softbox: 15 to 45 degrees across (its longer side), at 1 to 3 m
                 dist = math.dist(key["position_m"], [0.0, 0.0, 0.0])
                 span = 2 * math.degrees(math.atan(key["height_m"] / (2 * dist)))
@@ -155,7 +159,28 @@ class TestPortraitLightSource:
                     pytest.approx(ratio)
                 )
                 assert key["position_m"][0] * fill[0]["position_m"][0] <= 0  # on the other side
-        assert seen == {"butterfly", "loop", "rembrandt", "split"}
+                if fill[0]["position_m"][1] < 0:  # a clamshell reflector, under a butterfly or loop key only
+                    assert params["pattern"] in ("butterfly", "loop")
+                    clamshells += 1
+        assert seen == {"butterfly", "loop", "rembrandt", "split", "under"}
+        assert clamshells > 0
+
+    def test_screen_lights_from_below_or_eye_level(self):
+        """A phone, laptop or monitor facing the subject near the camera axis, at or below the eyes, 20 to 100
+        lux, in a room that gives 1/20 to 1/2 of it."""
+        variants = set()
+        for params in params_of("screen", 30):
+            key = params["lights"][0]
+            variants.add(params["variant"])
+            d = key_direction(params)
+            off = math.degrees(math.atan2(abs(float(d[0])), float(d[2])))
+            elev = math.degrees(math.asin(float(d[1])))
+            assert off <= 25.0 + 1e-6 and -35.0 - 1e-6 <= elev <= 5.0 + 1e-6
+            assert key["shape"] == "rect" and 5500.0 <= key["cct_k"] <= 9000.0
+            assert 0.01 <= key["irradiance_klux"] <= 0.15, params["variant"]
+            lo, hi = AMBIENT_RATIOS["screen"]
+            assert lo <= params["ambient_ratio"] <= hi and params["practicals"]
+        assert variants == {"phone", "laptop", "monitor"}
 
     def test_window_is_on_one_side_with_no_sun_coming_in(self):
         for params in params_of("window", 8):

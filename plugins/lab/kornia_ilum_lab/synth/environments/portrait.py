@@ -1,13 +1,15 @@
-r"""Procedural portrait lighting: on-camera flash, studio lights, a window, night street light.
+r"""Procedural portrait lighting: on-camera flash, studio lights, a window, night street light, a screen.
 
 Portraits are taken most often under a handful of lights that the skies and rooms of
 :mod:`~kornia_ilum_lab.synth.environments.sky` and :mod:`~kornia_ilum_lab.synth.environments.indoor` never make: a
 flash on the camera, one or two studio lights or a lamp in a dark room, a window as the only source, a street
-lamp at night.
+lamp at night, the screen of a phone or a computer in a dim room. Two of them light a face from below, which no
+sky, room or real map does (their main light is within 15 degrees below the horizon in 1 to 3 % of draws):
+the studio's uplight and reflector, and the screen.
 :class:`PortraitLightSource` draws them, each kind with its share of the draws (:data:`PORTRAIT_KINDS`,
 :data:`PORTRAIT_KIND_WEIGHTS`):
 
-``flash`` (35 %): on-camera flash
+``flash`` (30 %): on-camera flash
     The most common portrait light that the rest of the set lacks (events, parties, night snapshots, phones),
     and the one the project's transfer check found missing (real flash photos read 32 degrees off). Three
     variants: a speedlight or pop-up flash (40 %: its Fresnel window, 3.5-5 x 6-9 cm, is a disk of equivalent
@@ -25,22 +27,25 @@ lamp at night.
     room adds ``(Omega_beam d^2 / A) rho / (1 - rho)`` of it (the enclosure formula: a 1 sr
     beam, 1 to 3 m, 40 to 150 m^2 of walls of albedo 0.2 to 0.5), 1/300 to 1/20. The key is drawn at 10 to
     100 klux (continuous equivalent).
-``studio`` (30 %): one or two studio lights or a lamp in a dark or dim room
+``studio`` (28 %): one or two studio lights or a lamp in a dark or dim room
     Strobes in softboxes (70 %): a rectangle (aspect 1 to 1.5, vertical) of 0.6 to 1.5 m at 1 to 3 m, its
     longer side drawn to span 15 to 45 degrees (within what those sizes and distances allow), 5200 to 5800 K
     (daylight locus), key at 5 to 50 klux (continuous equivalent, as the flash). Or a bare lamp (30 %): a bulb
     or small shade of radius 3 to 15 cm at 0.7 to 2.5 m (1.4 to 24 degrees across), tungsten 2700 to 3200 K
-    (Planckian), 20 to 300 lux. The key is placed by the classic patterns: butterfly (20 %: 0 to 10 degrees
-    off the camera axis, 35 to 50 up), loop (30 %: 30 to 40 off, 20 to 35 up), Rembrandt (30 %: 40 to 60 off,
-    30 to 50 up) and split (20 %: 75 to 95 off, 10 to 30 up), on either side. A fill light of the same kind
-    (60 % of the strobes, 30 % of the lamps) on the other side, 20 to 60 degrees off and 0 to 25 up, at a
-    lighting ratio ``(E_key + E_fill) : E_fill`` of 2:1 to 8:1 (log-uniform; from "high key" to dramatic, each
-    at normal incidence to its own light). The room's light on a surface facing the key is **1/300 to 1/8**
+    (Planckian), 20 to 300 lux. The key is placed by the classic patterns: butterfly (18 %: 0 to 10 degrees
+    off the camera axis, 35 to 50 up), loop (27 %: 30 to 40 off, 20 to 35 up), Rembrandt (27 %: 40 to 60 off,
+    30 to 50 up), split (18 %: 75 to 95 off, 10 to 30 up) and under (10 %: 0 to 45 off, 10 to 45 *below*:
+    the footlight or uplight of stage, fashion and horror portraits, a lamp on a low table), on either side.
+    A fill light of the same kind (60 % of the strobes, 30 % of the lamps) on the other side, 20 to 60
+    degrees off and 0 to 25 up; under a butterfly or loop key, 40 % of the fills are a reflector or a second
+    softbox below the chin instead ("clamshell": 0 to 20 degrees off, 15 to 40 below), at a lighting ratio
+    ``(E_key + E_fill) : E_fill`` of 2:1 to 8:1 (log-uniform; from "high key" to dramatic, each at normal
+    incidence to its own light). The room's light on a surface facing the key is **1/300 to 1/8**
     of the key's: the enclosure estimate ``pi D^2 / A rho / (1 - rho)`` for a Lambertian source of intensity
     ``I`` (``E_key = I / D^2``, flux ``pi I``) runs from about 1/2000 in a black studio (albedo 0.05, 300 m^2)
     to 1/5 in a small white room (albedo 0.5, 60 m^2, ``D`` = 2 m); the dark and dim studios of portraits sit
     within 1/300 to 1/8.
-``window`` (20 %): a window as the only source
+``window`` (18 %): a window as the only source
     A window of 0.8 to 2.5 x 1.0 to 2.2 m, its sill 0.3 to 1 m above the floor, on a wall 0.6 to 2.5 m from
     the subject whose direction is 30 to 120 degrees off the camera axis (on one side), glass transmittance
     0.55 to 0.85, showing the outdoor scene of :mod:`~kornia_ilum_lab.synth.environments.sky` (sky, ground,
@@ -50,7 +55,7 @@ lamp at night.
     otherwise dark to dim: its light on a surface facing the window is **1/200 to 1/4** of the window's
     (the enclosure estimate above for a window of radiance ``L`` and area ``A_w`` at ``D``: ``pi D^2 / A
     rho / (1 - rho)``, from 1/500 next to the window of a large dark room to near 1 in a small white one).
-``street`` (15 %): night street light, label ``"outdoor"``
+``street`` (12 %): night street light, label ``"outdoor"``
     The night sky of :class:`~kornia_ilum_lab.synth.environments.SkySource` (moon in 60 %, urban sky glow, a
     ground lit by the lamps, horizon occluders) with a key street lamp near the subject: 4 to 10 m high, 1 to
     8 m away horizontally (17 to 83 degrees above the horizon at eye height, 1.6 m), a head of radius 0.1 to
@@ -62,8 +67,18 @@ lamp at night.
     pools of light, the other lamps) on a surface facing the key is physical, not drawn, and measured in
     ``params["ambient_ratio"]``: over 1500 draws a median of 1/32 of the key, 1/250 to 1/11 from the 10th to
     the 90th percentile, at most 1/3 (a snowy street lit from low down), so below 1/2.
+``screen`` (12 %): the screen of a phone, laptop or monitor in a dim room
+    Selfies, video calls and night snapshots lit by the screen the subject looks at: a phone (40 %: 6.5 to 7.5
+    x 14 to 16 cm, held upright at 0.25 to 0.45 m, 0.2 to 0.8 kcd/m^2), a laptop (35 %: 30 to 36 x 19 to 23
+    cm at 0.45 to 0.7 m, 0.15 to 0.4 kcd/m^2) or a monitor (25 %: 50 to 70 x 30 to 40 cm at 0.5 to 0.9 m, 0.1
+    to 0.3 kcd/m^2; maximum luminances of current panels, set lower at night), facing the subject, 0 to 25
+    degrees off the camera axis and 35 degrees below to 5 above the eyes (phones and laptops are held or
+    set below them; ergonomic monitor heights reach eye level). White on the daylight locus, 5500 to 9000 K
+    (panels are set to D65, often bluer). That is 20 to 100 lux on the face; a room at night gives 5 to 100
+    lux (a lamp or two), so the room's light on a surface facing the screen is **1/20 to 1/2** of the
+    screen's, its pattern that of 1 or 2 practical lamps (``room_share`` 0.5 to 1) and the screen's bounce.
 
-Rooms (``flash``, ``studio``, ``window``):
+Rooms (``flash``, ``studio``, ``window``, ``screen``):
     A box (2.4 to 3.6 m high, the subject's eyes 1.2 to 1.7 m above the floor, walls 0.8 to 5 m away and
     enlarged to hold the lights and the camera, turned by up to 25 degrees), Lambertian: a home (walls of
     albedo 0.3 to 0.8), a dark venue (0.04 to 0.25) or a studio (walls 0.03 to 0.12 or 0.5 to 0.8, a black,
@@ -71,13 +86,14 @@ Rooms (``flash``, ``studio``, ``window``):
     ``L A cos_e cos_r / r^2``, the room being an empty convex box: no shadows) and by the enclosure formula
     ``(Phi / A) rho_bar / (1 - rho_bar)`` for the further bounces, as in
     :mod:`~kornia_ilum_lab.synth.environments.indoor`, and hidden where a light covers it. ``flash`` rooms also
-    have 1 to 3 practical lamps, and 30 % of the studios 1 or 2 (isotropic spheres of radius 6 to 20 cm, 150
-    to 1500 lm, tungsten 2700 to 3200 K; in 35 % of the flash rooms one of them is a cool 4000 to 6500 K
-    source: mixed light), seen as small disks and lighting the walls. The ambient is the room lit by the key
-    and fill and the room lit by the practicals, each normalised to unit irradiance on the key-facing surface
-    and mixed with the drawn ``room_share`` of the practicals (flash 0.3 to 0.9, studio 0.1 to 0.5 when they
-    are there, else 0), then scaled to the drawn ``ambient_ratio`` of the key's irradiance: the light's
-    pattern is the room's (falloff, wall colours, lamps), its level the drawn ratio.
+    have 1 to 3 practical lamps, ``screen`` rooms 1 or 2, and 30 % of the studios 1 or 2 (isotropic spheres of
+    radius 6 to 20 cm, 150 to 1500 lm, tungsten 2700 to 3200 K; in 35 % of the flash rooms one of them is a
+    cool 4000 to 6500 K source: mixed light), seen as small disks and lighting the walls. The ambient is the
+    room lit by the key and fill and the room lit by the practicals, each normalised to unit irradiance on the
+    key-facing surface and mixed with the drawn ``room_share`` of the practicals (flash 0.3 to 0.9, screen 0.5
+    to 1, studio 0.1 to 0.5 when they are there, else 0), then scaled to the drawn ``ambient_ratio`` of the
+    key's irradiance: the light's pattern is the room's (falloff, wall colours, lamps), its level the drawn
+    ratio.
 
 Units:
     Linear sRGB radiance, 1 = 1 kcd/m^2 (as :mod:`~kornia_ilum_lab.synth.environments.sky`), irradiances in klux;
@@ -96,7 +112,7 @@ Energy on the grid:
     energy-conserving :func:`~kornia_ilum.geometry.latlong_to_mirror_ball`.
 
 Camera-anchored:
-    The flash, studio and window lights are placed relative to the camera, so their environments carry
+    The flash, studio, window and screen lights are placed relative to the camera, so their environments carry
     ``params["camera_anchored"] = True``: :class:`~kornia_ilum_lab.synth.environments.Augment` does not turn them
     (flip, exposure and white balance still apply) and the portraits keep them where the camera put them.
     Street lamps stand anywhere (drawn over the full circle) and are turned like any outdoor scene.
@@ -140,9 +156,9 @@ __all__ = [
 ]
 
 #: The kinds of portrait lighting, in the order :class:`PortraitLightSource` lists them by default.
-PORTRAIT_KINDS = ("flash", "studio", "window", "street")
+PORTRAIT_KINDS = ("flash", "studio", "window", "street", "screen")
 #: Their default shares of the draws (module docstring).
-PORTRAIT_KIND_WEIGHTS = (0.35, 0.30, 0.20, 0.15)
+PORTRAIT_KIND_WEIGHTS = (0.30, 0.28, 0.18, 0.12, 0.12)
 #: The share of an :class:`~kornia_ilum_lab.synth.environments.EnvironmentSampler`'s draws that the portrait
 #: lights take under :func:`~kornia_ilum_lab.synth.environments.default_weights` (its docstring says why).
 PORTRAIT_SHARE = 0.25
@@ -153,6 +169,7 @@ AMBIENT_RATIOS: dict[str, tuple[float, float]] = {
     "studio": (1 / 300, 1 / 8),
     "window": (1 / 200, 1 / 4),
     "street": (0.0, 1 / 2),
+    "screen": (1 / 20, 1 / 2),
 }
 
 _LUMA = torch.tensor([0.2126729, 0.7151522, 0.0721750], dtype=torch.float64)
@@ -162,8 +179,16 @@ _PATTERNS = {  # key light: (off-axis degrees, elevation degrees)
     "loop": ((30.0, 40.0), (20.0, 35.0)),
     "rembrandt": ((40.0, 60.0), (30.0, 50.0)),
     "split": ((75.0, 95.0), (10.0, 30.0)),
+    "under": ((0.0, 45.0), (-45.0, -10.0)),
 }
-_PATTERN_WEIGHTS = (0.2, 0.3, 0.3, 0.2)
+_PATTERN_WEIGHTS = (0.18, 0.27, 0.27, 0.18, 0.10)
+_CLAMSHELL = 0.4  # the share of fills below the chin under a butterfly or loop key
+# screens: (width m, height m, distance m, luminance kcd/m^2) ranges
+_SCREENS = {
+    "phone": ((0.065, 0.075), (0.14, 0.16), (0.25, 0.45), (0.2, 0.8)),
+    "laptop": ((0.30, 0.36), (0.19, 0.23), (0.45, 0.7), (0.15, 0.4)),
+    "monitor": ((0.50, 0.70), (0.30, 0.40), (0.5, 0.9), (0.1, 0.3)),
+}
 _WINDOW_OUTSIDE = {"overcast": 0.5, "hazy": 0.2, "clear": 0.3}
 _CELLS = 3  # rectangles light the walls as 3 x 3 cells
 
@@ -205,7 +230,7 @@ def _rect_frame(light: dict[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torc
 
 def key_direction(params: dict[str, Any]) -> torch.Tensor:
     """The direction ``(3,)`` (float64, unit) of the key light of a parameter set of
-    :meth:`PortraitLightSource.sample_params`: the centre of the flash, softbox, lamp, window or street lamp.
+    :meth:`PortraitLightSource.sample_params`: the centre of the flash, softbox, lamp, window, screen or street lamp.
 
     Args:
         params: the parameters of one portrait light (:meth:`PortraitLightSource.sample_params`), before any
@@ -592,7 +617,10 @@ def _sample_studio(draw: Draw) -> dict[str, Any]:
     ratio = None
     if draw.bernoulli(fill_p):
         ratio = draw.log_uniform(2.0, 8.0)
-        fill_off, fill_el = -side * draw.uniform(20.0, 60.0), draw.uniform(0.0, 25.0)
+        if pattern in ("butterfly", "loop") and draw.bernoulli(_CLAMSHELL):
+            fill_off, fill_el = -side * draw.uniform(0.0, 20.0), draw.uniform(-40.0, -15.0)
+        else:
+            fill_off, fill_el = -side * draw.uniform(20.0, 60.0), draw.uniform(0.0, 25.0)
         irradiance = key["irradiance_klux"] / (ratio - 1)
         lights.append(make(draw, "fill", off=fill_off, elev=fill_el, cct=cct, irradiance=irradiance))
     camera = [0.0, 0.0, draw.uniform(1.0, 3.0)]
@@ -609,6 +637,33 @@ def _sample_studio(draw: Draw) -> dict[str, Any]:
         "room_share": draw.uniform(0.1, 0.5) if practicals else 0.0,
         "ambient_ratio": draw.log_uniform(*AMBIENT_RATIOS["studio"]),
         "camera_distance_m": camera[2],
+    }
+
+
+def _sample_screen(draw: Draw) -> dict[str, Any]:
+    variant = draw.choice(list(_SCREENS), [0.4, 0.35, 0.25])
+    width, height, distance, luminance = (draw.uniform(*r) for r in _SCREENS[variant])
+    off, elev = draw.choice([-1.0, 1.0]) * draw.uniform(0.0, 25.0), draw.uniform(-35.0, 5.0)
+    key = {
+        "role": "key",
+        "shape": "rect",
+        "position_m": [distance * c for c in _toward(off, elev)],
+        "width_m": width,
+        "height_m": height,
+        "cct_k": draw.uniform(5500.0, 9000.0),
+        "locus": "daylight",
+    }
+    key["irradiance_klux"] = _light_irradiance(key, luminance * _color(key) / float(_color(key) @ _LUMA))
+    camera = [0.0, 0.0, distance]
+    room = _room(draw, "home", [camera, key["position_m"]])
+    return {
+        "variant": variant,
+        "lights": [key],
+        "room": room,
+        "practicals": _practicals(draw, room, draw.integer(1, 2), False),
+        "room_share": draw.uniform(0.5, 1.0),
+        "ambient_ratio": draw.log_uniform(*AMBIENT_RATIOS["screen"]),
+        "camera_distance_m": distance,
     }
 
 
@@ -697,11 +752,12 @@ def _sample_street(draw: Draw, night: SkySource) -> dict[str, Any]:
 
 
 class PortraitLightSource:
-    r"""Procedural portrait lighting: on-camera flash, studio lights or a lamp, a window, night street light.
+    r"""Procedural portrait lighting: on-camera flash, studio lights or a lamp, a window, night street light,
+    a screen.
 
     The model, its ranges and their reasons are in the module docstring
     (:mod:`kornia_ilum_lab.synth.environments.portrait`). Environments are labelled ``"indoor"`` (flash,
-    studio, window) or ``"outdoor"`` (street); ``source`` is ``"portrait:<kind>"``.
+    studio, window, screen) or ``"outdoor"`` (street); ``source`` is ``"portrait:<kind>"``.
 
     Args:
         kinds: the kinds to draw from, a subset of :data:`PORTRAIT_KINDS`.
@@ -782,6 +838,8 @@ class PortraitLightSource:
             p = _sample_studio(draw)
         elif kind == "window":
             p = _sample_window(draw, self._outside)
+        elif kind == "screen":
+            p = _sample_screen(draw)
         else:
             p = _sample_street(draw, self._outside)
         return {"kind": kind, **p, "camera_anchored": kind != "street"}
