@@ -18,7 +18,9 @@ the vertical) and prints, per kind, how the light's colour is laid out around it
 - ``up(warm)``: the mean vertical component of the warm dipole's direction (negative: the blue light is above).
 
 Equal figures for the procedural sources and the real maps say the light stage's colours teach no more than
-real light does. This is a measurement, not a test: it asserts nothing.
+real light does. A second table gives, per source (each procedural kind apart), the share of environments whose
+main light is more than 15 degrees below the eyes (the dipole's elevation): light from below, which a model
+never shown it cannot learn to read. This is a measurement, not a test: it asserts nothing.
 """
 
 from __future__ import annotations
@@ -49,16 +51,21 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=1000, help="environments per procedural kind (1000)")
     args = parser.parse_args()
     kinds: dict[str, list[tuple[torch.Tensor, torch.Tensor]]] = defaultdict(list)
+    by_source: dict[str, list[torch.Tensor]] = defaultdict(list)
     for source in default_sources():
         sampler = EnvironmentSampler(sources=[source], seed=0)
         for i in range(args.samples):
             env = sampler.sample(i)
-            kinds[f"procedural {env.source.split(':')[0]}"].append(dipoles(env.mirror_ball))
+            pair = dipoles(env.mirror_ball)
+            kinds[f"procedural {env.source.split(':')[0]}"].append(pair)
+            by_source[env.source].append(pair[0])
     for split in ("train", "eval"):
         for folder in args.hdri:
             sampler = EnvironmentSampler(sources=[HDRFolderSource(folder, split=split)], seed=0)
             for i in range(args.samples // 4):
-                kinds[f"real maps ({split})"].append(dipoles(sampler.sample(i).mirror_ball))
+                pair = dipoles(sampler.sample(i).mirror_ball)
+                kinds[f"real maps ({split})"].append(pair)
+                by_source[f"real maps ({split})"].append(pair[0])
     print("| environments | count | cos(warm, main) | abs(warm) / abs(main) | up(warm) |")
     print("|---|---:|---:|---:|---:|")
     for kind, pairs in kinds.items():
@@ -68,6 +75,13 @@ def main() -> None:
         ratio = warm_d.norm(dim=-1) / main_d.norm(dim=-1).clamp(min=1e-12)
         up = warm_d[:, 1] / warm_d.norm(dim=-1).clamp(min=1e-12)
         print(f"| {kind} | {len(pairs)} | {cos.mean():.2f} | {ratio.median():.3f} | {up.mean():+.2f} |")
+    print("\n| source | count | main light below -15 deg | median elevation (deg) |")
+    print("|---|---:|---:|---:|")
+    for name, mains in sorted(by_source.items()):
+        d = torch.stack(mains)
+        elevation = torch.rad2deg(torch.asin((d[:, 1] / d.norm(dim=-1).clamp(min=1e-12)).clamp(-1.0, 1.0)))
+        below = (elevation < -15.0).double().mean()
+        print(f"| {name} | {len(mains)} | {100 * below:.1f} % | {elevation.median():+.1f} |")
 
 
 if __name__ == "__main__":

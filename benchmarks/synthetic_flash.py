@@ -15,7 +15,10 @@ through the view's face box as training crops are, and feeds each estimator thre
   real-flash photographs have), fed as they are.
 
 It prints, per estimator and version, the median direction error over all flashes and within 25 degrees of the
-camera axis, the elevation bias there (estimate minus flash) and the up/down sign agreement. A bias that the
+camera axis, the elevation bias there (estimate minus flash) and the up/down sign agreement; then, in colour,
+the estimated elevation of flashes straight in front of the face at elevations from 40 degrees below the eyes
+to 45 above (:data:`SWEEP_DEG`; the range over the views), which shows whether an estimator can put a light
+below the eyes at all. A bias that the
 rendered faces share with the real photographs is the estimator's (its prior, its reading of shading); one
 that only the real photographs show is theirs (real skin, the database's crops). A measurement, not a test.
 """
@@ -42,6 +45,7 @@ from kornia_ilum.detection.crop import CROP_SCALE, crop_faces, square_crop_boxes
 from kornia_ilum.geometry import latlong_to_mirror_ball
 
 AMBIENT = 0.01  # the room's irradiance on any surface, a fraction of the flash's at normal incidence
+SWEEP_DEG = (-40.0, -25.0, -15.0, 0.0, 20.0, 45.0)  # flashes straight in front (azimuth 0), by elevation
 RADIUS = math.radians(1.0)
 
 
@@ -69,6 +73,8 @@ def main() -> int:
     flashes = load_flash_set(args.flash)
     pairs = sorted({(float(a), float(e))
                     for a, e in zip(flashes.azimuth, flashes.elevation, strict=True)})
+    sweep = len(pairs)
+    pairs += [(0.0, e) for e in SWEEP_DEG]
     angles = torch.tensor(pairs, dtype=torch.float64)
     dirs = flash_direction(angles[:, 0], angles[:, 1])
     root = Path(args.cache)
@@ -88,13 +94,17 @@ def main() -> int:
     if not crops:
         print("no frontal view in the cache", file=sys.stderr)
         return 1
-    colour = torch.stack(crops)
+    views = len(crops) // len(dirs)
+    images = torch.stack(crops).reshape(views, len(dirs), *crops[0].shape)
+    swept = images[:, sweep:].reshape(-1, *crops[0].shape)  # (views x sweep): the straight-ahead flashes
+    colour = images[:, :sweep].reshape(-1, *crops[0].shape)
     grey = greyscale(colour)
     versions = {"colour": colour, "greyscale": grey, "linear grey": srgb_to_linear(grey)}
-    truth_d = torch.stack(truth)
+    truth_d = torch.stack(truth).reshape(views, len(dirs), 3)[:, :sweep].reshape(-1, 3)
+    dirs = dirs[:sweep]
     axis = torch.rad2deg(torch.acos(truth_d[:, 2].clamp(-1.0, 1.0)))
     front, off = axis < 25.0, truth_d[:, 1].abs() > math.sin(math.radians(SIGN_MARGIN_DEG))
-    print(f"{len(crops) // len(dirs)} frontal views x {len(dirs)} flashes = {len(crops)} crops; "
+    print(f"{views} frontal views x {len(dirs)} flashes = {len(colour)} crops; "
           f"{int(front.sum())} within 25 degrees of the camera axis")
     print("| estimator | version | all | within 25 | elevation bias, within 25 | up/down |")
     print("|---|---|---:|---:|---:|---:|")
@@ -109,6 +119,16 @@ def main() -> int:
             up_down = ((pred[:, 1] > 0) == (truth_d[:, 1] > 0))[off].double().mean()
             print(f"| {name} | {version} | {err.median():.1f} | {err[front].median():.1f} | {bias:+.1f} | "
                   f"{up_down:.3f} |", flush=True)
+    print("\nStraight in front, in colour: the estimated elevation (degrees; lowest to highest over the views)")
+    print("| estimator | " + " | ".join(f"flash {e:+.0f}" for e in SWEEP_DEG) + " |")
+    print("|---|" + "---:|" * len(SWEEP_DEG))
+    for weights in args.weights:
+        est = load_estimator(args.estimator, weights)
+        name = args.estimator if weights is None else f"{args.estimator}@{Path(weights).name}"
+        _, pred, _ = estimates(est, iter([swept]), directions=True)
+        el = elevation(pred).reshape(views, len(SWEEP_DEG))
+        cells = [f"{float(c.min()):+.0f} to {float(c.max()):+.0f}" for c in el.T]
+        print(f"| {name} | " + " | ".join(cells) + " |", flush=True)
     return 0
 
 

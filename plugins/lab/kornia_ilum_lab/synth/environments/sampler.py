@@ -75,8 +75,8 @@ def default_weights(sources: Sequence[EnvironmentSource]) -> list[float]:
     a label (when all of them have one label, equally). So the procedural defaults get
     ``[0.375, 0.375, 0.25]`` (sky, indoor, portrait), and with a folder of mostly outdoor maps
     ``[0.1875, 0.375, 0.25, 0.1875]`` (sky, indoor, portrait, real): indoor rooms, thin among real maps, make
-    half of what the portrait lights leave. With the portrait lights' own labels (85 % indoor by default),
-    0.5875 of the draws are indoor. When the shares add up to 1 or more, they are the weights (normalised by
+    half of what the portrait lights leave. With the portrait lights' own labels (88 % indoor by default),
+    0.595 of the draws are indoor. When the shares add up to 1 or more, they are the weights (normalised by
     the sampler) and the other sources get none.
 
     Args:
