@@ -72,7 +72,7 @@ def _command_line(args: argparse.Namespace) -> str:
 
 
 _HELP = """\
-Sample N lighting environments (procedural skies, rooms and portrait lights: flash, studio, window, street;
+Sample N lighting environments (procedural skies, rooms and portrait lights: flash, studio, window, street, screen;
 plus the real maps of --folder; augmented by rotation, flip, exposure and white balance), and write into
 --out: contact_sheet.png (mirror balls with their diffuse, matte-silver and mirror reference spheres),
 stats.txt / stats.csv (dynamic range, peak-to-mean ratio, colour temperature, energy in the top 1 % of

@@ -196,7 +196,7 @@ def environment_group(env: Environment) -> str:
 
     ``"real"`` for a real map as captured (``source`` ``"real:..."``, no augmentation), ``"real, augmented"``
     for an augmented one, ``"portrait lights"`` for the lights portraits are taken under (``source``
-    ``"portrait:..."``: flash, studio, window, street, whatever their label), ``"procedural outdoor"`` /
+    ``"portrait:..."``: flash, studio, window, street, screen, whatever their label), ``"procedural outdoor"`` /
     ``"procedural indoor"`` for the others (by label).
 
     Args:
