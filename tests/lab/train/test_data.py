@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum_lab.synth.environments import PortraitLightSource
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum_lab.train import TrainConfig
 from kornia_ilum_lab.train.data import TRAINING_PORTRAITS, StepBatches, collate, training_dataset
@@ -53,6 +54,23 @@ class TestData:
         assert all(f.meta["split"] == "train" for f in dataset.fields) and len(dataset.fields) == 2
         with pytest.raises(ValueCheckError, match=r"unknown data settings \['nope'\]"):
             training_dataset(dataclasses.replace(config, data={"nope": 1}))
+
+    def test_environment_mix(self, tiny_cache) -> None:
+        """The portrait lights' share and kind weights of ``environment_mix`` replace the defaults; the other
+        sources are untouched, and bad settings fail before any portrait is made."""
+        config = TrainConfig(out="unused", cache=(str(tiny_cache),), data=small_data())
+        default = training_dataset(config).environments
+        mixed = training_dataset(dataclasses.replace(
+            config, environment_mix={"portrait_share": 0.5, "portrait_weights": (0, 0, 0, 0, 1)})).environments
+        portrait = [s for s in mixed.sources if isinstance(s, PortraitLightSource)]
+        assert len(portrait) == 1 and portrait[0].default_share == 0.5 and portrait[0].weights[-1] == 1.0
+        assert [type(s) for s in mixed.sources] == [type(s) for s in default.sources]
+        drawn = {mixed.sample(i).source for i in range(40)}
+        assert "portrait:screen" in drawn and not drawn & {"portrait:flash", "portrait:studio"}
+        with pytest.raises(ValueCheckError, match="environment_mix takes"):
+            dataclasses.replace(config, environment_mix={"sky_share": 0.1})
+        with pytest.raises(ValueCheckError, match="weights must be 5"):
+            training_dataset(dataclasses.replace(config, environment_mix={"portrait_weights": (1, 1)}))
 
     def test_collate(self, tiny_cache) -> None:
         dataset = training_dataset(TrainConfig(out="unused", cache=(str(tiny_cache),), data=small_data()))

@@ -116,6 +116,10 @@ def add_train_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                      help="constructor arguments of the estimator, e.g. normalize_exposure=False")
     cmd.add_argument("--data", nargs="*", default=[], metavar="KEY=VALUE", type=key_value,
                      help="PortraitConfig settings of the light-stage data, e.g. fields_per_chunk=8 shuffle=2")
+    cmd.add_argument("--environment-mix", nargs="*", default=[], metavar="KEY=VALUE", type=key_value,
+                     help="the training environments' mix, a study's knob: portrait_share=S (the portrait "
+                     "lights' share of all draws, default 0.25) and portrait_weights=(flash,studio,window,"
+                     "street,screen) (default: the light stage's; docs/environments.rst)")
     cmd.set_defaults(func=run_train, brdf_weights=dict(BRDF_WEIGHTS))
     return cmd
 
@@ -149,7 +153,7 @@ def run_train(args: argparse.Namespace) -> int:
                          colour_teacher=args.colour_teacher,
                          lambda_energy=args.lambda_energy, lambda_nll=args.lambda_nll,
                          lambda_albedo=args.lambda_albedo, init=args.init, model=dict(args.model),
-                         data=dict(args.data))
+                         data=dict(args.data), environment_mix=dict(args.environment_mix))
     summary = train(config)
     if "weights" in summary:
         w = summary["weights"]

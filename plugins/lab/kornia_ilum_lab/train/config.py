@@ -20,7 +20,10 @@ import torch
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.train.losses import BRDF_WEIGHTS
 
-__all__ = ["LOSSES", "RuntimeSettings", "TrainConfig", "resolve_runtime"]
+__all__ = ["ENVIRONMENT_MIX_KEYS", "LOSSES", "RuntimeSettings", "TrainConfig", "resolve_runtime"]
+
+#: The settings of ``TrainConfig.environment_mix`` (its docstring).
+ENVIRONMENT_MIX_KEYS = ("portrait_share", "portrait_weights")
 
 #: The losses on the lighting that :attr:`TrainConfig.loss` can name.
 LOSSES: tuple[str, ...] = ("rendering", "log_l2")
@@ -125,6 +128,13 @@ class TrainConfig:
         data: fields of :class:`~kornia_ilum_lab.synth.lightstage.portraits.PortraitConfig` to replace (for
             example ``{"fields_per_chunk": 8}``), over :data:`~kornia_ilum_lab.train.data.TRAINING_PORTRAITS`;
             ``split`` and ``environments`` are set by the trainer.
+        environment_mix: the training environments' mix, replacing the portrait lights' defaults:
+            ``portrait_share`` (their share of all draws,
+            :data:`~kornia_ilum_lab.synth.environments.portrait.PORTRAIT_SHARE` by default) and
+            ``portrait_weights`` (one weight per kind of
+            :data:`~kornia_ilum_lab.synth.environments.portrait.PORTRAIT_KINDS`); empty: the defaults. A study's
+            knob (docs/training.rst, "The third round"): shipped weights use the defaults, whose shares have their
+            reasons in :mod:`~kornia_ilum_lab.synth.environments.portrait`.
 
     Raises:
         ValueCheckError: a setting out of its range (a step count that is not a positive integer, no cache,
@@ -181,6 +191,7 @@ class TrainConfig:
     model: dict[str, Any] = field(default_factory=dict)
     init: str | None = None
     data: dict[str, Any] = field(default_factory=dict)
+    environment_mix: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("steps", "batch", "checkpoint_every", "log_every", "crop_pairs", "colour_pairs"):
@@ -196,6 +207,9 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ValueCheckError(f"{name} must be a non-negative integer, got {v!r}")
+        unknown = sorted(set(self.environment_mix) - set(ENVIRONMENT_MIX_KEYS))
+        if unknown:
+            raise ValueCheckError(f"environment_mix takes {ENVIRONMENT_MIX_KEYS}, got {unknown}")
         if self.calibrate_energy and self.calibrate_colour:
             raise ValueCheckError("calibrate_energy already sets each channel's gain: calibrate_colour is a part of it")
         if not 0 <= self.average_tail < 1:

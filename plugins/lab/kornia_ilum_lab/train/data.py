@@ -26,7 +26,8 @@ from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators.probe import PROBE_SAMPLES, write_probe
-from kornia_ilum_lab.synth.environments import EnvironmentSampler, HDRFolderSource, default_sources
+from kornia_ilum_lab.synth.environments import EnvironmentSampler, HDRFolderSource, PortraitLightSource, default_sources
+from kornia_ilum_lab.synth.environments.portrait import PORTRAIT_SHARE
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitConfig, PortraitDataset, load_fields
 from kornia_ilum_lab.train.config import TrainConfig
 
@@ -43,8 +44,15 @@ TRAINING_PORTRAITS: dict[str, Any] = {"sphere_sizes": (), "plain_background": 0.
 
 def _training_environments(config: TrainConfig) -> EnvironmentSampler:
     """The run's environments: the procedural sources plus the ``"train"`` maps of each folder of
-    ``config.hdri``, drawn with ``config.seed``."""
-    sources = default_sources() + [HDRFolderSource(folder, split="train") for folder in config.hdri]
+    ``config.hdri``, drawn with ``config.seed``; the portrait lights' share and kind weights from
+    ``config.environment_mix`` where it sets them (:class:`PortraitLightSource` checks them)."""
+    sources = default_sources()
+    if config.environment_mix:
+        mix = config.environment_mix
+        portrait = PortraitLightSource(weights=mix.get("portrait_weights"),
+                                       share=mix.get("portrait_share", PORTRAIT_SHARE))
+        sources = [portrait if isinstance(s, PortraitLightSource) else s for s in sources]
+    sources += [HDRFolderSource(folder, split="train") for folder in config.hdri]
     return EnvironmentSampler(sources=sources, seed=config.seed)
 
 
