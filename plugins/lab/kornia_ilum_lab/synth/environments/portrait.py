@@ -3,9 +3,9 @@ r"""Procedural portrait lighting: on-camera flash, studio lights, a window, nigh
 Portraits are taken most often under a handful of lights that the skies and rooms of
 :mod:`~kornia_ilum_lab.synth.environments.sky` and :mod:`~kornia_ilum_lab.synth.environments.indoor` never make: a
 flash on the camera, one or two studio lights or a lamp in a dark room, a window as the only source, a street
-lamp at night, the screen of a phone or a computer in a dim room. Two of them light a face from below, which no
-sky, room or real map does (their main light is within 15 degrees below the horizon in 1 to 3 % of draws):
-the studio's uplight and reflector, and the screen.
+lamp at night, the screen of a phone or a computer in a dim room. Two of them light a face from below, which
+skies, rooms and real maps hardly do (their main light is more than 15 degrees below the eyes in 0 to 4 % of
+their draws; ``benchmarks/colour_tells_direction.py``): the studio's uplight and reflector, and the screen.
 :class:`PortraitLightSource` draws them, each kind with its share of the draws (:data:`PORTRAIT_KINDS`,
 :data:`PORTRAIT_KIND_WEIGHTS`):
 
@@ -230,7 +230,8 @@ def _rect_frame(light: dict[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torc
 
 def key_direction(params: dict[str, Any]) -> torch.Tensor:
     """The direction ``(3,)`` (float64, unit) of the key light of a parameter set of
-    :meth:`PortraitLightSource.sample_params`: the centre of the flash, softbox, lamp, window, screen or street lamp.
+    :meth:`PortraitLightSource.sample_params`: the centre of the flash, softbox, lamp, window, screen or street
+    lamp.
 
     Args:
         params: the parameters of one portrait light (:meth:`PortraitLightSource.sample_params`), before any
