@@ -108,9 +108,10 @@ def main() -> int:
           f"{int(front.sum())} within 25 degrees of the camera axis")
     print("| estimator | version | all | within 25 | elevation bias, within 25 | up/down |")
     print("|---|---|---:|---:|---:|---:|")
+    loaded = {}  # name -> estimator, loaded once for both tables
     for weights in args.weights:
-        est = load_estimator(args.estimator, weights)
         name = args.estimator if weights is None else f"{args.estimator}@{Path(weights).name}"
+        est = loaded[name] = load_estimator(args.estimator, weights)
         for version, images in versions.items():
             batches = (images[i:i + 64] for i in range(0, len(images), 64))
             _, pred, _ = estimates(est, batches, directions=True)
@@ -122,9 +123,7 @@ def main() -> int:
     print("\nStraight in front, in colour: the estimated elevation (degrees; lowest to highest over the views)")
     print("| estimator | " + " | ".join(f"flash {e:+.0f}" for e in SWEEP_DEG) + " |")
     print("|---|" + "---:|" * len(SWEEP_DEG))
-    for weights in args.weights:
-        est = load_estimator(args.estimator, weights)
-        name = args.estimator if weights is None else f"{args.estimator}@{Path(weights).name}"
+    for name, est in loaded.items():
         _, pred, _ = estimates(est, iter([swept]), directions=True)
         el = elevation(pred).reshape(views, len(SWEEP_DEG))
         cells = [f"{float(c.min()):+.0f} to {float(c.max()):+.0f}" for c in el.T]
