@@ -10,8 +10,6 @@ import csv
 import sys
 
 import pytest
-
-from kornia_ilum.core.errors import HDRIOError
 from kornia_ilum_lab.synth.cli import (
     add_synth_environments_parser,
     add_synth_subjects_parser,
@@ -19,6 +17,8 @@ from kornia_ilum_lab.synth.cli import (
     run_synth_environments,
     run_synth_subjects,
 )
+
+from kornia_ilum.core.errors import HDRIOError, IlumError, ValueCheckError
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -133,6 +133,9 @@ class TestSubjects:
                                          "--source", "mannequin", "--workers", "1"])
         assert args.seeds == [4, 1, 2] and args.worker == (2, 3) and args.source == "mannequin"
         assert args.device is None and self.parser().parse_args(["synth", "subjects", "--device", "cuda"]).device == "cuda"
+        args = self.parser().parse_args(["synth", "subjects", "--clothes", "--cut-below-chin", "0.6",
+                                         "--face-fraction", "0.3"])
+        assert (args.clothes, args.cut_below_chin, args.face_fraction) == (True, 0.6, 0.3)
 
     def test_bad_values(self, capsys):
         for bad in (["--seeds", "a-b"], ["--seeds", ""], ["--worker", "3/3"], ["--worker", "1"], ["--size", "0"],
@@ -191,3 +194,7 @@ class TestSubjects:
         assert _subject_source(None, None).name == "mannequin"
         assert "using the mannequins" in capsys.readouterr().err
         assert _subject_source("mannequin", None).name == "mannequin"
+        with pytest.raises(IlumError, match="cannot load the MakeHuman assets"):  # asked for clothes: no fallback
+            _subject_source(None, None, clothes=True)
+        with pytest.raises(ValueCheckError, match="takes no clothes"):
+            _subject_source("mannequin", None, clothes=True)

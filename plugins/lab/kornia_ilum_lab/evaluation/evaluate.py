@@ -92,6 +92,8 @@ class EvalSet:
         nominal_boxes: for a set of context crops (:func:`build_eval_set` with ``context``), ``(N, 4)``
             float64 ``(x0, y0, x1, y1)``: where the nominal face crop (side 1.25 times the face box, no
             jitter) lies in each crop's pixels; ``None`` for the usual crops.
+        frames: with ``portraits={"frame": F}``, ``(N, 3, F, F)`` uint8: the whole rendered frame around each
+            crop (``PortraitConfig.frame``), else ``None``; ``frame_boxes`` ``(N, 4)``: the face box in it.
         description: JSON-ready facts: counts, subjects, maps, seeds, settings, build time.
 
     Shape:
@@ -119,6 +121,8 @@ class EvalSet:
     alpha: torch.Tensor | None = None
     nominal_boxes: torch.Tensor | None = None
     description: dict[str, Any] = dataclasses.field(default_factory=dict)
+    frames: torch.Tensor | None = None
+    frame_boxes: torch.Tensor | None = None
 
     def __len__(self) -> int:
         return len(self.images)
@@ -223,7 +227,11 @@ def build_eval_set(
     what = "eval set" if context is None else "context set"
     items = dataset if not progress else bar(dataset, samples, what, "sample")
     images, balls, alphas, label, tone, subject, source, nominal = [], [], [], [], [], [], [], []
+    frames, frame_boxes = [], []
     for s in items:
+        if "frame" in s:
+            frames.append(s["frame"])
+            frame_boxes.append(s["frame_box"])
         images.append(s["image"])
         balls.append(s["mirror_ball"].float())
         alphas.append(s["alpha"])
@@ -266,7 +274,8 @@ def build_eval_set(
                                "nominal_size": size}
     return EvalSet(torch.stack(images), torch.stack(balls), label, tone, subject, source,
                    alpha=torch.stack(alphas), nominal_boxes=torch.stack(nominal) if nominal else None,
-                   description=description)
+                   description=description, frames=torch.stack(frames) if frames else None,
+                   frame_boxes=torch.stack(frame_boxes) if frame_boxes else None)
 
 
 def probe_eval_set(part: slice = CHECK) -> EvalSet:

@@ -346,8 +346,15 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     cmd.add_argument("--source", choices=("makehuman", "mannequin"), default=None,
                      help="subject source (makehuman when its assets are found, else mannequin)")
     cmd.add_argument("--assets", metavar="DIR", default=None, help="the MakeHuman assets folder")
+    cmd.add_argument("--clothes", action="store_true",
+                     help="dress the MakeHuman subjects in the CC0 outfits, a measured fabric's albedo each")
+    cmd.add_argument("--cut-below-chin", type=float, default=None, metavar="M",
+                     help="the MakeHuman bust's cut, metres below the chin (0.21; up to 1.0 for wide views)")
     cmd.add_argument("--views", type=positive_int, default=4, metavar="N",
                      help="random views per subject (4)")
+    cmd.add_argument("--face-fraction", type=float, default=None, metavar="F",
+                     help="the face-landmark box's height over the image's in every view (0.5; smaller shows "
+                          "more of the body and the surroundings)")
     cmd.add_argument("--size", type=positive_int, default=192, metavar="PX",
                      help="render side in pixels (192)")
     cmd.add_argument("--spp", type=positive_int, default=None, metavar="N",
@@ -382,18 +389,22 @@ def add_synth_subjects_parser(subparsers: argparse._SubParsersAction) -> argpars
     return cmd
 
 
-def _subject_source(name: str | None, assets: str | None):
-    """The source of ``--source`` / ``--assets``; without ``--source``, makehuman when its assets are
-    found."""
+def _subject_source(name: str | None, assets: str | None, **options):
+    """The source of ``--source`` / ``--assets`` with the MakeHuman ``options`` given (``clothes``,
+    ``cut_below_chin``); without ``--source``, makehuman when its assets are found."""
     # lazy: importing a light-stage module loads the whole (heavy) light-stage package
     from kornia_ilum_lab.synth.lightstage.subjects import MannequinSource, subject_source
 
+    if name == "mannequin" and options:
+        raise ValueCheckError(f"--source mannequin takes no {', '.join(sorted(options))}")
     if name == "mannequin":
         return MannequinSource()
     try:
-        return subject_source("makehuman", assets=assets)
+        return subject_source("makehuman", assets=assets, **options)
+    except ValueCheckError:
+        raise
     except Exception as exc:  # noqa: BLE001 - missing or broken assets, whichever error the source raises
-        if name == "makehuman":
+        if name == "makehuman" or options:  # MakeHuman's options asked for: no silent mannequins
             raise IlumError(f"cannot load the MakeHuman assets: {exc}") from exc
         print(f"kornia-ilum: notice: MakeHuman assets not found ({' '.join(str(exc).split())}); "
               "using the mannequins (--source mannequin)", file=sys.stderr)
@@ -424,6 +435,7 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
     """
     # lazy: the light-stage package is a heavy import that only this sub-command needs
     from kornia_ilum_lab.synth.lightstage.cache import SampledViews, Workers, build_cache, cache_summary
+    from kornia_ilum_lab.synth.lightstage.scene import FACE_FRACTION  # lazy: as above
     from kornia_ilum_lab.synth.lightstage.preview import training_sheet  # lazy: as above
     from kornia_ilum_lab.synth.lightstage.settings import Auto  # lazy: as above
     from kornia_ilum_lab.synth.lightstage.sparse import write_sparse_cache  # lazy: as above
@@ -437,12 +449,16 @@ def run_synth_subjects(args: argparse.Namespace) -> int:
               f"{len(args.seeds) - len(seeds)} of the other split skipped")
         if not seeds:
             raise ValueCheckError(f"no seed of split {args.split!r} in --seeds")
-    source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None))
+    options = {"clothes": True} if getattr(args, "clothes", False) else {}
+    if getattr(args, "cut_below_chin", None) is not None:
+        options["cut_below_chin"] = args.cut_below_chin
+    source = _subject_source(getattr(args, "source", None), getattr(args, "assets", None), **options)
     out = Path(args.out)
     variant = "cuda_ad_rgb" if args.device == "cuda" else args.variant
     manifest = build_cache(source, seeds, out_dir=out, renderer=Auto(spp=args.spp,
                                                                      lighting_size=args.lighting_size),
-                           views=SampledViews(args.views, size=args.size),
+                           views=SampledViews(args.views, size=args.size,
+                                              fraction=getattr(args, "face_fraction", None) or FACE_FRACTION),
                            workers=Workers(processes=getattr(args, "workers", 2), index=args.worker[0],
                                            count=args.worker[1], threads=args.threads),
                            variant=variant, progress=True)

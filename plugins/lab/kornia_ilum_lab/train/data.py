@@ -161,7 +161,8 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
     """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels; for paired
     samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8); with
-    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``.
+    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``; with ``PortraitConfig.frame``, ``frame`` (uint8)
+    and ``frame_box`` ``(B, 4)``.
 
     Args:
         samples: samples of a :class:`~kornia_ilum_lab.synth.lightstage.portraits.PortraitDataset`.
@@ -196,6 +197,9 @@ def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
         batch["alpha"] = torch.stack([s["alpha"] for s in samples])
     if "second_crop" in samples[0]:
         batch["second_crop"] = torch.stack([s["second_crop"] for s in samples])
+    if "frame" in samples[0]:
+        batch["frame"] = torch.stack([s["frame"] for s in samples])
+        batch["frame_box"] = torch.stack([s["frame_box"] for s in samples])
     return batch
 
 

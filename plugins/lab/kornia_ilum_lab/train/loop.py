@@ -115,6 +115,7 @@ def _write_log(out: Path, rows: list[dict[str, float]], fields: tuple[str, ...])
             for row in rows:
                 w.writerow({k: f"{row[k]:.6g}" for k in fields})
 
+    fields = tuple(k for k in fields if not rows or k in rows[-1])  # a recipe without spheres logs none
     atomic_write(out / "log.csv", write)
 
 
@@ -130,7 +131,7 @@ def _plot(out: Path, rows: list[dict[str, float]]) -> None:
         return
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
     steps = [r["step"] for r in rows]
-    for key in ("rec_diffuse", "rec_matte_silver", "rec_mirror"):
+    for key in ("rec_diffuse", "rec_matte_silver", "rec_mirror") if "rec_diffuse" in rows[-1] else ("rec",):
         ax[0].plot(steps, [r[key] for r in rows], label=key.removeprefix("rec_"))
     ax[0].set(xlabel="step", ylabel="L_rec at 32 px (training form)", yscale="log")
     ax[0].legend()
@@ -146,7 +147,8 @@ def _plot(out: Path, rows: list[dict[str, float]]) -> None:
 def _status(step: int, steps: int, row: dict[str, float], remaining_s: float) -> None:
     eta = time.strftime("%H:%M:%S", time.gmtime(max(remaining_s, 0.0)))
     line = (f"train: step {step}/{steps} ({100 * step // steps}%)  loss {row['loss']:.4f}  "
-            f"diffuse {row['rec_diffuse']:.4f}  {row['samples_per_s']:.1f} samples/s  ETA {eta}")
+            f"{'diffuse' if 'rec_diffuse' in row else 'rec'} {row.get('rec_diffuse', row['rec']):.4f}  "
+            f"{row['samples_per_s']:.1f} samples/s  ETA {eta}")
     end = "\r" if sys.stderr.isatty() and step < steps else "\n"
     print(line, end=end, file=sys.stderr, flush=True)
 
@@ -311,7 +313,8 @@ def _finish(config: TrainConfig, runtime: RuntimeSettings, *, out: Path, recipe:
                                                                  config.calibrate_colour, keep_luminance=True)
             if config.fit_spread:
                 summary["spread_fit"] = fit_spread(estimator, calibration, samples=config.fit_spread)
-        summary["weights"] = export_weights(estimator, out / f"{config.estimator}.safetensors", recipe.probe(dataset))
+        path, probe = out / f"{config.estimator}.safetensors", recipe.probe(dataset)
+        summary["weights"] = recipe.export(estimator, path, probe) or export_weights(estimator, path, probe)
         atomic_write(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     return summary
 

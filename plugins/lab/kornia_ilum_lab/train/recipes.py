@@ -191,6 +191,11 @@ class Recipe:
         samples = dataset.samples(PROBE_STREAM)
         return collate([next(samples) for _ in range(PROBE_SIZE)])
 
+    def export(self, estimator: nn.Module, path: Any, probe: dict[str, Any]) -> dict[str, Any] | None:
+        """Write the trained weights to ``path`` in the recipe's own way and describe them, or ``None`` (the
+        default): the loop's :func:`~kornia_ilum_lab.train.export_weights` (float16 where ``L_rec`` allows)."""
+        return None
+
     def scale_output(self, estimator: nn.Module, gain: torch.Tensor) -> None:
         """Multiply the lighting that ``estimator`` outputs by ``gain`` (``(3,)``, R, G, B), in place and exactly
         (the calibration reports its effect without measuring it again): the energy calibration of

@@ -160,6 +160,13 @@ class TestBuildCache:
     kw: ClassVar[dict] = {"renderer": Auto(spp=1, lighting_size=4), "workers": Workers(processes=1),
                           "progress": False}
 
+    def test_views_framed_wider(self) -> None:
+        """A smaller face fraction frames every view from further away, and is part of the cache's settings."""
+        wide = SampledViews(2, size=16, fraction=0.25)
+        assert wide.label == "sample_views(n=2, fraction=0.25)" != SampledViews(2, size=16).label
+        with pytest.raises(ValueCheckError, match="fraction"):
+            SampledViews(2, fraction=1.0)
+
     def test_random_views_sharded_and_resumed(self, tmp_path: Path, rendered: list[int]) -> None:
         src = SphereSource()
         views = SampledViews(2, size=16)

@@ -654,7 +654,8 @@ def _sample_screen(draw: Draw) -> dict[str, Any]:
         "cct_k": draw.uniform(5500.0, 9000.0),
         "locus": "daylight",
     }
-    key["irradiance_klux"] = _light_irradiance(key, luminance * _color(key) / float(_color(key) @ _LUMA))
+    rgb = _color(key)
+    key["irradiance_klux"] = _light_irradiance(key, luminance * rgb / float(rgb @ _LUMA))
     camera = [0.0, 0.0, distance]
     room = _room(draw, "home", [camera, key["position_m"]])
     return {

@@ -60,7 +60,7 @@ from kornia_ilum.core.errors import HDRIOError, IlumError, TypeCheckError, Value
 from kornia_ilum.core.files import atomic_write, sha256_file
 from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
 from kornia_ilum_lab.synth.lightstage.olat import render_olat
-from kornia_ilum_lab.synth.lightstage.scene import Camera, sample_views
+from kornia_ilum_lab.synth.lightstage.scene import FACE_FRACTION, Camera, sample_views
 from kornia_ilum_lab.synth.lightstage.settings import Auto, OnePass, Reference
 from kornia_ilum_lab.synth.lightstage.subjects import subject_source
 
@@ -146,21 +146,28 @@ class SampledViews:
     Args:
         per_subject: views per subject.
         size: the image side.
+        fraction: the face-landmark box's height over the image height (:data:`~.scene.FACE_FRACTION`, 0.5);
+            smaller shows more of the body and of what is around it.
 
     Raises:
-        ValueCheckError: a count or size that is not positive.
+        ValueCheckError: a count or size that is not positive, a fraction outside ``(0, 1)``.
 
     Examples:
         >>> SampledViews(2, size=64).label
         'sample_views(n=2)'
+        >>> SampledViews(2, size=64, fraction=0.25).label
+        'sample_views(n=2, fraction=0.25)'
     """
 
     per_subject: int = 4
     size: int = 192
+    fraction: float = FACE_FRACTION
 
     def __post_init__(self) -> None:
         check_positive_int(self.per_subject, "views_per_subject")
         check_positive_int(self.size, "size")
+        if not 0.0 < self.fraction < 1.0:
+            raise ValueCheckError(f"fraction must be in (0, 1), got {self.fraction!r}")
 
     @property
     def count(self) -> int:
@@ -170,7 +177,8 @@ class SampledViews:
     @property
     def label(self) -> str:
         """The manifest's ``views`` setting."""
-        return f"sample_views(n={self.per_subject})"
+        more = f", fraction={self.fraction:g}" if self.fraction != FACE_FRACTION else ""
+        return f"sample_views(n={self.per_subject}{more})"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -514,7 +522,8 @@ def _render_subjects(job: dict[str, Any], report: Any) -> None:
         subject_seconds = time.perf_counter() - t0
         views = job["views"]
         if isinstance(views, SampledViews):
-            cameras = sample_views(seed, views.per_subject, size=views.size, landmarks=subject.face_landmarks)
+            cameras = sample_views(seed, views.per_subject, size=views.size, landmarks=subject.face_landmarks,
+                                   fraction=views.fraction)
         else:
             cameras = list(views.cameras)
         for view in view_indices:

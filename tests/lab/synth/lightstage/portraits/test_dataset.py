@@ -28,6 +28,7 @@ from kornia_ilum_lab.synth.lightstage.portraits import (
     sphere_targets,
 )
 from kornia_ilum_lab.synth.lightstage.scene import Camera
+from kornia_ilum_lab.train.data import collate
 from tests.lab.synth.lightstage.portraits.common import OFF, OUT, S, small, uniform_sampler
 from tests.lab.synth.lightstage.spheres import ALBEDO
 
@@ -401,6 +402,31 @@ class TestSurroundings:
             assert not torch.equal(a["image"], b["image"])
         with pytest.raises(ValueCheckError, match="surroundings"):
             PortraitConfig(surroundings=-0.1)
+
+
+class TestFrame:
+    def test_the_whole_frame_beside_the_crop(self) -> None:
+        """``frame=N`` gives the rendered frame shrunk to N pixels, mirrored and exposed as the crop, with the
+        face box in its pixels; every other field is what it was without it."""
+        kw = {"split": None, "camera": OFF, "size": 32, "env_refresh": 2, "length": 8, "sphere_sizes": (4,),
+              "environments": uniform_sampler(), "crop_scale": 2.5, "flip_probability": 0.5}
+        base = list(small([_disc_field()], **kw))
+        whole = list(small([_disc_field()], frame=16, **kw))
+        assert any(w["flip"] for w in whole) and not all(w["flip"] for w in whole)
+        for a, b in zip(base, whole, strict=True):
+            assert "frame" not in a and b["frame"].shape == (3, 16, 16) and b["frame"].dtype == torch.uint8
+            for key in ("image", "mirror_ball", "crop_box", "face_box", "exposure"):
+                assert torch.equal(a[key], b[key])
+            side = _disc_field().size
+            torch.testing.assert_close(b["frame_box"], b["face_box"] * 16 / side)
+            # the face is where its box says: brighter inside the box than at the frame's corners under the sky
+            x0, y0, x1, y1 = b["frame_box"].round().long().tolist()
+            face = b["frame"][:, max(y0, 0):y1, max(x0, 0):x1].float().mean()
+            assert face > 0
+        batch = collate(whole)
+        assert batch["frame"].shape == (8, 3, 16, 16) and batch["frame_box"].shape == (8, 4)
+        with pytest.raises(ValueCheckError, match="frame"):
+            PortraitConfig(frame=-1)
 
 
 class TestPlainBackdrop:

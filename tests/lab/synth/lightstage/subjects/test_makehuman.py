@@ -8,7 +8,6 @@ import pickle
 
 import numpy as np
 import pytest
-
 from kornia_ilum_lab.synth.lightstage.subjects import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -19,6 +18,7 @@ from kornia_ilum_lab.synth.lightstage.subjects import (
 )
 from kornia_ilum_lab.synth.lightstage.subjects.makehuman import (
     _IRIS,
+    _OUTFITS,
     clean_alpha,
     clip_mesh_below,
     enamel_mask,
@@ -28,6 +28,8 @@ from kornia_ilum_lab.synth.lightstage.subjects.makehuman import (
     retint_teeth,
 )
 from kornia_ilum_lab.synth.lightstage.subjects.makehuman_assets import load_texture
+
+from kornia_ilum.core.errors import ValueCheckError
 
 
 def test_retint_keeps_detail_and_hits_target(mh):
@@ -202,3 +204,63 @@ def test_source_pickles_to_worker_processes(mh):
     assert copy.root == mh.root and copy._assets is None
     a, b = copy.sample(5), mh.sample(5)
     assert a.params == b.params and np.array_equal(a.parts[0].vertices, b.parts[0].vertices)
+
+
+class TestClothes:
+    """``MakeHumanSource(clothes=True, cut_below_chin=...)``: the CC0 outfits, and a lower cut."""
+
+    _dressed: dict = {}
+
+    @pytest.fixture
+    def dressed(self, mh):
+        """One dressed source per root (its assets are parsed once)."""
+        return self._dressed.setdefault(mh.root, MakeHumanSource(mh.root, clothes=True))
+
+    def test_outfit_is_bound_cut_and_drawn_apart(self, mh, dressed):
+        bare, s = mh.sample(11), dressed.sample(11)
+        assert s.source == "makehuman+clothes" and bare.source == "makehuman"
+        # its own stream: every other choice of the subject is what it was
+        assert {k: v for k, v in s.params.items() if k != "clothes"} == bare.params
+        c = s.params["clothes"]
+        assert c["outfit"] in _OUTFITS["male"] + _OUTFITS["female"]
+        assert all(0.0 < x < 0.95 for x in c["albedo"])
+        cloth = s.part("clothes")
+        assert cloth.material.kind == "diffuse" and cloth.material.albedo == tuple(c["albedo"])
+        assert cloth.vertices[:, 1].min() >= s.params["cut_y"] - 1e-5
+        assert cloth.vertices[:, 1].min() <= s.params["cut_y"] + 1e-5  # cut at the plane, not above it
+        np.testing.assert_allclose(np.linalg.norm(cloth.normals, axis=1), 1.0, atol=1e-4)
+        # the skin under the cloth is hidden; the face is not
+        assert len(s.part("skin").faces) < len(bare.part("skin").faces)
+        np.testing.assert_array_equal(s.face_landmarks, bare.face_landmarks)
+        # outward: the cloth's normal at its most forward point faces the camera
+        i = np.argmax(cloth.vertices[:, 2])
+        assert cloth.normals[i, 2] > 0.3
+
+    def test_outfits_follow_sex_mostly(self, dressed):
+        picks = [(dressed.params(seed)["gender"] >= 0.5, dressed.params(seed)["clothes"]["outfit"])
+                 for seed in range(40)]
+        own = np.mean([outfit.startswith("male_" if male else "female_") for male, outfit in picks])
+        assert 0.6 <= own <= 0.97
+
+    def test_lower_cut_and_its_name(self, mh):
+        low = MakeHumanSource(mh.root, clothes=True, cut_below_chin=0.6)
+        assert low.name == "makehuman+clothes+cut0.60"
+        s = low.sample(11)
+        skin = s.part("skin")
+        chin = dict(zip(LANDMARK_NAMES, s.face_landmarks))["chin"][1]
+        assert abs(s.params["cut_y"] - (chin - 0.6)) < 1e-3
+        assert skin.vertices[:, 1].min() >= s.params["cut_y"] - 1e-5
+        assert s.part("clothes").vertices[:, 1].min() < chin - 0.55
+        copy = pickle.loads(pickle.dumps(low))
+        assert (copy.clothes, copy.cut_below_chin, copy.name) == (True, 0.6, low.name)
+        assert "cut_below_chin=0.6" in repr(copy)
+
+    @pytest.mark.parametrize("cut", [0.05, 1.5])
+    def test_cut_out_of_range(self, mh, cut):
+        with pytest.raises(ValueCheckError, match="cut_below_chin"):
+            MakeHumanSource(mh.root, cut_below_chin=cut)
+
+    def test_subject_source_options(self, mh):
+        assert subject_source("makehuman", assets=str(mh.root), clothes=True).name == "makehuman+clothes"
+        with pytest.raises(ValueCheckError, match="no options"):
+            subject_source("mannequin", clothes=True)

@@ -158,6 +158,13 @@ class PortraitConfig:
             them where the camera sees them (:func:`~kornia_ilum_lab.synth.surroundings.surroundings_view`); not
             with a plain backdrop. ``sample["surroundings"]`` says which. Drawn from a stream of its own, so
             every other draw of a sample is what it was without the option.
+        frame: also give the whole rendered frame around each sample's crop, shrunk to ``frame`` pixels a side
+            (area-averaged), exposed by the crop's exposure and through the same camera without its per-pixel
+            effects (no sensor noise, lens blur or JPEG, which the shrinking averages away), mirrored and with the
+            colour look as the crop: ``sample["frame"]`` ``(3, frame, frame)`` uint8 sRGB codes and
+            ``sample["frame_box"]`` ``(4,)``, the face box in its pixels (the scene branch's input,
+            :func:`kornia_ilum.estimators.scene.scene_input`). It draws nothing: 0 (off) or not, every other
+            field of a sample is the same, bit for bit.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -205,6 +212,7 @@ class PortraitConfig:
     colour_looks: float = 0.0
     linear_response: float = 0.0
     surroundings: float = 0.0
+    frame: int = 0
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
     crop_position: float = 0.06
@@ -251,6 +259,8 @@ class PortraitConfig:
         _probability(self.colour_looks, "colour_looks")
         _probability(self.linear_response, "linear_response")
         _probability(self.surroundings, "surroundings")
+        if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
+            raise ValueCheckError(f"frame must be a non-negative int (0: off), got {self.frame!r}")
         _pair(self.plain_level, "plain_level", 0.0, strict=True)
         object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
@@ -664,11 +674,17 @@ class PortraitDataset(IterableDataset):
                                         rooms=None if rooms is None else rooms[rows]))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
-            image, truth, gain = (torch.cat(parts) for parts in zip(*out, strict=True))
+            image, truth, gain, *whole = (torch.cat(parts) for parts in zip(*out, strict=True))
             views.append({"image": image, "mirror_ball": truth, "exposure": gain,
                           "spheres": sphere_targets(truth, cfg.sphere_sizes),
                           "label": [e.label for e in envs], "source": [e.source for e in envs],
                           "background_blur": blur.float(), "camera": {k: v.float() for k, v in fx.items()}})
+            if whole:
+                views[-1]["frame"] = whole[0]
+        frame_boxes = None
+        if cfg.frame:
+            sides = torch.tensor([float(self.fields[f].size) for f in field_ids]).repeat_interleave(nl)
+            frame_boxes = torch.cat(faces).float() * (cfg.frame / sides)[:, None]
         boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
         second = None
         if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
@@ -678,6 +694,8 @@ class PortraitDataset(IterableDataset):
         if cfg.colour_looks > 0:  # drawn after everything else, and only when asked for
             look = draw_looks(n, cfg.colour_looks, g)
             for view in views:
+                if "frame" in view:  # the same look on the whole frame (its lighting target is the crop's)
+                    view["frame"], _ = apply_looks(view["frame"], view["mirror_ball"], look)
                 view["image"], view["mirror_ball"] = apply_looks(view["image"], view["mirror_ball"], look)
                 view["spheres"] = sphere_targets(view["mirror_ball"], cfg.sphere_sizes)
         samples = []
@@ -698,6 +716,8 @@ class PortraitDataset(IterableDataset):
             }
             if rooms is not None:
                 sample["surroundings"] = rooms[j] is not None
+            if frame_boxes is not None:
+                sample["frame_box"] = frame_boxes[j]
             if cfg.pairs:
                 sample["pair"] = one[1]
             if second is not None:
@@ -733,8 +753,9 @@ class PortraitDataset(IterableDataset):
                 key: torch.Tensor, effects: dict[str, torch.Tensor], g: torch.Generator,
                 backdrop: tuple[torch.Tensor, torch.Tensor] | None = None,
                 rooms: list[Surroundings | None] | None = None
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring).
+                ) -> tuple[torch.Tensor, ...]:
+        """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring), and
+        the whole frame (``PortraitConfig.frame``) where asked for.
 
         ``backgrounds`` are :meth:`_background` pairs (pyramid, direction map) or ``None`` (black);
         ``backdrop`` is ``(plain, colour)``: the samples whose background is replaced by a plain backdrop of
@@ -779,4 +800,10 @@ class PortraitDataset(IterableDataset):
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)
         noise = self._noise(len(linear), size, g, bool((effects["noise"] > 0).any()))
         image = cfg.camera.apply(linear, effects, noise=noise, gain=gain)  # exposes, fused with the effects
-        return image, lighting * gain[:, None, None, None].to(lighting), gain.float()
+        out = (image, lighting * gain[:, None, None, None].to(lighting), gain.float())
+        if not cfg.frame:
+            return out
+        whole = torch.nn.functional.interpolate(frame, size=(cfg.frame, cfg.frame), mode="area")
+        whole = torch.where(flip[:, None, None, None], whole.flip(-1), whole)
+        calm = {**effects, **{k: torch.zeros_like(effects[k]) for k in ("noise", "blur", "jpeg")}}
+        return (*out, cfg.camera.apply(whole.contiguous(), calm, gain=gain))

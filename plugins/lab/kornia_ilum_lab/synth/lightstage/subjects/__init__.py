@@ -3,6 +3,8 @@
 :func:`subject_source` picks a source by name; both give :class:`Subject` objects that every renderer takes.
 """
 
+from typing import Any
+
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.synth.lightstage.subjects.base import (
     LANDMARK_NAMES,
@@ -14,17 +16,22 @@ from kornia_ilum_lab.synth.lightstage.subjects.base import (
     SubjectSource,
     subject_split,
 )
-from kornia_ilum_lab.synth.lightstage.subjects.makehuman import MakeHumanAssetsNotFoundError, MakeHumanSource
+from kornia_ilum_lab.synth.lightstage.subjects.makehuman import (
+    MakeHumanAssetsNotFoundError,
+    MakeHumanSource,
+    find_makehuman_root,
+)
 from kornia_ilum_lab.synth.lightstage.subjects.mannequin import MannequinSource, make_subject, subject_params
 
 
-def subject_source(name: str, assets: str | None = None) -> SubjectSource:
+def subject_source(name: str, assets: str | None = None, **options: Any) -> SubjectSource:
     """The subject source called ``name``: ``"makehuman"`` (photoreal, needs the assets) or ``"mannequin"``.
 
     Args:
         name: ``"makehuman"`` or ``"mannequin"``.
         assets: the MakeHuman data root for ``"makehuman"`` (default: ``$KORNIA_ILUM_MAKEHUMAN``, else
             ``$KORNIA_ILUM_SHARED_DATA/makehuman``); unused by ``"mannequin"``.
+        options: :class:`MakeHumanSource`'s options (``clothes``, ``cut_below_chin``); ``"mannequin"`` takes none.
 
     Returns:
         The source (parsing is deferred to its first ``sample``).
@@ -38,9 +45,11 @@ def subject_source(name: str, assets: str | None = None) -> SubjectSource:
         'mannequin'
     """
     if name == "mannequin":
+        if options:
+            raise ValueCheckError(f"the mannequins take no options, got {sorted(options)}")
         return MannequinSource()
     if name == "makehuman":
-        return MakeHumanSource.from_assets(assets)
+        return MakeHumanSource(find_makehuman_root(assets), **options)
     raise ValueCheckError(f"unknown subject source {name!r}; expected 'makehuman' or 'mannequin'")
 
 

@@ -7,8 +7,9 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
    ``modeling_modifiers.json`` (values ``N(0, 0.3)`` clipped to ``[-0.8, 0.8]``, left/right pairs mirrored) and,
    for about half the subjects, a few expression units with small weights (smile, brow raise, a slightly open
    mouth, squint). Targets apply to the whole mesh, helpers included (the proxies bind to helper vertices).
-2. Cut: the ``body`` group's head, neck and shoulders down to a horizontal plane 21 cm below the chin; the
-   triangles crossing the plane are clipped, so the border is a straight triangulated line on the plane.
+2. Cut: the ``body`` group's head, neck and shoulders down to a horizontal plane 21 cm below the chin (the
+   source's ``cut_below_chin``; lower for whole-photo framings); the triangles crossing the plane are clipped, so
+   the border is a straight triangulated line on the plane.
 3. UVs: vertices are split at UV seams (one UV per vertex); normals are the area-weighted smooth normals of the
    unsplit mesh, so seams do not show.
 4. Skin: one of the 18 albedo maps (age and sex matched, of the tone family nearer the target), decoded to
@@ -29,7 +30,12 @@ r"""Photoreal light-stage subjects from the CC0 MakeHuman 1.1 assets (hm08 base 
 6. Accessories (:mod:`~kornia_ilum_lab.synth.lightstage.subjects.makehuman_accessories`), drawn after every other
    choice so that those stay as they were: glasses, for men a stubble, moustache, goatee or beard, and a beanie
    (short hair under it).
-7. Frame: metres, the axes of docs/conventions.rst (+Y up, +Z toward the camera), the eyes' centres at
+7. Clothes, for a source built with ``clothes=True``: one of MakeHuman's 12 CC0 outfits (of the subject's sex
+   four times in five) bound like the proxies, cut at the same plane, with the skin under it hidden, and a matte
+   cloth of a measured fabric's albedo (black cotton 0.015 to white 0.75, or a saturated dye;
+   :func:`~kornia_ilum_lab.synth.lightstage.subjects.fabric_colour`), drawn from its own stream so that every
+   other choice stays as it was. The outfits ship without textures: the cloth is uniform.
+8. Frame: metres, the axes of docs/conventions.rst (+Y up, +Z toward the camera), the eyes' centres at
    ``y = 0``, ``z = 0.066``.
 
 The assets are parsed once per source, lazily (targets on first use), and cached as sparse offsets.
@@ -45,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum_lab.synth.lightstage.subjects.base import (
     LANDMARK_NAMES,
     SKIN_ALBEDO,
@@ -52,26 +59,9 @@ from kornia_ilum_lab.synth.lightstage.subjects.base import (
     Material,
     MeshPart,
     Subject,
+    fabric_colour,
     seed_digest,
     subject_split,
-)
-from kornia_ilum_lab.synth.lightstage.subjects.makehuman_assets import (
-    ETHNICITIES,
-    MakeHumanAssetsNotFoundError,
-    ObjMesh,
-    Proxy,
-    bind_proxy,
-    load_texture,
-    macro_target_weights,
-    read_mhclo,
-    read_mhmat,
-    read_modifier_pairs,
-    read_obj,
-    opaque_faces,
-    raster_uv_mask,
-    read_target,
-    vertex_normals,
-    years_to_age,
 )
 from kornia_ilum_lab.synth.lightstage.subjects.makehuman_accessories import (
     accessory_params,
@@ -81,6 +71,24 @@ from kornia_ilum_lab.synth.lightstage.subjects.makehuman_accessories import (
     glasses_parts,
     inside_beanie,
     uv_weight_map,
+)
+from kornia_ilum_lab.synth.lightstage.subjects.makehuman_assets import (
+    ETHNICITIES,
+    MakeHumanAssetsNotFoundError,
+    ObjMesh,
+    Proxy,
+    bind_proxy,
+    load_texture,
+    macro_target_weights,
+    opaque_faces,
+    raster_uv_mask,
+    read_mhclo,
+    read_mhmat,
+    read_modifier_pairs,
+    read_obj,
+    read_target,
+    vertex_normals,
+    years_to_age,
 )
 
 __all__ = [
@@ -119,6 +127,16 @@ LANDMARK_VERTICES: dict[str, int] = {
 _DETAIL_GROUPS = ("head", "forehead", "eyebrows", "eyes", "nose", "mouth", "ears", "chin", "cheek", "neck")
 _EYE_Z = 0.066  # the eyes' centres, like the mannequins'
 _CUT_BELOW_CHIN = 0.21  # metres
+#: The lowest cut (metres below the chin): the hands hang about 0.5 m below it, the hips 0.6 m.
+_DEEPEST_CUT = 1.0
+#: MakeHuman's CC0 outfits (``clothes/``), by the sex they were made for.
+_OUTFITS = {
+    "female": ("female_casualsuit01", "female_casualsuit02", "female_elegantsuit01", "female_sportsuit01"),
+    "male": ("male_casualsuit01", "male_casualsuit02", "male_casualsuit03", "male_casualsuit04",
+             "male_casualsuit05", "male_casualsuit06", "male_elegantsuit01", "male_worksuit01"),
+}  # fmt: skip
+#: The share of dyed (saturated) cloth among the outfits; the rest are the measured neutrals.
+_DYED_CLOTH = 0.35
 _HAIR_STYLES = ("short01", "short02", "short03", "short04", "bob02", "afro01")
 #: The styles whose fringe sweeps over an eye unless trimmed (``params["fringe"] == "trimmed"``).
 SWEPT_FRINGE_STYLES = ("short03", "bob02")
@@ -485,10 +503,20 @@ def clean_alpha(alpha: np.ndarray, lo: float = 0.2, hi: float = 0.6) -> np.ndarr
 # --------------------------------------------------------------------------------------------------------
 
 
+def _clothes_params(seed: int, male: bool) -> dict:
+    """The outfit and its cloth of subject ``seed``, from their own stream (module docstring, step 7)."""
+    rng = np.random.default_rng(seed_digest(seed, "clothes"))
+    own, other = ("male", "female") if male else ("female", "male")
+    outfits = _OUTFITS[own if rng.random() < 0.8 else other]
+    fabric, albedo = fabric_colour(rng, saturated_p=_DYED_CLOTH)
+    return {"outfit": str(outfits[int(rng.integers(len(outfits)))]), "fabric": fabric,
+            "albedo": [round(float(x), 5) for x in albedo]}
+
+
 class _Assets:
     """Everything parsed once: the base mesh, targets (lazily), proxies, textures and the UV masks."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, cut_below_chin: float = _CUT_BELOW_CHIN) -> None:
         self.root = root
         self.lock = threading.RLock()
         self.base: ObjMesh = read_obj(root / "3dobjs" / "base.obj")
@@ -512,7 +540,7 @@ class _Assets:
         v0 = self.base.vertices
         # Keep only what can be above any cut (the chin rises at most a few cm with the targets).
         chin = v0[LANDMARK_VERTICES["chin"], 1]
-        near = (v0[tri_v, 1] > chin - 10 * _CUT_BELOW_CHIN - 1.2).any(1)
+        near = (v0[tri_v, 1] > chin - 10 * cut_below_chin - 1.2).any(1)
         sb, st, sf = _split_uv(tri_v[near], tri_t[near])
         self.split_base, self.split_uv, self.split_faces = sb, self.base.uvs[st], sf
         # Face region (for the skin re-tint): the front of the head between brows and chin, inside the jaw.
@@ -611,9 +639,17 @@ class MakeHumanSource:
 
     Args:
         root: the MakeHuman data root (the folder with ``3dobjs/base.obj``).
+        clothes: dress every subject in one of the CC0 outfits (module docstring, step 7).
+        cut_below_chin: the bust's cut, metres below the chin (0.21; at most 1.0, for framings that show the
+            body down to the hips).
+
+    Its :attr:`name` (:attr:`Subject.source` and the caches' ``source`` setting) is ``"makehuman"`` with the
+    defaults, and says what differs otherwise (``"makehuman+clothes"``, ``"makehuman+clothes+cut0.60"``), so that
+    a cache never mixes subjects built two ways.
 
     Raises:
         MakeHumanAssetsNotFoundError: ``root`` has no ``3dobjs/base.obj``.
+        ValueCheckError: ``cut_below_chin`` outside ``[0.1, 1.0]``.
 
     Examples:
         >>> import tempfile
@@ -626,10 +662,14 @@ class MakeHumanSource:
         >>> subject = MakeHumanSource.from_assets().sample(1)  # with the CC0 assets  # doctest: +SKIP
     """
 
-    name = "makehuman"
-
-    def __init__(self, root: str | Path) -> None:
+    def __init__(self, root: str | Path, *, clothes: bool = False, cut_below_chin: float = _CUT_BELOW_CHIN) -> None:
+        if not 0.1 <= cut_below_chin <= _DEEPEST_CUT:
+            raise ValueCheckError(f"cut_below_chin must be in [0.1, {_DEEPEST_CUT}] m, got {cut_below_chin!r}")
         self.root = find_makehuman_root(root)
+        self.clothes = bool(clothes)
+        self.cut_below_chin = float(cut_below_chin)
+        self.name = "makehuman" + ("+clothes" if self.clothes else "") + (
+            f"+cut{self.cut_below_chin:.2f}" if self.cut_below_chin != _CUT_BELOW_CHIN else "")
         self._assets: _Assets | None = None
         self._lock = threading.Lock()
 
@@ -648,18 +688,22 @@ class MakeHumanSource:
         """The parsed assets (parsed on first use)."""
         with self._lock:
             if self._assets is None:
-                self._assets = _Assets(self.root)
+                self._assets = _Assets(self.root, self.cut_below_chin)
             return self._assets
 
     def __getstate__(self) -> dict:
-        """Pickle only the root: a worker process parses the assets itself (and a lock does not pickle)."""
-        return {"root": self.root}
+        """Pickle only the root and the options: a worker process parses the assets itself (and a lock does not
+        pickle)."""
+        return {"root": self.root, "clothes": self.clothes, "cut_below_chin": self.cut_below_chin}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["root"])
+        self.__init__(state["root"], clothes=state.get("clothes", False),
+                      cut_below_chin=state.get("cut_below_chin", _CUT_BELOW_CHIN))
 
     def __repr__(self) -> str:
-        return f"MakeHumanSource({str(self.root)!r})"
+        options = (", clothes=True" if self.clothes else "") + (
+            f", cut_below_chin={self.cut_below_chin}" if self.cut_below_chin != _CUT_BELOW_CHIN else "")
+        return f"MakeHumanSource({str(self.root)!r}{options})"
 
     # ----------------------------------------------------------------------------------------------------
     def params(self, seed: int) -> dict:
@@ -740,6 +784,8 @@ class MakeHumanSource:
         params["fringe"] = "swept" if rng.random() < 0.25 else "trimmed"
         if params["hat"] != "none" and hair in ("bob02", "afro01"):
             params["hair"] = "short01"  # what shows of such hair under a beanie
+        if self.clothes:
+            params["clothes"] = _clothes_params(seed, male=gender >= 0.5)
         return params
 
     def _skin_texture(self, p: dict) -> Path:
@@ -813,7 +859,7 @@ class MakeHumanSource:
         normals = vertex_normals(v, a.body_tri)
         faces = a.split_faces
         deleted = np.zeros(a.nv, bool)
-        y_cut = float(vm[LANDMARK_VERTICES["chin"], 1] - _CUT_BELOW_CHIN)
+        y_cut = float(vm[LANDMARK_VERTICES["chin"], 1] - self.cut_below_chin)
         sv = vm[a.split_base]
         sn = normals[a.split_base]
         # Nudge the plane off any vertex exactly on it (no zero-length clipped edges).
@@ -906,7 +952,9 @@ class MakeHumanSource:
                                            albedo_texture=rgb, subsurface=kind == "skin"),
                                   vertex_normals(pv, f).astype(np.float32), np.clip(uv, 0, 1).astype(np.float32)))  # fmt: skip
 
-        # Skin, after the proxies (their delete_verts hide base vertices).
+        if "clothes" in p:
+            parts.append(self._clothes(p["clothes"], v, shift, y_cut, deleted))
+        # Skin, after the proxies and clothes (their delete_verts hide base vertices).
         if deleted.any():
             faces = faces[~deleted[a.split_base[faces]].any(1)]
         cv_, cf_, (cuv, cn) = clip_mesh_below(sv, faces, y_cut, [a.split_uv, sn])
@@ -934,9 +982,22 @@ class MakeHumanSource:
             skin_tone=p["skin_tone"],
             face_landmarks=landmarks,
             params=params,
-            source="makehuman",
+            source=self.name,
             face_albedo=face_albedo,
         )
+
+    def _clothes(self, c: dict, v: np.ndarray, shift: np.ndarray, y_cut: float, deleted: np.ndarray) -> MeshPart:
+        """The outfit of ``c`` (:func:`_clothes_params`) bound to the morphed mesh ``v`` (decimetres), cut at
+        ``y_cut``; marks the skin it covers in ``deleted``."""
+        px = self.assets.proxy(f"clothes/{c['outfit']}/{c['outfit']}.mhclo")
+        deleted[px.delete_verts] = True
+        cv = 0.1 * bind_proxy(px, v) + shift
+        chest = np.array([0.0, y_cut, -0.03])  # inside the torso: the winding faces away from it
+        cf = _orient_outward(cv, px.mesh.tri_v, chest)
+        cv, cf, (cn,) = clip_mesh_below(cv, cf, y_cut, [vertex_normals(cv, cf)])
+        cn /= np.maximum(np.linalg.norm(cn, axis=1, keepdims=True), 1e-12)
+        return MeshPart("clothes", cv.astype(np.float32), cf.astype(np.int32),
+                        Material("diffuse", tuple(c["albedo"])), cn.astype(np.float32))
 
     def _accessories(self, p: dict, parts: list[MeshPart], *, lm: dict[str, np.ndarray], eye_centres: list,
                      hair_rgb: np.ndarray, seed: int) -> list[MeshPart]:  # fmt: skip

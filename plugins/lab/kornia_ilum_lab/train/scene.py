@@ -1,0 +1,125 @@
+r"""The scene branch's recipe: ``kornia-ilum train --estimator scene`` trains
+:class:`~kornia_ilum.estimators.scene.SceneStrength`, the light's strength from the whole photo.
+
+Each training portrait comes with its whole rendered frame (``PortraitConfig.frame``, at
+:data:`~kornia_ilum.estimators.scene.SCENE_SIZE` pixels) and the face's box in it; the network reads the frame
+(letterboxed, the box as a fourth channel, :func:`~kornia_ilum.estimators.scene.scene_input`), exposed by the
+face crop's metering, and is trained by the negative log-likelihood of the true log energy per channel under a
+Laplace distribution of its predicted spread,
+
+.. math::
+
+    \frac{1}{3} \sum_c \frac{|\log E_c - \hat e_c|}{b} + \log b,
+
+so that the spread is the network's own honest doubt: wide where the frame shows nothing the light falls on
+besides the face (a plain backdrop), narrow where a wall, a floor or clothes tell the light's strength apart from
+the skin's. The face network is not part of it: its estimate and the scene's are fused at inference by their
+spreads (:func:`~kornia_ilum.estimators.scene.fuse_strength`), so each is trained on its own. What the frame
+shows is the data's choice: ``--data surroundings=P`` (walls and floors), and caches rendered with clothes and
+wider views (``kornia-ilum synth subjects --clothes --face-fraction F``, docs/lightstage.rst).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import safetensors.torch
+import torch
+from torch import nn
+
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.core.files import atomic_write, sha256_file
+from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength, scene_input
+from kornia_ilum.metrics import total_radiance
+from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
+from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
+from kornia_ilum_lab.train.recipes import Recipe, batch_images
+
+__all__ = ["SceneRecipe", "scene_batch", "scene_nll"]
+
+
+def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    r"""``(frames, crops, log_energy)`` of a collated batch with frames: the network's input, the crops that meter
+    its exposure and the true log energy per channel.
+
+    Shape:
+        - Output: :math:`(B, 4, S, S)`, :math:`(B, 3, 256, 256)`, :math:`(B, 3)`
+    """
+    frames = batch["frame"].to(device).float() / 255.0
+    boxes = batch["frame_box"].to(device).float()
+    x = scene_input(frames, boxes, torch.arange(len(frames), device=device), size=frames.shape[-1])
+    crops = batch_images(batch, "image", device, torch.contiguous_format)
+    truth = torch.log(total_radiance(batch["mirror_ball"].to(device).float()).clamp(min=1e-12))
+    return x, crops, truth
+
+
+def scene_nll(log_energy: torch.Tensor, spread: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
+    r"""The Laplace negative log-likelihood of the module docstring, averaged over the batch.
+
+    Examples:
+        >>> round(scene_nll(torch.zeros(1, 3), torch.ones(1), torch.ones(1, 3)).item(), 4)  # |1 - 0| / 1 + log 1
+        1.0
+    """
+    return ((truth - log_energy).abs().mean(1) / spread + torch.log(spread)).mean()
+
+
+class SceneRecipe(Recipe):
+    """``scene``: :class:`~kornia_ilum.estimators.scene.SceneStrength` on whole frames (module docstring).
+
+    It takes no model options, no adversarial term and none of ``ours``' terms; its spread is its own NLL's, so
+    the export's calibrations (``--fit-spread``, ``--calibrate-energy``) do not apply. Its weights are written in
+    float32 (0.8 MB).
+
+    Examples:
+        >>> recipe = SceneRecipe()
+        >>> model, disc = recipe.build()
+        >>> type(model).__name__, disc, recipe.estimator(model) is model
+        ('SceneStrength', None, True)
+    """
+
+    name = "scene"
+    log_fields = ("spread",)
+
+    def build(self, **options: Any) -> tuple[nn.Module, None]:
+        if options:
+            raise ValueCheckError(f"the scene branch takes no model options, got {sorted(options)}")
+        return SceneStrength(), None
+
+    def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
+        """The portraits with their whole frames at :data:`~kornia_ilum.estimators.scene.SCENE_SIZE`."""
+        config = dataclasses.replace(dataset.config, frame=SCENE_SIZE)
+        return type(dataset)(dataset.fields, config, seed=dataset.seed)
+
+    def calibration_dataset(self, dataset: PortraitDataset) -> PortraitDataset:
+        raise ValueCheckError("the scene branch's spread is its own NLL's: train it without --fit-spread, "
+                              "--calibrate-energy and --calibrate-colour")
+
+    def estimator(self, model: nn.Module) -> nn.Module:
+        return model
+
+    def step(self, *, model: nn.Module, disc: nn.Module | None, opt_g: torch.optim.Optimizer,
+             opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
+             config: TrainConfig, runtime: RuntimeSettings) -> dict[str, torch.Tensor]:
+        """One step of :func:`scene_nll`; ``rec`` is the mean absolute error of the log energy (natural log)."""
+        x, crops, truth = scene_batch(batch, device)
+        log_energy, spread = model(x, crops)
+        loss = scene_nll(log_energy, spread, truth)
+        opt_g.zero_grad(set_to_none=True)
+        loss.backward()
+        opt_g.step()
+        zero = torch.zeros(())
+        return {"loss": loss.detach(), "rec": (truth - log_energy).abs().mean().detach(), "adv": zero,
+                "disc": zero, "extra": zero, "spread": spread.mean().detach()}
+
+    def export(self, estimator: nn.Module, path: Path, probe: dict[str, Any]) -> dict[str, Any]:
+        """float32 weights, and the mean absolute log-energy error and mean spread on the probe."""
+        tensors = {k: v.detach().float().contiguous() for k, v in estimator.state_dict().items()}
+        atomic_write(path, lambda tmp: safetensors.torch.save_file(tensors, str(tmp)))
+        with torch.no_grad():
+            x, crops, truth = scene_batch(probe, torch.device("cpu"))
+            log_energy, spread = estimator(x, crops)
+        return {"file": path.name, "sha256": sha256_file(path), "dtype": "float32",
+                "log_energy_error_probe": float((truth - log_energy).abs().mean()),
+                "spread_probe": float(spread.mean())}

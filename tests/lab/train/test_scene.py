@@ -1,0 +1,54 @@
+"""kornia_ilum_lab.train.scene: the scene branch's recipe trains, logs, exports and refuses what does not apply."""
+
+from __future__ import annotations
+
+import pytest
+import safetensors.torch
+import torch
+
+import kornia_ilum_lab.train.recipes as recipes
+from kornia_ilum.core.errors import ValueCheckError
+from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
+from kornia_ilum_lab.train import TrainConfig, read_log, train
+from kornia_ilum_lab.train.recipes import get_recipe
+from kornia_ilum_lab.train.scene import SceneRecipe, scene_nll
+from tests.lab.train.helpers import small_data
+
+
+def test_nll_is_lowest_at_the_error_and_the_spread_that_fit():
+    truth = torch.zeros(4, 3)
+    error = torch.full((4, 3), 0.5)
+    at = {b: scene_nll(error, torch.full((4,), b), truth).item() for b in (0.25, 0.5, 1.0)}
+    assert at[0.5] < at[0.25] and at[0.5] < at[1.0]  # the Laplace scale's optimum is the mean absolute error
+
+
+def test_registered_and_strict():
+    assert isinstance(get_recipe("scene"), SceneRecipe)
+    with pytest.raises(ValueCheckError, match="no model options"):
+        SceneRecipe().build(spread_head=True)
+
+
+@pytest.mark.slow  # the tiny_cache fixture renders with Mitsuba; the test trains
+def test_trains_logs_and_exports(tiny_cache, tmp_path, monkeypatch):
+    monkeypatch.setattr(recipes, "PROBE_SIZE", 2)
+    threads = torch.get_num_threads()
+    config = TrainConfig(estimator="scene", out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=2, batch=2,
+                         workers=0, threads=1, bf16=False, log_every=1, data={**small_data(), "surroundings": 0.5})
+    try:
+        summary = train(config)
+        again = train(config)  # complete: resumed at its end, the same file
+        with pytest.raises(ValueCheckError, match="own NLL"):
+            train(TrainConfig(estimator="scene", out=str(tmp_path / "fit"), cache=(str(tiny_cache),), steps=0,
+                              init=str(tmp_path / "run" / "scene.safetensors"), fit_spread=4, workers=0,
+                              threads=1, data=small_data()))
+    finally:
+        torch.set_num_threads(threads)
+    w = summary["weights"]
+    assert w["file"] == "scene.safetensors" and w["dtype"] == "float32" and w["spread_probe"] > 0
+    assert again["weights"]["sha256"] == w["sha256"]
+    net = SceneStrength()
+    net.load_state_dict(safetensors.torch.load_file(tmp_path / "run" / "scene.safetensors"), strict=True)
+    rows = read_log(tmp_path / "run")
+    assert len(rows) == 2 and "spread" in rows[0] and "rec_diffuse" not in rows[0]
+    assert all(r["rec"] > 0 for r in rows)
+    assert summary["config"]["estimator"] == "scene" and SCENE_SIZE == 128
