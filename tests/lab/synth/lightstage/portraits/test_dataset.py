@@ -290,13 +290,14 @@ class TestEnvironmentBackground:
         assert err < 0.15
 
 
-def _disc_field(seed: int = 7) -> ReflectanceField:
-    """A written-down 24 x 24 subject (no Mitsuba): a lit disc on black, with a ring of landmarks."""
+def _disc_field(seed: int = 7, gain: float = 1.0) -> ReflectanceField:
+    """A written-down 24 x 24 subject (no Mitsuba): a lit disc on black, with a ring of landmarks; ``gain`` times
+    as bright as a white sphere under the same light."""
     n = 24
     c = (torch.arange(n, dtype=torch.float64) + 0.5) / n * 2 - 1
     y, x = torch.meshgrid(-c, c, indexing="ij")
     alpha = ((x**2 + y**2) <= 0.6).float()[None]
-    field = (alpha.flatten()[None, :, None] * torch.full((3, 1, S * S), 1.0 / (S * S))).to(torch.bfloat16)
+    field = (alpha.flatten()[None, :, None] * torch.full((3, 1, S * S), gain / (S * S))).to(torch.bfloat16)
     ring = torch.arange(len(LANDMARK_NAMES)) * 2 * math.pi / len(LANDMARK_NAMES)
     landmarks = torch.stack([12 + 5 * ring.cos(), 13 + 6 * ring.sin()], -1)
     camera = Camera(30.0, 1.0, 0.0, 0.0, size=n)
@@ -427,6 +428,32 @@ class TestFrame:
         assert batch["frame"].shape == (8, 3, 16, 16) and batch["frame_box"].shape == (8, 4)
         with pytest.raises(ValueCheckError, match="frame"):
             PortraitConfig(frame=-1)
+
+
+class TestCompanions:
+    def test_a_second_person_beside_the_subject(self) -> None:
+        """``companions=1``: another subject stands beside each one, in the frame and under the same light; the
+        lighting target and every draw are what they were, and the sitter is never their own companion."""
+        kw = {"split": None, "camera": OFF, "size": 32, "env_refresh": 2, "length": 8, "sphere_sizes": (4,),
+              "environments": uniform_sampler(), "crop_scale": 2.5, "frame": 24}
+        fields = [_disc_field(7), _disc_field(8, gain=3.0)]  # the second brighter than the sky behind
+        base = list(small(fields, **kw))
+        group = list(small(fields, companions=1.0, **kw))
+        brighter = []
+        for a, b in zip(base, group, strict=True):
+            assert b["companion"] and "companion" not in a
+            for key in ("crop_box", "face_box", "flip", "subject_seed"):
+                assert torch.equal(torch.as_tensor(a[key]), torch.as_tensor(b[key]))
+            torch.testing.assert_close(a["mirror_ball"] / a["exposure"], b["mirror_ball"] / b["exposure"])
+            if a["subject_seed"] == 7:  # the bright one beside: more light in the frame, in the scene's units
+                radiance = [srgb_to_linear(x["frame"].float() / 255.0).mean() / x["exposure"] for x in (a, b)]
+                assert radiance[1] >= radiance[0] * (1 - 1e-4)
+                brighter.append(bool(radiance[1] > radiance[0] * (1 + 1e-3)))
+        assert any(brighter)  # some stand in view (0.3 to 0.5 m beside: at this framing, the frame's edge)
+        alone = list(small([_disc_field(7)], companions=1.0, **kw))  # nobody else in the set: nobody beside
+        assert not any(s["companion"] for s in alone)
+        with pytest.raises(ValueCheckError, match="companions"):
+            PortraitConfig(companions=1.5)
 
 
 class TestPlainBackdrop:

@@ -158,6 +158,14 @@ class PortraitConfig:
             them where the camera sees them (:func:`~kornia_ilum_lab.synth.surroundings.surroundings_view`); not
             with a plain backdrop. ``sample["surroundings"]`` says which. Drawn from a stream of its own, so
             every other draw of a sample is what it was without the option.
+        companions: the fraction of samples with a second person in the frame beside the subject (a group
+            photo: FAIR's design of several people under one light): another subject-view of the set, relit by
+            the same lighting, at the same distance, standing 0.3 to 0.5 m to the subject's side (centre to
+            centre, as people stand in a group photo), behind the subject where they overlap: at the light stage's
+            tight framing (the face half the frame's height) the companion is at the frame's edge; wider views
+            (``kornia-ilum synth subjects --face-fraction``) show them whole. The lighting target stays the environment's (the companion's shadow on the subject and the
+            light they block are left out). Not with a plain backdrop; ``sample["companion"]`` says which.
+            Drawn from a stream of its own, so every other draw of a sample is what it was without the option.
         frame: also give the whole rendered frame around each sample's crop, shrunk to ``frame`` pixels a side
             (area-averaged), exposed by the crop's exposure and through the same camera without its per-pixel
             effects (no sensor noise, lens blur or JPEG, which the shrinking averages away), mirrored and with the
@@ -212,6 +220,7 @@ class PortraitConfig:
     colour_looks: float = 0.0
     linear_response: float = 0.0
     surroundings: float = 0.0
+    companions: float = 0.0
     frame: int = 0
     flip_probability: float = 0.5
     crop_scale: float = CROP_SCALE
@@ -259,6 +268,7 @@ class PortraitConfig:
         _probability(self.colour_looks, "colour_looks")
         _probability(self.linear_response, "linear_response")
         _probability(self.surroundings, "surroundings")
+        _probability(self.companions, "companions")
         if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
             raise ValueCheckError(f"frame must be a non-negative int (0: off), got {self.frame!r}")
         _pair(self.plain_level, "plain_level", 0.0, strict=True)
@@ -644,6 +654,11 @@ class PortraitDataset(IterableDataset):
             rooms = draw_surroundings(n, cfg.surroundings, _generator(self.seed, worker, index, -3))
             if plain is not None:  # a plain backdrop is a studio's: no wall or floor besides
                 rooms = [None if p else r for r, p in zip(rooms, plain.tolist(), strict=True)]
+        mates: list[tuple[int, float] | None] | None = None
+        if cfg.companions > 0:  # from a stream of its own: every other draw stays what it was
+            mates = self._companions(n, field_ids, _generator(self.seed, worker, index, -4))
+            if plain is not None:  # a plain backdrop is a studio's: one sitter
+                mates = [None if p else m for m, p in zip(mates, plain.tolist(), strict=True)]
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)
@@ -671,7 +686,8 @@ class PortraitDataset(IterableDataset):
                 out.append(self._render(rf, latlong[rows], backgrounds=backgrounds, turn=turns[rows],
                                         blur=blur[rows], flip=flips[rows], boxes=boxes[-1], key=key[rows],
                                         effects=params, g=g, backdrop=backdrop,
-                                        rooms=None if rooms is None else rooms[rows]))
+                                        rooms=None if rooms is None else rooms[rows],
+                                        mates=None if mates is None else mates[rows]))
         views = []
         for out, (_, envs, _, _), blur, fx in zip(renders, lightings, blurs, effects, strict=True):
             image, truth, gain, *whole = (torch.cat(parts) for parts in zip(*out, strict=True))
@@ -716,6 +732,8 @@ class PortraitDataset(IterableDataset):
             }
             if rooms is not None:
                 sample["surroundings"] = rooms[j] is not None
+            if mates is not None:
+                sample["companion"] = mates[j] is not None
             if frame_boxes is not None:
                 sample["frame_box"] = frame_boxes[j]
             if cfg.pairs:
@@ -728,6 +746,46 @@ class PortraitDataset(IterableDataset):
                 sample["alpha"] = alphas[j // nl][j % nl]
             samples.append(sample)
         return samples
+
+    def _companions(self, n: int, field_ids: list[int], g: torch.Generator) -> list[tuple[int, float] | None]:
+        """Who stands beside each of ``n`` samples (``PortraitConfig.companions``): ``(field index, metres to the
+        right)`` or ``None``; never the sample's own subject."""
+        cfg = self.config
+        has = (torch.rand(n, generator=g) < cfg.companions).tolist()
+        picks = torch.randint(len(self.fields), (n,), generator=g).tolist()
+        shifts = (uniform_draws(n, 0.3, 0.5, g) * torch.where(torch.rand(n, generator=g) < 0.5, -1.0, 1.0)).tolist()
+        nl = cfg.lightings_per_field
+        out: list[tuple[int, float] | None] = []
+        for j in range(n):
+            own = self.fields[field_ids[j // nl]].subject_seed
+            others = [k for k in range(len(self.fields)) if self.fields[k].subject_seed != own]
+            out.append((others[picks[j] % len(others)], shifts[j]) if has[j] and others else None)
+        return out
+
+    def _paint_companions(self, frame: torch.Tensor, mates: list[tuple[int, float] | None],
+                          lighting: torch.Tensor, camera: Any) -> None:
+        """Put each sample's companion (:meth:`_companions`) into its background ``frame`` ``(B, 3, S, S)``, in
+        place: relit by the sample's ``lighting``, shifted sideways by their distance seen through ``camera``
+        (at the subject's distance), over the background."""
+        size = frame.shape[-1]
+        width_m = 2.0 * float(camera.distance) * math.tan(math.radians(float(camera.fov_deg)) / 2.0)
+        for j, mate in enumerate(mates):
+            if mate is None:
+                continue
+            other = self.fields[mate[0]]
+            relit = frame.new_zeros(1, 3, other.size, other.size)
+            add_relit(relit, other, lighting=lighting[j : j + 1], sparse=self._sparse_of(other),
+                      eps=self.config.relight_eps)
+            layer = torch.cat([relit[0], other.alpha.float().to(frame)])
+            if other.size != size:
+                layer = torch.nn.functional.interpolate(layer[None], size=(size, size), mode="area")[0]
+            dx = max(-size, min(size, round(mate[1] / width_m * size)))
+            moved = torch.zeros_like(layer)
+            if dx >= 0:
+                moved[..., dx:] = layer[..., : size - dx]
+            else:
+                moved[..., :dx] = layer[..., -dx:]
+            frame[j].mul_(1.0 - moved[3:]).add_(moved[:3])
 
     def _noise(self, n: int, size: int, g: torch.Generator, needed: bool) -> list[torch.Tensor] | None:
         """``n`` standard normal images ``(3, size, size)``, cheaply (``None`` unless ``needed``; the draws from
@@ -752,8 +810,8 @@ class PortraitDataset(IterableDataset):
                 turn: torch.Tensor, blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor,
                 key: torch.Tensor, effects: dict[str, torch.Tensor], g: torch.Generator,
                 backdrop: tuple[torch.Tensor, torch.Tensor] | None = None,
-                rooms: list[Surroundings | None] | None = None
-                ) -> tuple[torch.Tensor, ...]:
+                rooms: list[Surroundings | None] | None = None,
+                mates: list[tuple[int, float] | None] | None = None) -> tuple[torch.Tensor, ...]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring), and
         the whole frame (``PortraitConfig.frame``) where asked for.
 
@@ -761,6 +819,7 @@ class PortraitDataset(IterableDataset):
         ``backdrop`` is ``(plain, colour)``: the samples whose background is replaced by a plain backdrop of
         ``colour`` (RGB) times the subject's mean linear luminance (``PortraitConfig.plain_background``);
         ``rooms`` are the samples' near surfaces (``None``: none), in the lighting and in the background;
+        ``mates`` the samples' companions ``(field index, shift as a fraction of the width)`` or ``None``;
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
         with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
         the mirrored box and flipped (in the crop's sampling grid): the mirrored subject under the true lighting.
@@ -772,6 +831,7 @@ class PortraitDataset(IterableDataset):
             latlong = torch.stack([x if r is None else with_surroundings(x, r) for x, r in zip(far, rooms,
                                                                                                  strict=True)])
         lighting = latlong_to_mirror_ball(latlong, self.lighting_size)
+        flipped = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
         source_boxes = _source_boxes(boxes, flip, rf.size)
         if backgrounds is not None:
             pyramids, rotations = zip(*backgrounds, strict=True)
@@ -779,6 +839,8 @@ class PortraitDataset(IterableDataset):
                                       rotation=torch.stack(rotations))
             if rooms is not None:
                 _paint_surroundings(frame, far, rooms, rf.camera)
+            if mates is not None:
+                self._paint_companions(frame, mates, flipped, rf.camera)
             if cfg.subject:
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
@@ -787,7 +849,6 @@ class PortraitDataset(IterableDataset):
         if plain is not None:
             frame[plain] = 0.0
         if cfg.subject:
-            flipped = torch.where(flip[:, None, None, None], flip_lighting_horizontal(lighting), lighting)
             add_relit(frame, rf, lighting=flipped, sparse=self._sparse_of(rf), eps=cfg.relight_eps)
         if plain is not None:
             alpha = rf.alpha.float()
