@@ -31,7 +31,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cache", nargs="+", required=True)
     parser.add_argument("--hdri", nargs="*", default=[])
-    parser.add_argument("--scene", required=True, help="the scene branch's weights (kornia-ilum train --estimator scene)")
+    parser.add_argument("--scene", required=True,
+                        help="the scene branch's weights (kornia-ilum train --estimator scene)")
     parser.add_argument("--weights", default=None, help="ours' weights (default: the shipped)")
     parser.add_argument("--samples", type=int, default=512)
     args = parser.parse_args()

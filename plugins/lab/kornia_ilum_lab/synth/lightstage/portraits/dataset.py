@@ -163,8 +163,9 @@ class PortraitConfig:
             the same lighting, at the same distance, standing 0.3 to 0.5 m to the subject's side (centre to
             centre, as people stand in a group photo), behind the subject where they overlap: at the light stage's
             tight framing (the face half the frame's height) the companion is at the frame's edge; wider views
-            (``kornia-ilum synth subjects --face-fraction``) show them whole. The lighting target stays the environment's (the companion's shadow on the subject and the
-            light they block are left out). Not with a plain backdrop; ``sample["companion"]`` says which.
+            (``kornia-ilum synth subjects --face-fraction``) show them whole. The lighting target stays the
+            environment's (the companion's shadow on the subject and the light they block are left out). Not
+            with a plain backdrop; ``sample["companion"]`` says which.
             Drawn from a stream of its own, so every other draw of a sample is what it was without the option.
         frame: also give the whole rendered frame around each sample's crop, shrunk to ``frame`` pixels a side
             (area-averaged), exposed by the crop's exposure and through the same camera without its per-pixel
