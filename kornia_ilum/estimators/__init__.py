@@ -6,7 +6,8 @@ through :func:`read_weights`, which checks their SHA-256. :class:`TestTimeAugmen
 average its estimate over jittered sub-crops and the mirror of each crop. :mod:`~kornia_ilum.estimators.runtime`
 exports any estimator to ONNX and runs it with ONNX Runtime behind the same contract
 (``create_estimator(name, runtime="onnx")``), in int8 or bfloat16 too, and :mod:`~kornia_ilum.estimators.probe`
-holds the light-stage portraits that calibrate and check them.
+holds the light-stage portraits that calibrate and check them. :mod:`~kornia_ilum.estimators.scene` reads the
+light's strength from the whole photo and fuses it with a face estimate's.
 """
 
 from kornia_ilum.estimators.base import (
@@ -47,6 +48,7 @@ from kornia_ilum.estimators.runtime import (
     runtime_parity,
     with_runtime,
 )
+from kornia_ilum.estimators.scene import SceneStrength, fuse_strength, scene_input
 from kornia_ilum.estimators.tta import (
     TestTimeAugmented,
     average_estimates,
@@ -64,6 +66,9 @@ __all__ = [
     "read_weights",
     "adopt_spread_head",
     "fuse_faces",
+    "SceneStrength",
+    "fuse_strength",
+    "scene_input",
     "OursEstimator",
     "DEFAULT_ESTIMATOR",
     "ENTRY_POINT_GROUP",
