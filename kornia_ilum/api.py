@@ -43,9 +43,12 @@ from kornia_ilum.estimators import (
     LightingEstimate,
     RUNTIMES,
     LightingEstimator,
+    SceneStrength,
     TestTimeAugmented,
     create_estimator,
     fuse_faces,
+    fuse_strength,
+    scene_input,
     with_runtime,
 )
 from kornia_ilum.io import read_ldr
@@ -373,7 +376,8 @@ def find_faces(images: torch.Tensor, detector: str | FaceDetector = DEFAULT_DETE
 
 
 def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: LightingEstimator, *,
-                        faces: Literal["largest", "all", "fused"] = "largest") -> LightingEstimate:
+                        faces: Literal["largest", "all", "fused"] = "largest",
+                        scene: tuple[SceneStrength, torch.Tensor] | None = None) -> LightingEstimate:
     r"""The last step of :func:`estimate_lighting`: run ``estimator`` on the crops of the ``found`` faces (in eval
     mode, under :func:`torch.inference_mode`, restored afterwards) and attach their boxes; with ``"fused"``, one
     lighting per image (:func:`~kornia_ilum.estimators.fuse_faces`, weighed by score times the box's side).
@@ -384,6 +388,8 @@ def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: Light
         found: the faces (:func:`find_faces`).
         estimator: a :class:`~kornia_ilum.estimators.LightingEstimator`.
         faces: ``"fused"`` fuses each image's faces; otherwise one entry per face.
+        scene: ``(scene branch, photos)``: each face's strength fused with the scene branch's on its photo
+            (:func:`~kornia_ilum.estimators.fuse_strength`), before the faces are fused; ``None``: the face's own.
 
     Returns:
         the :class:`~kornia_ilum.estimators.LightingEstimate` with ``boxes`` and ``image_index``.
@@ -394,6 +400,10 @@ def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: Light
         with torch.inference_mode():
             # crops of a checked image are in [0, 1] (up to resampling round-off) and finite
             result = estimator(crops.to(_module_dtype(estimator)), check_values=False)
+            if scene is not None:
+                branch, photos = scene
+                log_energy, spread = branch(scene_input(photos, found.boxes, found.image_index), crops)
+                result = fuse_strength(result, log_energy, spread)
     finally:
         estimator.train(was_training)
     result = dataclasses.replace(result, boxes=found.boxes, image_index=found.image_index)
@@ -416,6 +426,7 @@ def estimate_lighting(
     tta: int | None = None,
     runtime: str = "eager",
     on_stage: Callable[[str, float], Any] | None = None,
+    scene: SceneStrength | None = None,
 ) -> LightingEstimate:
     r"""Estimate HDR lighting from portrait photograph(s): detect the faces, crop them, run an estimator.
 
@@ -461,6 +472,10 @@ def estimate_lighting(
         on_stage: a timing hook, called as ``on_stage(stage, ms)`` after each stage of this call: ``"check"``
             (the input's conversion and value scan), ``"detect"``, ``"crop"`` and ``"estimate"``
             (``on_stage=timings.__setitem__`` fills a dict).
+        scene: a scene branch (:class:`~kornia_ilum.estimators.SceneStrength`, trained by ``kornia-ilum train
+            --estimator scene``): each face's strength is fused with what the whole photo says of it, by their
+            spreads (:func:`~kornia_ilum.estimators.fuse_strength`; the estimator must give a spread, as ``ours``
+            does); ``None`` (the default): the face's own.
 
     Returns:
         A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``
@@ -523,6 +538,8 @@ def estimate_lighting(
         check_positive_int(tta, "tta")
     if runtime not in RUNTIMES:
         raise ValueCheckError(f"runtime must be one of {', '.join(RUNTIMES)}, got {runtime!r}")
+    if scene is not None and not isinstance(scene, SceneStrength):
+        raise TypeCheckError(f"scene must be a SceneStrength or None, got {type(scene).__name__}")
     clock = [time.perf_counter()]
 
     def lap(stage: str) -> None:
@@ -544,6 +561,6 @@ def estimate_lighting(
     crops = crop_faces(batch, found.crop_boxes, size=est.info.input_size, index=found.image_index,
                        check_values=False)
     lap("crop")
-    result = estimate_from_crops(crops, found, est, faces=faces)
+    result = estimate_from_crops(crops, found, est, faces=faces, scene=None if scene is None else (scene, batch))
     lap("estimate")
     return result

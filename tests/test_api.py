@@ -508,6 +508,32 @@ class TestTTA:
             estimate_lighting(astronaut, tta=True)
 
 
+class TestScene:
+    """``scene=SceneStrength``: each face's strength fused with the whole photo's, its shape kept."""
+
+    def test_the_shape_is_the_face_s_and_the_spread_narrows(self, astronaut, astronaut_estimate):
+        from kornia_ilum.estimators import SceneStrength
+
+        torch.manual_seed(0)
+        scene = SceneStrength()
+        est = estimate_lighting(astronaut, scene=scene)
+        face = astronaut_estimate
+        valid = face.valid
+        ratio = est.mirror_ball[:, :, valid] / face.mirror_ball[:, :, valid]  # one gain per channel
+        torch.testing.assert_close(ratio, ratio[..., :1].expand_as(ratio), rtol=1e-4, atol=0)
+        assert bool((est.log_energy_spread < face.log_energy_spread).all())
+        fused = estimate_lighting(astronaut, scene=scene, faces="fused")
+        assert len(fused) == 1 and fused.log_energy_spread is not None
+
+    def test_bad_scene(self, astronaut):
+        with pytest.raises(TypeCheckError, match="scene must be a SceneStrength"):
+            estimate_lighting(astronaut, scene="default")
+        from kornia_ilum.estimators import SceneStrength
+
+        with pytest.raises(ShapeError, match="spread"):  # the uniform estimator gives no spread
+            estimate_lighting(astronaut, estimator="uniform", scene=SceneStrength())
+
+
 @pytest.mark.parametrize("estimator", ["ours", "uniform"])
 def test_an_estimate_computes_no_sphere_render_and_no_sh(estimator, monkeypatch) -> None:
     """Issue 24: inference runs no training-only branch, renders no sphere and projects no SH unless asked."""
