@@ -402,7 +402,7 @@ def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: Light
             result = estimator(crops.to(_module_dtype(estimator)), check_values=False)
             if scene is not None:
                 branch, photos = scene
-                log_energy, spread = branch(scene_input(photos, found.boxes, found.image_index), crops)
+                log_energy, spread = branch(scene_input(photos, found.boxes, found.image_index))
                 result = fuse_strength(result, log_energy, spread)
     finally:
         estimator.train(was_training)

@@ -3,16 +3,20 @@ r"""The light's strength from the whole photograph: a scene branch beside the fa
 A face crop cannot tell a dark skin under much light from a light skin under less; the rest of the photo often
 can, through whatever the same light falls on whose reflectance has nothing to do with the skin: a wall or a
 floor beside the subject, the clothes, other people (docs/questions.rst). :class:`SceneStrength` is a small
-network on the whole photo, letterboxed to :data:`SCENE_SIZE` pixels with the face's box as a fourth channel
-(:func:`scene_input`), that gives the light's log energy per channel and its spread; :func:`fuse_strength`
-combines it with the face estimate's own by their spreads, so that the face network gives the lighting's shape
-and both give its strength. Where the photo shows nothing that helps (a plain backdrop, a tight crop), the
-scene's spread is wide and the face stays in charge.
+network on the whole photo, letterboxed to :data:`SCENE_SIZE` pixels (:func:`scene_input`), that gives the
+light's log energy per channel and its spread; :func:`fuse_strength` combines it with the face estimate's own by
+their spreads, so that the face network gives the lighting's shape and both give its strength. Where the photo
+shows nothing that helps (a plain backdrop, a tight crop), the scene's spread should be wide and the face stays
+in charge.
 
-Units: the frame is re-exposed so that the face's crop meters at the crop's key (the factor of
-:func:`~kornia_ilum.color.normalize_exposure` on that crop), and the factor is added back to the log energy, so
-the scene's estimate scales exactly with the photo's exposure, as the face's does. The energy of a lighting is
-each channel's radiance summed over the sphere (:func:`~kornia_ilum.metrics.total_radiance`).
+The branch does not see the face: the face's box, grown by two pixels, is blanked (and given as a channel of its
+own, so the network knows where the face was), and the frame is metered on the rest of the photo: re-exposed so that its mean
+luminance outside the box is the crop's key (:data:`~kornia_ilum.color.EXPOSURE_KEY`), the factor added back to
+the log energy. So its error has nothing to do with the skin's albedo, which is what makes the fusion of two
+estimates worth more than either (a branch that sees and meters the face learns the face's own tone bias, and
+worse: ``docs/training.rst``, issue 47), and it scales exactly with the photo's exposure, as the face's does.
+The energy of a lighting is each channel's radiance summed over the sphere
+(:func:`~kornia_ilum.metrics.total_radiance`).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from kornia_ilum.color import linear_to_srgb, normalize_exposure, srgb_to_linear
+from kornia_ilum.color import EXPOSURE_KEY, LUMINANCE, linear_to_srgb, srgb_to_linear
 from kornia_ilum.core.check import check_tensor
 from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.estimators.base import LightingEstimate
@@ -40,7 +44,7 @@ SCENE_DEPTHS: tuple[int, ...] = (16, 32, 64, 96, 128)
 
 def scene_input(images: Tensor, boxes: Tensor, index: Tensor, size: int = SCENE_SIZE) -> Tensor:
     r"""Each face's photo letterboxed into a ``size`` square (the longer side fits, the rest 0), its box as a
-    fourth channel (1 inside, 0 outside).
+    fourth channel (1 inside, 0 outside) and the photo's extent as a fifth (1 on the photo, 0 on the padding).
 
     Args:
         images: :math:`(B, 3, H, W)` sRGB photos in ``[0, 1]``.
@@ -49,13 +53,13 @@ def scene_input(images: Tensor, boxes: Tensor, index: Tensor, size: int = SCENE_
         size: the square's side.
 
     Returns:
-        :math:`(N, 4, size, size)` in the dtype of ``images``.
+        :math:`(N, 5, size, size)` in the dtype of ``images``.
 
     Examples:
         >>> box = torch.tensor([[30.0, 15.0, 60.0, 45.0]])  # 30 px in a 120 x 60 photo, halved
         >>> x = scene_input(torch.rand(1, 3, 60, 120), box, torch.zeros(1, dtype=torch.int64), 64)
-        >>> x.shape, x[0, 3].sum().item(), x[0, :3, :16].abs().sum().item()  # a 16 px box; the top band is padding
-        (torch.Size([1, 4, 64, 64]), 256.0, 0.0)
+        >>> x.shape, x[0, 3].sum().item(), x[0, :3, :16].abs().sum().item(), x[0, 4].sum().item()  # padded above
+        (torch.Size([1, 5, 64, 64]), 256.0, 0.0, 2048.0)
     """
     if boxes.ndim != 2 or boxes.shape[-1] != 4 or index.shape != boxes.shape[:1]:
         raise ShapeError(f"boxes must be (N, 4) with one index each, got {tuple(boxes.shape)}, {tuple(index.shape)}")
@@ -70,14 +74,17 @@ def scene_input(images: Tensor, boxes: Tensor, index: Tensor, size: int = SCENE_
     inside_x = (centres >= b[:, None, 0]) & (centres < b[:, None, 2])
     inside_y = (centres >= b[:, None, 1]) & (centres < b[:, None, 3])
     mask = (inside_y[:, :, None] & inside_x[:, None, :]).to(frame.dtype)[:, None]
-    return torch.cat([frame, mask], 1)
+    extent = torch.zeros_like(mask)
+    extent[..., top : top + nh, left : left + nw] = 1.0
+    return torch.cat([frame, mask, extent], 1)
 
 
 class SceneStrength(nn.Module):
     r"""The light's log energy per channel and its spread from the whole photo (module docstring).
 
-    Five stride-2 3x3 convolutions (:data:`SCENE_DEPTHS`) on :func:`scene_input`'s :math:`(N, 4, 128, 128)`,
-    global average pooling and two linear layers: 17 M multiply-adds per face, about 1/40 of ``ours``.
+    Five stride-2 3x3 convolutions (:data:`SCENE_DEPTHS`) on :func:`scene_input`'s :math:`(N, 5, 128, 128)` (the
+    face blanked, the frame metered without it: module docstring), global average pooling and two linear layers:
+    18 M multiply-adds per face, about 1/40 of ``ours``.
 
     Args:
         hidden: the width of the hidden linear layer.
@@ -86,7 +93,7 @@ class SceneStrength(nn.Module):
         >>> net = SceneStrength().eval()
         >>> frames = scene_input(torch.rand(2, 3, 96, 128), torch.tensor([[40.0, 20, 80, 70], [10, 10, 50, 60]]),
         ...                      torch.tensor([0, 1]))
-        >>> log_energy, spread = net(frames, torch.rand(2, 3, 256, 256))
+        >>> log_energy, spread = net(frames)
         >>> log_energy.shape, spread.shape, bool((spread > 0).all())
         (torch.Size([2, 3]), torch.Size([2]), True)
     """
@@ -94,30 +101,33 @@ class SceneStrength(nn.Module):
     def __init__(self, hidden: int = 64) -> None:
         super().__init__()
         layers: list[nn.Module] = []
-        depth_in = 4
+        depth_in = 5
         for depth in SCENE_DEPTHS:
             layers += [nn.Conv2d(depth_in, depth, 3, stride=2, padding=1), nn.ReLU()]
             depth_in = depth
         self.features = nn.Sequential(*layers, nn.AdaptiveAvgPool2d(1), nn.Flatten())
         self.head = nn.Sequential(nn.Linear(depth_in, hidden), nn.ReLU(), nn.Linear(hidden, 4))
 
-    def forward(self, frames: Tensor, crops: Tensor) -> tuple[Tensor, Tensor]:
+    def forward(self, frames: Tensor) -> tuple[Tensor, Tensor]:
         r"""``(log_energy, spread)`` of each face's photo.
 
         Args:
-            frames: :math:`(N, 4, S, S)` of :func:`scene_input`.
-            crops: :math:`(N, 3, 256, 256)` the faces' sRGB crops, whose metering sets the frames' exposure.
+            frames: :math:`(N, 5, S, S)` of :func:`scene_input`.
 
         Returns:
             :math:`(N, 3)` natural-log energy per channel in the photo's units, and :math:`(N,)` the spread ``b``
             of a Laplace distribution of the true log energy around it (``log b`` clamped to ``ours``'
             :data:`~kornia_ilum.estimators.ours.LOG_SPREAD_RANGE`).
         """
-        check_tensor(frames, "frames", ["N", "4", "S", "S"])
+        check_tensor(frames, "frames", ["N", "5", "S", "S"])
         work = torch.promote_types(frames.dtype, torch.float32)
-        _, scale = normalize_exposure(crops.to(work))
-        linear = srgb_to_linear(frames[:, :3].to(work)) / scale[:, None, None, None]
-        x = torch.cat([linear_to_srgb(linear.clamp(max=1.0)), frames[:, 3:].to(work)], 1)
+        # the box grown by 2 pixels: the resampling of scene_input spreads the face's pixels about one pixel out
+        box, extent = F.max_pool2d(frames[:, 3:4].to(work), 5, stride=1, padding=2), frames[:, 4:5].to(work)
+        rest = extent * (1.0 - box)  # the photo without the face
+        linear = srgb_to_linear(frames[:, :3].to(work)) * rest
+        luma = torch.einsum("nchw,c->n", linear, torch.tensor(LUMINANCE, dtype=work, device=linear.device))
+        scale = (luma / rest.sum((1, 2, 3)).clamp(min=1.0) / EXPOSURE_KEY).clamp(min=1e-6)
+        x = torch.cat([linear_to_srgb((linear / scale[:, None, None, None]).clamp(max=1.0)), box, extent], 1)
         out = self.head(self.features(x.to(self.head[0].weight.dtype) - 0.5)).to(work)
         return out[:, :3] + torch.log(scale)[:, None], torch.exp(out[:, 3].clamp(*LOG_SPREAD_RANGE))
 

@@ -40,7 +40,7 @@ def test_the_fusion_removes_the_face_s_tone_bias_when_the_scene_is_sure():
     truth_log = torch.log(total_radiance(VALID.expand(1, 3, 32, 32).float()))[0]
 
     class Sure(torch.nn.Module):
-        def forward(self, frames, crops):
+        def forward(self, frames):
             return truth_log.expand(len(frames), 3), torch.full((len(frames),), 0.01)
 
     result = scene_check(Face(), Sure(), _set())

@@ -62,7 +62,7 @@ def scene_check(estimator: nn.Module, scene: nn.Module, eval_set: EvalSet, *, ba
             face = estimator(crops)
             if face.log_energy_spread is None:
                 raise ValueCheckError("scene_check needs a face estimator with a spread (ours with spread_head)")
-            log_energy, b = scene(x, crops)
+            log_energy, b = scene(x)
             fused = fuse_strength(face, log_energy, b)
             for kind, value, width in (("face", lighting_energy(face.mirror_ball.double()), face.log_energy_spread),
                                        ("scene", torch.exp(log_energy.double()).mean(1), b),

@@ -3,8 +3,8 @@ r"""The scene branch's recipe: ``kornia-ilum train --estimator scene`` trains
 
 Each training portrait comes with its whole rendered frame (``PortraitConfig.frame``, at
 :data:`~kornia_ilum.estimators.scene.SCENE_SIZE` pixels) and the face's box in it; the network reads the frame
-(letterboxed, the box as a fourth channel, :func:`~kornia_ilum.estimators.scene.scene_input`), exposed by the
-face crop's metering, and is trained by the negative log-likelihood of the true log energy per channel under a
+(letterboxed, :func:`~kornia_ilum.estimators.scene.scene_input`), the face blanked and the exposure metered on the
+rest, and is trained by the negative log-likelihood of the true log energy per channel under a
 Laplace distribution of its predicted spread,
 
 .. math::
@@ -35,24 +35,23 @@ from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength, scene_input
 from kornia_ilum.metrics import total_radiance
 from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
-from kornia_ilum_lab.train.recipes import Recipe, batch_images
+from kornia_ilum_lab.train.recipes import Recipe
 
 __all__ = ["SceneRecipe", "scene_batch", "scene_nll"]
 
 
-def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    r"""``(frames, crops, log_energy)`` of a collated batch with frames: the network's input, the crops that meter
-    its exposure and the true log energy per channel.
+def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""``(frames, log_energy)`` of a collated batch with frames: the network's input and the true log energy per
+    channel.
 
     Shape:
-        - Output: :math:`(B, 4, S, S)`, :math:`(B, 3, 256, 256)`, :math:`(B, 3)`
+        - Output: :math:`(B, 5, S, S)`, :math:`(B, 3)`
     """
     frames = batch["frame"].to(device).float() / 255.0
     boxes = batch["frame_box"].to(device).float()
     x = scene_input(frames, boxes, torch.arange(len(frames), device=device), size=frames.shape[-1])
-    crops = batch_images(batch, "image", device, torch.contiguous_format)
     truth = torch.log(total_radiance(batch["mirror_ball"].to(device).float()).clamp(min=1e-12))
-    return x, crops, truth
+    return x, truth
 
 
 def scene_nll(log_energy: torch.Tensor, spread: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
@@ -103,8 +102,8 @@ class SceneRecipe(Recipe):
              opt_d: torch.optim.Optimizer | None, batch: dict[str, Any], device: torch.device,
              config: TrainConfig, runtime: RuntimeSettings) -> dict[str, torch.Tensor]:
         """One step of :func:`scene_nll`; ``rec`` is the mean absolute error of the log energy (natural log)."""
-        x, crops, truth = scene_batch(batch, device)
-        log_energy, spread = model(x, crops)
+        x, truth = scene_batch(batch, device)
+        log_energy, spread = model(x)
         loss = scene_nll(log_energy, spread, truth)
         opt_g.zero_grad(set_to_none=True)
         loss.backward()
@@ -118,8 +117,8 @@ class SceneRecipe(Recipe):
         tensors = {k: v.detach().float().contiguous() for k, v in estimator.state_dict().items()}
         atomic_write(path, lambda tmp: safetensors.torch.save_file(tensors, str(tmp)))
         with torch.no_grad():
-            x, crops, truth = scene_batch(probe, torch.device("cpu"))
-            log_energy, spread = estimator(x, crops)
+            x, truth = scene_batch(probe, torch.device("cpu"))
+            log_energy, spread = estimator(x)
         return {"file": path.name, "sha256": sha256_file(path), "dtype": "float32",
                 "log_energy_error_probe": float((truth - log_energy).abs().mean()),
                 "spread_probe": float(spread.mean())}
