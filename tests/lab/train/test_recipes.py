@@ -51,12 +51,12 @@ class TestDiscovery:
         eps = importlib.metadata.entry_points(group=RECIPE_ENTRY_POINT_GROUP)
         declared = {ep.name: ep.value for ep in eps}
         assert declared["ours"] == "kornia_ilum_lab.train.recipes:OursRecipe"
-        assert list_recipes() == ["ours", "sh", "sipr"]
+        assert list_recipes() == ["ours", "scene", "sh", "sipr"]  # scene: the scene branch (train/scene.py)
         recipe = get_recipe("ours")
         assert isinstance(recipe, OursRecipe) and recipe.name == "ours" and recipe.log_fields == ()
 
     def test_unknown_name(self) -> None:
-        message = r"no training recipe for estimator 'uniform'; trainable: ours, sh, sipr"
+        message = r"no training recipe for estimator 'uniform'; trainable: ours, scene, sh, sipr"
         with pytest.raises(ValueCheckError, match=message):
             get_recipe("uniform")
 

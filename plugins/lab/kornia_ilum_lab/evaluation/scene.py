@@ -43,8 +43,10 @@ def scene_check(estimator: nn.Module, scene: nn.Module, eval_set: EvalSet, *, ba
         batch_size: portraits per pass.
 
     Returns:
-        ``{"table": {group: {kind: {"ratio", "ratio_ci", "coverage"}}}, "tone_spread": {kind: ratio_interval},
-        "count": N}`` with ``kind`` in ``face``, ``scene``, ``fused`` and the groups ``all`` and each tone.
+        a dict: ``table`` (per group, ``all`` and each tone, and per estimate, ``face``, ``scene`` and
+        ``fused``: the median ``ratio``, its interval ``ratio_ci`` and the ``coverage``; and the group's
+        ``count``), ``tone_spread`` (per estimate, :func:`~kornia_ilum_lab.evaluation.bootstrap.ratio_interval`'s
+        result) and ``count``.
 
     Raises:
         ValueCheckError: the set has no frames, or the estimator gives no spread.
