@@ -2,21 +2,24 @@ r"""The light's strength from the whole photograph: a scene branch beside the fa
 
 A face crop cannot tell a dark skin under much light from a light skin under less; the rest of the photo often
 can, through whatever the same light falls on whose reflectance has nothing to do with the skin: a wall or a
-floor beside the subject, the clothes, other people (docs/questions.rst). :class:`SceneStrength` is a small
-network on the whole photo, letterboxed to :data:`SCENE_SIZE` pixels (:func:`scene_input`), that gives the
-light's log energy per channel and its spread; :func:`fuse_strength` combines it with the face estimate's own by
-their spreads, so that the face network gives the lighting's shape and both give its strength. Where the photo
-shows nothing that helps (a plain backdrop, a tight crop), the scene's spread should be wide and the face stays
-in charge.
+floor beside the subject, the clothes, other people (docs/training.rst, issue 47). :class:`SceneStrength` is a
+small network on the whole photo, letterboxed to :data:`SCENE_SIZE` pixels (:func:`scene_input`), that gives
+the light's log energy per channel and its spread; :func:`fuse_strength` combines it with the face estimate's
+own by their spreads, so that the face network gives the lighting's shape and both give its strength. Where the
+photo shows nothing that helps (a plain backdrop, a tight crop), the scene's spread should be wide and the face
+stays in charge.
 
-The branch does not see the face: the face's box, grown by two pixels, is blanked (and given as a channel of its
-own, so the network knows where the face was), and the frame is metered on the rest of the photo: re-exposed so that its mean
-luminance outside the box is the crop's key (:data:`~kornia_ilum.color.EXPOSURE_KEY`), the factor added back to
-the log energy. So its error has nothing to do with the skin's albedo, which is what makes the fusion of two
-estimates worth more than either (a branch that sees and meters the face learns the face's own tone bias, and
-worse: ``docs/training.rst``, issue 47), and it scales exactly with the photo's exposure, as the face's does.
-The energy of a lighting is each channel's radiance summed over the sphere
-(:func:`~kornia_ilum.metrics.total_radiance`).
+The branch does not see the face: the face's box, grown by two pixels, is blanked (and given as a channel of
+its own, so the network knows where the face was), and the frame is metered on the rest of the photo:
+re-exposed so that its mean luminance outside the box is the crop's key
+(:data:`~kornia_ilum.color.EXPOSURE_KEY`), the factor added back to the log energy. So its error has nothing to
+do with the skin's albedo, which is what makes the fusion of two estimates worth more than either (a branch
+that sees and meters the face learns the face's own tone bias, and worse: docs/training.rst, issue 47), and it
+scales exactly with the photo's exposure, as the face's does. The energy of a lighting is each channel's
+radiance summed over the sphere (:func:`~kornia_ilum.metrics.total_radiance`).
+
+No branch ships yet: trained on the light stage's bare busts, the branch still reads the skin below the face
+(docs/training.rst, issue 47), so :func:`~kornia_ilum.estimate_lighting` uses one only when given it.
 """
 
 from __future__ import annotations
@@ -62,7 +65,8 @@ def scene_input(images: Tensor, boxes: Tensor, index: Tensor, size: int = SCENE_
         (torch.Size([1, 5, 64, 64]), 256.0, 0.0, 2048.0)
     """
     if boxes.ndim != 2 or boxes.shape[-1] != 4 or index.shape != boxes.shape[:1]:
-        raise ShapeError(f"boxes must be (N, 4) with one index each, got {tuple(boxes.shape)}, {tuple(index.shape)}")
+        raise ShapeError(f"boxes must be (N, 4) with one index each, got {tuple(boxes.shape)}, "
+                         f"{tuple(index.shape)}")
     h, w = images.shape[-2:]
     s = size / max(h, w)
     nh, nw = max(1, round(h * s)), max(1, round(w * s))
