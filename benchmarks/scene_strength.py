@@ -15,12 +15,11 @@ from __future__ import annotations
 
 import argparse
 
-import safetensors.torch
 import torch
 
-from kornia_ilum.estimators import OursEstimator, read_weights
+from kornia_ilum.estimators import read_weights
 from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
-from kornia_ilum_lab.evaluation.evaluate import build_eval_set
+from kornia_ilum_lab.evaluation.evaluate import build_eval_set, load_estimator
 from kornia_ilum_lab.evaluation.scene import NOMINAL_COVERAGE, scene_check
 
 KINDS = {"far environment": {}, "plain backdrop": {"plain_background": 1.0},
@@ -36,12 +35,9 @@ def main() -> None:
     parser.add_argument("--weights", default=None, help="ours' weights (default: the shipped)")
     parser.add_argument("--samples", type=int, default=512)
     args = parser.parse_args()
-    face = OursEstimator.from_pretrained() if args.weights is None else OursEstimator()
-    if args.weights is not None:
-        face.load_state_dict(read_weights(args.weights, expected_by="--weights")[0], strict=True)
-    scene = SceneStrength()
-    scene.load_state_dict(safetensors.torch.load_file(args.scene), strict=True)
-    face.eval(), scene.eval()
+    face = load_estimator("ours", args.weights)
+    scene = SceneStrength().eval()
+    scene.load_state_dict(read_weights(args.scene, expected_by="--scene")[0], strict=True)
     print(f"# The strength per skin tone: face, scene, fused ({args.samples} eval portraits per kind)\n")
     for kind, portraits in KINDS.items():
         eval_set = build_eval_set(args.cache, args.hdri, samples=args.samples,

@@ -698,11 +698,11 @@ class PortraitDataset(IterableDataset):
                           "background_blur": blur.float(), "camera": {k: v.float() for k, v in fx.items()}})
             if whole:
                 views[-1]["frame"] = whole[0]
+        boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
         frame_boxes = None
         if cfg.frame:
             sides = torch.tensor([float(self.fields[f].size) for f in field_ids]).repeat_interleave(nl)
-            frame_boxes = torch.cat(faces).float() * (cfg.frame / sides)[:, None]
-        boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
+            frame_boxes = faces * (cfg.frame / sides)[:, None]
         second = None
         if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
             second = inner_crop_boxes(n, cfg.size, generator=g, position=cfg.crop_position,
@@ -756,11 +756,12 @@ class PortraitDataset(IterableDataset):
         picks = torch.randint(len(self.fields), (n,), generator=g).tolist()
         shifts = (uniform_draws(n, 0.3, 0.5, g) * torch.where(torch.rand(n, generator=g) < 0.5, -1.0, 1.0)).tolist()
         nl = cfg.lightings_per_field
+        others = {fid: [k for k, f in enumerate(self.fields) if f.subject_seed != self.fields[fid].subject_seed]
+                  for fid in set(field_ids)}  # once per subject-view of the chunk, not per sample
         out: list[tuple[int, float] | None] = []
         for j in range(n):
-            own = self.fields[field_ids[j // nl]].subject_seed
-            others = [k for k in range(len(self.fields)) if self.fields[k].subject_seed != own]
-            out.append((others[picks[j] % len(others)], shifts[j]) if has[j] and others else None)
+            pool = others[field_ids[j // nl]]
+            out.append((pool[picks[j] % len(pool)], shifts[j]) if has[j] and pool else None)
         return out
 
     def _paint_companions(self, frame: torch.Tensor, mates: list[tuple[int, float] | None],
