@@ -8,6 +8,7 @@ import pytest
 import torch
 from kornia_ilum_lab.synth.surroundings import (
     Surroundings,
+    draw_backdrops,
     plane_radiance,
     surroundings_view,
     with_surroundings,
@@ -114,3 +115,24 @@ class TestSurroundingsView:
     def test_bad_distance(self):
         with pytest.raises(ValueCheckError):
             surroundings_view(torch.ones(3, 8, 16), Surroundings(wall_distance=1.0), torch.ones(2, 3), 0.0)
+
+
+class TestDrawBackdrops:
+    def test_a_share_of_walls_that_fill_the_frame(self):
+        drops = draw_backdrops(400, 0.25, torch.Generator().manual_seed(1), albedo=(0.05, 0.5))
+        walls = [d for d in drops if d is not None]
+        assert 70 < len(walls) < 130
+        assert all(d.has_wall and not d.has_floor and d.wall_top == math.inf for d in walls)
+        assert all(0.5 <= d.wall_distance <= 3.0 for d in walls)
+        greys = torch.tensor([d.wall_albedo for d in walls]).mean(1)
+        assert 0.04 < float(greys.min()) and float(greys.max()) < 0.6  # the range, tinted by exp(N(0, 0.1))
+        rays = torch.tensor([[0.3, 0.4, -0.866], [-0.5, -0.5, -0.707]])
+        mask, radiance = surroundings_view(torch.ones(3, 8, 16), walls[0], rays, 1.0)
+        assert mask.all() and torch.allclose(radiance[:, 0], radiance[:, 1])  # one colour everywhere
+
+    def test_same_generator_same_draws_and_errors(self):
+        a = draw_backdrops(8, 0.5, torch.Generator().manual_seed(3))
+        assert a == draw_backdrops(8, 0.5, torch.Generator().manual_seed(3))
+        for share, albedo in ((1.5, (0.1, 0.5)), (0.5, (0.0, 0.5)), (0.5, (0.5, 0.95)), (0.5, (0.6, 0.5))):
+            with pytest.raises(ValueCheckError):
+                draw_backdrops(4, share, torch.Generator(), albedo=albedo)

@@ -52,7 +52,8 @@ from kornia_ilum.core.check import check_positive_int, check_tensor
 from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.geometry import latlong_directions, latlong_solid_angles
 
-__all__ = ["Surroundings", "draw_surroundings", "plane_radiance", "surroundings_view", "with_surroundings"]
+__all__ = ["Surroundings", "draw_backdrops", "draw_surroundings", "plane_radiance", "surroundings_view",
+           "with_surroundings"]
 
 _WALL_NORMAL = (0.0, 0.0, 1.0)
 _TINT = 0.15
@@ -241,10 +242,11 @@ def surroundings_view(latlong: torch.Tensor, surroundings: Surroundings, rays: t
     return wall | floor, radiance.float()
 
 
-def _albedo(grey_range: tuple[float, float], u: float, tint: Sequence[float]) -> tuple[float, float, float]:
+def _albedo(grey_range: tuple[float, float], u: float, tint: Sequence[float],
+            spread: float = _TINT) -> tuple[float, float, float]:
     lo, hi = (math.log(v) for v in grey_range)
     grey = math.exp(lo + (hi - lo) * u)
-    return tuple(min(0.9, grey * math.exp(_TINT * t)) for t in tint)  # type: ignore[return-value]
+    return tuple(min(0.9, grey * math.exp(spread * t)) for t in tint)  # type: ignore[return-value]
 
 
 def draw_surroundings(n: int, share: float, generator: torch.Generator) -> list[Surroundings | None]:
@@ -290,3 +292,42 @@ def draw_surroundings(n: int, share: float, generator: torch.Generator) -> list[
                                 wall_albedo=_albedo((0.05, 0.85), row[8], t[:3]),
                                 floor_drop=drop, floor_albedo=_albedo((0.05, 0.6), row[9], t[3:])))
     return out
+
+
+def draw_backdrops(n: int, share: float, generator: torch.Generator,
+                   albedo: tuple[float, float] = (0.02, 0.9)) -> list[Surroundings | None]:
+    r"""Studio backdrops for ``n`` portraits: a plain matte wall for a ``share`` of them, ``None`` for the rest.
+
+    A backdrop is a wall to the ceiling 0.5 to 3 m behind the head (log-uniform), no floor in view, so the
+    camera sees it in every background pixel: a uniform colour whose brightness is the light's times the
+    backdrop's own albedo, whatever the skin in front of it (``PortraitConfig.plain_background``). Its albedo is
+    a grey log-uniform in ``albedo`` (black velvet to white seamless paper) tinted by ``exp(N(0, 0.1))`` per
+    channel (at most 0.9); it reflects onto the subject as any wall of :func:`draw_surroundings` does.
+
+    Args:
+        n: the portraits.
+        share: the fraction that stand in front of a backdrop, in ``[0, 1]``.
+        generator: the only source of randomness.
+        albedo: the range of the backdrop's grey albedo, ``0 < low <= high <= 0.9``.
+
+    Returns:
+        ``n`` entries.
+
+    Raises:
+        ValueCheckError: ``share`` outside ``[0, 1]`` or ``albedo`` out of its range.
+
+    Examples:
+        >>> drops = draw_backdrops(100, 1.0, torch.Generator().manual_seed(0))
+        >>> all(d.has_wall and not d.has_floor and d.wall_top == math.inf for d in drops)
+        True
+    """
+    check_positive_int(n, "n")
+    if not 0.0 <= share <= 1.0:
+        raise ValueCheckError(f"share must be in [0, 1], got {share!r}")
+    if not (len(albedo) == 2 and 0.0 < albedo[0] <= albedo[1] <= 0.9):
+        raise ValueCheckError(f"albedo must be a pair 0 < low <= high <= 0.9, got {albedo!r}")
+    u = torch.rand(n, 3, generator=generator, dtype=torch.float64)
+    tint = torch.randn(n, 3, generator=generator, dtype=torch.float64)
+    return [Surroundings(wall_distance=math.exp(math.log(0.5) + math.log(6.0) * row[1]),
+                         wall_albedo=_albedo(albedo, row[2], t, spread=0.1)) if row[0] < share else None
+            for row, t in zip(u.tolist(), tint.tolist(), strict=True)]

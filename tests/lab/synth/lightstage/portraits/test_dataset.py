@@ -13,7 +13,7 @@ from torch.utils.data import DataLoader
 from kornia_ilum.color import LUMINANCE, srgb_to_linear
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.filters import soft_clip
-from kornia_ilum.geometry import mirror_ball_valid
+from kornia_ilum.geometry import mirror_ball_to_latlong, mirror_ball_valid
 from kornia_ilum_lab.synth.environments import EnvironmentSampler, HDRFolderSource, SkySource, resize_latlong
 from kornia_ilum_lab.synth.lightstage import LANDMARK_NAMES, subject_split
 from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
@@ -28,6 +28,7 @@ from kornia_ilum_lab.synth.lightstage.portraits import (
     sphere_targets,
 )
 from kornia_ilum_lab.synth.lightstage.scene import Camera
+from kornia_ilum_lab.synth.surroundings import plane_radiance
 from kornia_ilum_lab.train.data import collate
 from tests.lab.synth.lightstage.portraits.common import OFF, OUT, S, small, uniform_sampler
 from tests.lab.synth.lightstage.spheres import ALBEDO
@@ -182,7 +183,8 @@ class TestDataset:
             ({"environments": "sky"}, TypeCheckError, "EnvironmentSampler"),
             ({"lightings_per_field": 0}, ValueCheckError, "lightings_per_field"),
             ({"plain_background": 1.5}, ValueCheckError, "plain_background"),
-            ({"plain_level": (0.0, 1.0)}, ValueCheckError, "plain_level"),
+            ({"plain_albedo": (0.0, 0.5)}, ValueCheckError, "plain_albedo"),
+            ({"plain_albedo": (0.5, 0.95)}, ValueCheckError, "plain_albedo"),
         ],
     )
     def test_errors(self, cache, kwargs, error, match) -> None:
@@ -461,32 +463,36 @@ class TestPlainBackdrop:
         return list(small([_disc_field()], split=None, camera=OFF, size=32, env_refresh=2, flip_probability=0.0,
                           crop_scale=2.5, length=8, **kw))
 
-    def test_backdrop_is_plain_and_scaled_by_the_subject(self) -> None:
-        """Behind every face a uniform colour, ``plain_level`` times the subject's mean linear luminance (times
-        a tint); the ground truth is the environment's, as without the backdrop."""
-        plain = self._data(plain_background=1.0, plain_level=(0.5, 0.5), matte=True)
+    def test_backdrop_is_a_matte_wall_under_the_same_light(self) -> None:
+        """Behind every face a uniform colour: a wall of albedo ``plain_albedo`` (times a tint) lit by the far
+        environment, ``rho / pi * E(+Z)``, whatever the subject; the lighting target is the environment with the
+        wall behind (its front half unchanged)."""
+        plain = self._data(plain_background=1.0, plain_albedo=(0.5, 0.5), matte=True)
         scene = self._data(matte=True)
         for p, s in zip(plain, scene, strict=True):
-            # the same lighting, in the units of a photo that the backdrop meters differently
-            torch.testing.assert_close(p["mirror_ball"] / p["exposure"], s["mirror_ball"] / s["exposure"],
-                                       rtol=1e-5, atol=0)
-            linear = srgb_to_linear(p["image"].float() / 255.0)
+            assert p["plain"] and "plain" not in s
+            far = mirror_ball_to_latlong((s["mirror_ball"] / s["exposure"])[None], 16)[0]
+            wall = plane_radiance(far.clamp(min=0.0), (0.0, 0.0, 1.0), (0.5, 0.5, 0.5))
+            linear = srgb_to_linear(p["image"].float() / 255.0) / p["exposure"]
             alpha = p["alpha"][0].float() / 255.0
             inside = torch.zeros_like(alpha, dtype=torch.bool)
             inside[4:-4, 4:-4] = True  # the crop reaches past the rendered frame at its rim
-            back, face = linear[:, (alpha == 0) & inside], linear[:, alpha == 1]
-            assert back.shape[1] > 20 and face.shape[1] > 20
-            assert (back - back.mean(1, keepdim=True)).abs().max() < 0.01  # one colour (8-bit rounding)
-            luminance = lambda rgb: 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]  # noqa: E731
-            ratio = float(luminance(back.mean(1)) / luminance(face.mean(1)))
-            assert 0.5 * math.exp(-0.35) < ratio < 0.5 * math.exp(0.35)  # the tint, exp(N(0, 0.1)) per channel
-            assert not torch.equal(p["image"], s["image"])
+            back = linear[:, (alpha == 0) & inside]
+            assert back.shape[1] > 20
+            assert (back - back.mean(1, keepdim=True)).abs().max() < 0.02 * back.mean()  # one colour (8 bits)
+            ratio = back.mean(1).double() / wall
+            assert bool(((ratio > math.exp(-0.4)) & (ratio < math.exp(0.4))).all())  # exp(N(0, 0.1)), resampling
+            centre = slice(3, 5)  # the ball's middle reflects what is in front, within 41 deg of +Z
+            torch.testing.assert_close((p["mirror_ball"] / p["exposure"])[:, centre, centre],
+                                       (s["mirror_ball"] / s["exposure"])[:, centre, centre], rtol=1e-4, atol=0)
+            assert not torch.equal(p["mirror_ball"], s["mirror_ball"])  # the wall behind is in the light
 
     def test_off_by_default_and_a_fraction_when_asked(self) -> None:
         base = self._data(matte=True)
         none = self._data(matte=True, plain_background=0.0)
         assert all(torch.equal(a["image"], b["image"]) for a, b in zip(base, none, strict=True))
         half = self._data(matte=True, plain_background=0.5)
-        same = [torch.equal(h["image"], b["image"]) and torch.equal(h["mirror_ball"], b["mirror_ball"])
-                for h, b in zip(half, base, strict=True)]
-        assert 0 < sum(same) < len(same)  # the other draws are those of the scene: only the backdrop's samples change
+        for h, b in zip(half, base, strict=True):  # a stream of its own: only the backdrop's samples change
+            same = torch.equal(h["image"], b["image"]) and torch.equal(h["mirror_ball"], b["mirror_ball"])
+            assert same != h["plain"]
+        assert 0 < sum(h["plain"] for h in half) < len(half)

@@ -20,7 +20,6 @@ from typing import Any
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
-from kornia_ilum.color import LUMINANCE
 from kornia_ilum.core.check import check_choice, check_positive_int, trusted
 from kornia_ilum.core.errors import TypeCheckError, ValueCheckError
 from kornia_ilum.core.seeding import hashed_generator
@@ -59,6 +58,7 @@ from kornia_ilum_lab.synth.lightstage.portraits.compose import (
 from kornia_ilum_lab.synth.lightstage.sparse import read_sparse
 from kornia_ilum_lab.synth.surroundings import (
     Surroundings,
+    draw_backdrops,
     draw_surroundings,
     surroundings_view,
     with_surroundings,
@@ -131,10 +131,12 @@ class PortraitConfig:
             every other field of a sample is the same, bit for bit, with and without it.
         plain_background: the fraction of samples whose background is a plain backdrop instead of the
             environment's (training sets it: the model then has to read the light from the face, not from what is
-            behind it); the backdrop is a uniform colour, ``plain_level`` times the subject's mean linear
-            luminance (log-uniform), tinted by ``exp(N(0, 0.1))`` per channel. Drawn only when positive, so at 0
-            every sample is what it was without the option.
-        plain_level: the range of the backdrop's brightness relative to the subject's.
+            behind it): a matte wall lit by the same environment, behind the subject and filling the frame
+            (:func:`~kornia_ilum_lab.synth.surroundings.draw_backdrops`), its brightness the light's times its
+            own albedo; it is in the lighting and the lighting target as a wall of ``surroundings`` is, and
+            replaces the sample's surroundings and companion. Drawn from a stream of its own, so every other
+            sample is what it was without the option; ``sample["plain"]`` says which.
+        plain_albedo: the range of the backdrop's grey albedo (log-uniform; black velvet to white paper).
         second_crop: also give a second, jittered crop of each sample's face as a box inside its crop,
             ``sample["second_crop"]`` ``(4,)`` in the crop's pixels (:func:`inner_crop_boxes` with
             ``crop_position`` and ``crop_extent``; training's crop-consistency term cuts it,
@@ -216,7 +218,7 @@ class PortraitConfig:
     pairs: bool = False
     matte: bool = False
     plain_background: float = 0.0
-    plain_level: tuple[float, float] = (0.01, 3.0)
+    plain_albedo: tuple[float, float] = (0.02, 0.9)
     second_crop: bool = False
     colour_looks: float = 0.0
     linear_response: float = 0.0
@@ -272,8 +274,10 @@ class PortraitConfig:
         _probability(self.companions, "companions")
         if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
             raise ValueCheckError(f"frame must be a non-negative int (0: off), got {self.frame!r}")
-        _pair(self.plain_level, "plain_level", 0.0, strict=True)
-        object.__setattr__(self, "plain_level", tuple(float(v) for v in self.plain_level))
+        _pair(self.plain_albedo, "plain_albedo", 0.0, strict=True)
+        if self.plain_albedo[1] > 0.9:
+            raise ValueCheckError(f"plain_albedo must be at most 0.9, got {self.plain_albedo!r}")
+        object.__setattr__(self, "plain_albedo", tuple(float(v) for v in self.plain_albedo))
         _pair(self.exposure_key, "exposure_key", 0.0, strict=True)
         _pair(self.background_blur, "background_blur", 0.0)
         if not (self.crop_scale > 0 and self.crop_position >= 0 and self.crop_extent >= 0):
@@ -640,11 +644,6 @@ class PortraitDataset(IterableDataset):
             sharp = torch.rand(n, generator=g, dtype=torch.float64) < cfg.background_sharp_probability
             blurs.append(torch.where(sharp, 0.0, uniform_draws(n, *cfg.background_blur, g)))
         effects = [cfg.camera.draw(n, g) for _ in lightings]
-        plain = backdrops = None
-        if cfg.plain_background > 0:  # drawn last and only when asked for: the other draws stay what they were
-            plain = torch.rand(n, generator=g) < cfg.plain_background
-            level = torch.exp(uniform_draws(n, *map(math.log, cfg.plain_level), g))
-            backdrops = level[:, None] * torch.exp(0.1 * torch.randn(n, 3, generator=g, dtype=torch.float64))
         if cfg.linear_response > 0:  # from a stream of its own: every other draw stays what it was
             linear = torch.rand(n, generator=_generator(self.seed, worker, index, -2)) < cfg.linear_response
             for fx in effects:
@@ -653,13 +652,18 @@ class PortraitDataset(IterableDataset):
         rooms: list[Surroundings | None] | None = None
         if cfg.surroundings > 0:  # from a stream of its own: every other draw stays what it was
             rooms = draw_surroundings(n, cfg.surroundings, _generator(self.seed, worker, index, -3))
-            if plain is not None:  # a plain backdrop is a studio's: no wall or floor besides
-                rooms = [None if p else r for r, p in zip(rooms, plain.tolist(), strict=True)]
         mates: list[tuple[int, float] | None] | None = None
         if cfg.companions > 0:  # from a stream of its own: every other draw stays what it was
             mates = self._companions(n, field_ids, _generator(self.seed, worker, index, -4))
-            if plain is not None:  # a plain backdrop is a studio's: one sitter
-                mates = [None if p else m for m, p in zip(mates, plain.tolist(), strict=True)]
+        plain: list[bool] | None = None
+        if cfg.plain_background > 0:  # from a stream of its own: every other draw stays what it was
+            drops = draw_backdrops(n, cfg.plain_background, _generator(self.seed, worker, index, -5),
+                                   cfg.plain_albedo)
+            plain = [d is not None for d in drops]
+            # a plain backdrop is a studio's: its wall instead of the surroundings, one sitter
+            rooms = [d if d is not None else (None if rooms is None else rooms[j]) for j, d in enumerate(drops)]
+            if mates is not None:
+                mates = [None if p else m for m, p in zip(mates, plain, strict=True)]
         boxes, faces, alphas, renders = [], [], [], [[] for _ in lightings]
         for k, fid in enumerate(field_ids):
             rows = slice(k * nl, (k + 1) * nl)
@@ -683,10 +687,9 @@ class PortraitDataset(IterableDataset):
                 if cfg.background == "environment":
                     backgrounds = [self._background(kk, e) for kk, e in zip(env_keys[rows], envs[rows], strict=True)]
                 params = {name: v[rows] for name, v in fx.items()}
-                backdrop = None if plain is None else (plain[rows], backdrops[rows])
                 out.append(self._render(rf, latlong[rows], backgrounds=backgrounds, turn=turns[rows],
                                         blur=blur[rows], flip=flips[rows], boxes=boxes[-1], key=key[rows],
-                                        effects=params, g=g, backdrop=backdrop,
+                                        effects=params, g=g,
                                         rooms=None if rooms is None else rooms[rows],
                                         mates=None if mates is None else mates[rows]))
         views = []
@@ -731,8 +734,10 @@ class PortraitDataset(IterableDataset):
                 "flip": bool(flips[j]),
                 "chunk": (worker, index),
             }
-            if rooms is not None:
-                sample["surroundings"] = rooms[j] is not None
+            if cfg.surroundings > 0:
+                sample["surroundings"] = rooms[j] is not None and not (plain is not None and plain[j])
+            if plain is not None:
+                sample["plain"] = plain[j]
             if mates is not None:
                 sample["companion"] = mates[j] is not None
             if frame_boxes is not None:
@@ -811,16 +816,14 @@ class PortraitDataset(IterableDataset):
     def _render(self, rf: ReflectanceField, latlong: torch.Tensor, *, backgrounds: list | None,
                 turn: torch.Tensor, blur: torch.Tensor, flip: torch.Tensor, boxes: torch.Tensor,
                 key: torch.Tensor, effects: dict[str, torch.Tensor], g: torch.Generator,
-                backdrop: tuple[torch.Tensor, torch.Tensor] | None = None,
                 rooms: list[Surroundings | None] | None = None,
                 mates: list[tuple[int, float] | None] | None = None) -> tuple[torch.Tensor, ...]:
         """``(image, mirror_ball, exposure)`` of one field under a batch of lightings (package docstring), and
         the whole frame (``PortraitConfig.frame``) where asked for.
 
         ``backgrounds`` are :meth:`_background` pairs (pyramid, direction map) or ``None`` (black);
-        ``backdrop`` is ``(plain, colour)``: the samples whose background is replaced by a plain backdrop of
-        ``colour`` (RGB) times the subject's mean linear luminance (``PortraitConfig.plain_background``);
-        ``rooms`` are the samples' near surfaces (``None``: none), in the lighting and in the background;
+        ``rooms`` are the samples' near surfaces or plain backdrops (``None``: none), in the lighting and in the
+        background;
         ``mates`` the samples' companions ``(field index, shift as a fraction of the width)`` or ``None``;
         ``boxes`` are in the mirrored image for the mirrored samples. A mirrored sample is the subject relit
         with the mirrored lighting over the mirrored environment's background (mirrored rays), cropped through
@@ -847,17 +850,8 @@ class PortraitDataset(IterableDataset):
                 frame.mul_(1.0 - rf.alpha.float())  # I + (1 - alpha) B, I added below
         else:
             frame = latlong.new_zeros(len(latlong), 3, rf.size, rf.size)
-        plain = None if backdrop is None or not bool(backdrop[0].any()) else backdrop[0]
-        if plain is not None:
-            frame[plain] = 0.0
         if cfg.subject:
             add_relit(frame, rf, lighting=flipped, sparse=self._sparse_of(rf), eps=cfg.relight_eps)
-        if plain is not None:
-            alpha = rf.alpha.float()
-            subject = torch.einsum("bchw,c->b", frame[plain].double(), torch.tensor(LUMINANCE, dtype=torch.float64))
-            mean = subject / alpha.double().sum().clamp(min=1.0)  # premultiplied: the covered pixels' mean
-            colour = (backdrop[1][plain] * mean[:, None]).to(frame.dtype)
-            frame[plain] += (1.0 - alpha) * colour[:, :, None, None]
         linear = crop_images(frame, source_boxes, size, flip)
         step = max(1, size // 64)  # meter on a 64 x 64 subsample
         gain = auto_exposure(linear[:, :, step // 2 :: step, step // 2 :: step].clamp(min=0.0), key)
