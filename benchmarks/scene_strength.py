@@ -16,11 +16,10 @@ from __future__ import annotations
 import argparse
 
 import torch
-
-from kornia_ilum.estimators import read_weights
-from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
 from kornia_ilum_lab.evaluation.evaluate import build_eval_set, load_estimator
 from kornia_ilum_lab.evaluation.scene import NOMINAL_COVERAGE, scene_check
+
+from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
 
 KINDS = {"far environment": {}, "plain backdrop": {"plain_background": 1.0},
          "wall and floor": {"surroundings": 1.0}}
@@ -36,8 +35,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=512)
     args = parser.parse_args()
     face = load_estimator("ours", args.weights)
-    scene = SceneStrength().eval()
-    scene.load_state_dict(read_weights(args.scene, expected_by="--scene")[0], strict=True)
+    scene = SceneStrength.from_file(args.scene)
     print(f"# The strength per skin tone: face, scene, fused ({args.samples} eval portraits per kind)\n")
     for kind, portraits in KINDS.items():
         eval_set = build_eval_set(args.cache, args.hdri, samples=args.samples,

@@ -388,8 +388,9 @@ def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: Light
         found: the faces (:func:`find_faces`).
         estimator: a :class:`~kornia_ilum.estimators.LightingEstimator`.
         faces: ``"fused"`` fuses each image's faces; otherwise one entry per face.
-        scene: ``(scene branch, photos)``: each face's strength fused with the scene branch's on its photo
-            (:func:`~kornia_ilum.estimators.fuse_strength`), before the faces are fused; ``None``: the face's own.
+        scene: ``(scene branch, photos)``: one strength per photo, its faces' own and the scene branch's fused
+            by their spreads (:func:`~kornia_ilum.estimators.fuse_strength`; with ``"fused"``, the faces are
+            fused first and the scene then); ``None``: each face's own.
 
     Returns:
         the :class:`~kornia_ilum.estimators.LightingEstimate` with ``boxes`` and ``image_index``.
@@ -403,14 +404,21 @@ def estimate_from_crops(crops: torch.Tensor, found: FoundFaces, estimator: Light
             if scene is not None:
                 branch, photos = scene
                 log_energy, spread = branch(scene_input(photos, found.boxes, found.image_index))
-                result = fuse_strength(result, log_energy, spread)
     finally:
         estimator.train(was_training)
     result = dataclasses.replace(result, boxes=found.boxes, image_index=found.image_index)
+    index = found.image_index
     if faces == "fused":
         kept = result.boxes
         side = ((kept[:, 2] - kept[:, 0]) * (kept[:, 3] - kept[:, 1])).clamp(min=0).sqrt()
-        result = fuse_faces(result, found.scores.float() * side, found.image_index)
+        result = fuse_faces(result, found.scores.float() * side, index)
+        if scene is not None:  # the photo's scene evidence: the mean over its faces' views (one scene)
+            count = torch.zeros(len(result), device=index.device).index_add_(0, index, torch.ones_like(spread))
+            log_energy = torch.zeros_like(log_energy[: len(result)]).index_add_(0, index, log_energy) / count[:, None]
+            spread, index = torch.zeros_like(count).index_add_(0, index, spread) / count, None
+    if scene is not None:
+        result = dataclasses.replace(fuse_strength(result, log_energy, spread, index),
+                                     boxes=result.boxes, image_index=result.image_index)
     return result
 
 
@@ -473,9 +481,11 @@ def estimate_lighting(
             (the input's conversion and value scan), ``"detect"``, ``"crop"`` and ``"estimate"``
             (``on_stage=timings.__setitem__`` fills a dict).
         scene: a scene branch (:class:`~kornia_ilum.estimators.SceneStrength`, trained by ``kornia-ilum train
-            --estimator scene``): each face's strength is fused with what the whole photo says of it, by their
-            spreads (:func:`~kornia_ilum.estimators.fuse_strength`; the estimator must give a spread, as ``ours``
-            does); ``None`` (the default): the face's own.
+            --estimator scene``): one strength per photo, what its faces and the whole photo say of it fused
+            by their spreads (:func:`~kornia_ilum.estimators.fuse_strength`; the estimator must give a spread,
+            as ``ours`` does): with ``faces="all"`` every face keeps its own shape and shares the photo's
+            strength, and ``scene_share`` says how much of it the photo set; ``None`` (the default): each face's
+            own.
 
     Returns:
         A :class:`~kornia_ilum.estimators.LightingEstimate` with one entry per face kept (``B'``

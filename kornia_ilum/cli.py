@@ -49,6 +49,7 @@ from kornia_ilum.estimators import (
     PARITY_ATOL,
     RUNTIMES,
     OnnxEstimator,
+    SceneStrength,
     create_estimator,
     estimator_info,
     list_estimators,
@@ -68,7 +69,10 @@ matte silver and mirror reference spheres. Beside each lighting file, a .json of
 the main light (direction, solid angle, colour, intensity) and the order-2 SH of the rest, the shape of
 ARCore's Environmental HDR (LightingEstimate.dominant_light), and "log_energy_spread": how far the light's
 strength may be off (the truth within exp(+-spread) times the estimate's energy for 63 % of faces; null for
-estimators without it; docs/questions.rst). Prints one line per written file, and the timing.
+estimators without it; docs/questions.rst). With --scene, one strength per photo, its faces' and the whole
+photo's fused: "scene_share" (how much of it the photo set, 0 to 1) and "strength_evidence" ("face" below
+0.2, "scene" above 0.8, else "both"; "face" without --scene). Prints one line per written file, and the
+timing.
 
 output names (-o OUT and --preview PNG):
   OUT is a file name, a directory, or a pattern with the placeholders
@@ -199,6 +203,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      help="what computes the estimate: eager (PyTorch float32, default), bf16, onnx, onnx-int8, or "
                      "auto (the fastest that runs here and passes its parity check; kornia-ilum bench measures "
                      "them; the ONNX runtimes export once per machine into the cache, ~/.cache/kornia_ilum)")
+    est.add_argument("--scene", metavar="FILE", default=None,
+                     help="a scene branch's weights (kornia-ilum train --estimator scene): the light's strength "
+                     "from the whole photo fused with the faces', one per photo (default: the faces' own)")
     est.add_argument("--tta", type=positive_int, metavar="N", default=None,
                      help="average each face's estimate over N jittered crops and their mirror images "
                      "(2N estimator passes; more stable under the crop; default: off)")
@@ -359,10 +366,13 @@ def _cmd_list() -> int:
 def _write_main_light(path: Path, light: Any, *, face: int, stem: str, estimator: str) -> Path:
     """Write face ``face``'s main light and ambient (:meth:`LightingEstimate.dominant_light`) as JSON, atomically,
     with the image, the face box and the estimator it came from."""
-    spread = light.log_energy_spread
+    spread, share = light.log_energy_spread, light.scene_share
+    share = None if share is None else float(share[face])
+    evidence = "face" if share is None or share < 0.2 else "scene" if share > 0.8 else "both"
     record = {"image": stem, "face": face, "box": light.boxes[face].tolist(), "estimator": estimator,
               **light.dominant_light().to_dict(face),
-              "log_energy_spread": None if spread is None else float(spread[face])}
+              "log_energy_spread": None if spread is None else float(spread[face]),
+              "scene_share": share, "strength_evidence": evidence}
     atomic_write(path, lambda tmp: tmp.write_text(json.dumps(record, indent=1) + "\n"))
     return path
 
@@ -521,6 +531,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         check_ldr(p)
 
     t0 = time.perf_counter()
+    scene = None if args.scene is None else SceneStrength.from_file(args.scene).to(device)
     chosen = cached_estimator(estimator, device, args.runtime).runtime  # built once (missing weights fail here)
     detector = cached_detector(args.detector, device, args.detect_side)
     print(f"loaded estimator {estimator!r} (runtime {chosen}) and detector {args.detector!r} in {_ms(t0)}")
@@ -533,7 +544,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         try:
             light = estimate_lighting(
                 image, estimator=estimator, detector=detector, faces=args.faces, fallback=args.fallback,
-                device=device, tta=args.tta, runtime=args.runtime, on_stage=stages.__setitem__,
+                device=device, tta=args.tta, runtime=args.runtime, on_stage=stages.__setitem__, scene=scene,
             )
         except NoFaceError as e:  # the API's hints name Python arguments; here they are options
             raise NoFaceError(_as_options(str(e))) from None

@@ -15,7 +15,9 @@ by more than the light does. :class:`LightingTracker` takes frames one at a time
   frames, ``B_t`` the smoothed spread so far: its weight is ``1 - a^((B_t / b_t)^2)`` instead of ``1 - a``, so a
   frame that cannot settle the light's strength (the face turned away, in shadow) moves the estimate less,
   and a clear one more; the smoothed spread (a geometric mean with the same ``a``) is the output's
-  ``log_energy_spread``;
+  ``log_energy_spread``. With a scene branch (``scene=``, :class:`~kornia_ilum.estimators.SceneStrength`), each
+  estimated frame's strength is first fused with the whole frame's
+  (:func:`~kornia_ilum.estimators.fuse_strength`), and that is what is smoothed;
 - **resets at a cut**: where the crop changed by more than ``cut_above``, the smoothing restarts from the
   new estimate (and the next frame is detected again), so a cut is followed at once. A detection whose face
   box overlaps the tracked one by less than :data:`SWITCH_IOU` (the tracked face left the frame, and the
@@ -43,11 +45,18 @@ import torch
 import torch.nn.functional as F
 from kornia.metrics import mean_iou_bbox
 
-from kornia_ilum.api import cached_detector, cached_estimator, full_image_box, pick_faces
+from kornia_ilum.api import (
+    FoundFaces,
+    cached_detector,
+    cached_estimator,
+    estimate_from_crops,
+    full_image_box,
+    pick_faces,
+)
 from kornia_ilum.core.check import check_positive_int
 from kornia_ilum.core.errors import HDRIOError, NoFaceError, ShapeError, TypeCheckError, ValueCheckError
 from kornia_ilum.detection import DEFAULT_DETECTOR, FaceDetector, crop_faces, square_crop_boxes
-from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator
+from kornia_ilum.estimators import DEFAULT_ESTIMATOR, LightingEstimate, LightingEstimator, SceneStrength
 
 __all__ = ["IMAGE_SUFFIXES", "SWITCH_IOU", "TRACKER_AUTO_ORDER", "LightingTracker", "VideoFrame", "estimate_video",
            "frame_tensor", "read_frames"]
@@ -92,7 +101,7 @@ def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
         ...     [int(f[0, 0, 0]) for f in read_frames(tmp)]
         [0, 40, 80]
     """
-    import cv2  # noqa: PLC0415 - OpenCV only for reading video
+    import cv2
 
     text = os.fspath(source)
     path = Path(text)
@@ -183,6 +192,7 @@ class LightingTracker:
             a frame without a face keeps the last box).
         runtime: the runtime of a named estimator (:data:`~kornia_ilum.estimators.RUNTIMES`); ``"auto"`` here
             tries only :data:`TRACKER_AUTO_ORDER`.
+        scene: a scene branch: the strength from the whole frame, fused with the face's before the smoothing.
 
     Raises:
         ValueCheckError: a setting out of range, or an unknown ``fallback``.
@@ -202,7 +212,8 @@ class LightingTracker:
     def __init__(self, estimator: str | LightingEstimator | None = None,
                  detector: str | FaceDetector = DEFAULT_DETECTOR, *, detect_every: int = 5,
                  reuse_below: float = 0.002, time_constant: float = 2.0,
-                 cut_above: float = 0.03, fallback: str | None = None, runtime: str = "eager") -> None:
+                 cut_above: float = 0.03, fallback: str | None = None, runtime: str = "eager",
+                 scene: SceneStrength | None = None) -> None:
         check_positive_int(detect_every, "detect_every")
         for name, value in (("reuse_below", reuse_below), ("time_constant", time_constant),
                             ("cut_above", cut_above)):
@@ -217,22 +228,24 @@ class LightingTracker:
             self.estimator = cached_estimator(estimator or DEFAULT_ESTIMATOR, device, runtime, TRACKER_AUTO_ORDER)
         self.detector = cached_detector(detector, device) if isinstance(detector, str) else detector
         self.detect_every, self.reuse_below, self.cut_above = detect_every, float(reuse_below), float(cut_above)
-        self.time_constant, self.fallback = float(time_constant), fallback
+        self.time_constant, self.fallback, self.scene = float(time_constant), fallback, scene
         self.reset()
 
     def reset(self) -> None:
         """Forget the past: the next frame is detected and estimated afresh, and the smoothing restarts."""
         self._frame, self._since = 0, 0
-        self._box = self._thumb = self._raw = self._valid = self._smooth = None
-        self._raw_spread = self._spread = None
+        self._face = self._box = self._thumb = self._raw = self._valid = self._smooth = None
+        self._raw_spread = self._spread = self._share = None
 
-    def _box_of(self, image: torch.Tensor) -> torch.Tensor | None:
+    def _box_of(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
+        """The largest face's box and its crop's (the fallback's square for both; else the tracked ones)."""
         found = self.detector.detect(image[None], check_values=False)[0]
         if found.shape[0] > 0:
-            return square_crop_boxes(pick_faces(found, "largest")[:, :4], scale=self.detector.crop_scale)
+            face = pick_faces(found, "largest")[:, :4]
+            return face, square_crop_boxes(face, scale=self.detector.crop_scale)
         if self.fallback == "full_image":
-            return full_image_box(*image.shape[-2:])
-        return self._box
+            return full_image_box(*image.shape[-2:]), full_image_box(*image.shape[-2:])
+        return None if self._box is None else (self._face, self._box)
 
     def __call__(self, frame: np.ndarray | torch.Tensor) -> VideoFrame:
         """The lighting of the next frame: ``(H, W, 3)`` uint8 RGB, or ``(3, H, W)`` sRGB float in ``[0, 1]``.
@@ -253,12 +266,12 @@ class LightingTracker:
         detect = self._box is None or self._since >= self.detect_every
         switched = False  # the detection found another face than the tracked one
         if detect:
-            box = self._box_of(image)
-            if box is None:
+            boxes = self._box_of(image)
+            if boxes is None:
                 raise NoFaceError(f"no face found in frame {index} by detector {self.detector.name!r}, and none "
                                   "before it; try fallback='full_image'")
-            switched = self._box is not None and float(mean_iou_bbox(box, self._box)) < SWITCH_IOU
-            self._box, self._since = box, 0
+            switched = self._box is not None and float(mean_iou_bbox(boxes[1], self._box)) < SWITCH_IOU
+            (self._face, self._box), self._since = boxes, 0
         self._since += 1
         size = self.estimator.info.input_size
         crop = crop_faces(image, self._box, size=size, check_values=False)
@@ -266,18 +279,19 @@ class LightingTracker:
         change = math.inf if self._thumb is None else float((thumb - self._thumb).abs().mean())
         cut = self._thumb is not None and (change > self.cut_above or switched)
         if cut and not detect:  # the scene changed: find the face again, in this very frame
-            box = self._box_of(image)
-            if box is not None:
-                self._box = box
-                crop = crop_faces(image, box, size=size, check_values=False)
+            boxes = self._box_of(image)
+            if boxes is not None:
+                self._face, self._box = boxes
+                crop = crop_faces(image, self._box, size=size, check_values=False)
                 thumb = F.adaptive_avg_pool2d(crop, 32)
             self._since, detect = 1, True
         estimated = self._raw is None or change >= self.reuse_below or switched
         if estimated:
-            with torch.inference_mode():
-                out = self.estimator(crop, check_values=False)
+            found = FoundFaces(self._face, self._box, torch.zeros(1, dtype=torch.int64), torch.ones(1))
+            out = estimate_from_crops(crop, found, self.estimator,
+                                      scene=None if self.scene is None else (self.scene, image[None]))
             self._raw, self._valid, self._thumb = out.mirror_ball, out.valid, thumb
-            self._raw_spread = out.log_energy_spread
+            self._raw_spread, self._share = out.log_energy_spread, out.scene_share
         light = self._raw.float()
         mean = light.mean().clamp(min=1e-30)
         log = torch.log(torch.maximum(light, 1e-6 * mean))
@@ -295,7 +309,7 @@ class LightingTracker:
         ball = torch.where(self._valid, torch.exp(self._smooth), 0.0)
         lighting = LightingEstimate(mirror_ball=ball, valid=self._valid, log_mirror_ball=torch.log1p(ball),
                                     boxes=self._box.clone(), image_index=torch.zeros(1, dtype=torch.int64),
-                                    log_energy_spread=self._spread)
+                                    log_energy_spread=self._spread, scene_share=self._share)
         return VideoFrame(index, lighting, detect, estimated, cut)
 
 

@@ -28,6 +28,7 @@ from kornia_ilum.detection import create_detector, crop_faces
 from kornia_ilum.estimators import PARITY_ATOL, LightingEstimate, TestTimeAugmented, create_estimator
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.io import read_hdr, read_ldr, write_ldr
+from kornia_ilum.metrics import total_radiance
 from kornia_ilum_uniform import SKIN_ALBEDO
 
 # The astronaut's face box found by the Haar cascade is (177, 66, 274, 163); this region holds the face.
@@ -523,7 +524,27 @@ class TestScene:
         torch.testing.assert_close(ratio, ratio[..., :1].expand_as(ratio), rtol=1e-4, atol=0)
         assert bool((est.log_energy_spread < face.log_energy_spread).all())
         fused = estimate_lighting(astronaut, scene=scene, faces="fused")
-        assert len(fused) == 1 and fused.log_energy_spread is not None
+        assert len(fused) == 1 and fused.log_energy_spread is not None and fused.scene_share is not None
+        assert est.scene_share is not None and bool(((est.scene_share > 0) & (est.scene_share < 1)).all())
+
+    def test_the_faces_of_a_photo_share_its_strength(self):
+        from kornia_ilum.estimators import SceneStrength
+
+        face = skimage.data.astronaut()
+        photo = np.zeros((512, 768, 3), np.uint8)
+        photo[:256, :256] = face[::2, ::2]
+        photo[:, 256:] = face
+        torch.manual_seed(0)
+        scene = SceneStrength()
+        alone = estimate_lighting(photo, faces="all")
+        every = estimate_lighting(photo, faces="all", scene=scene)
+        assert len(every) == len(alone) >= 2
+        e = torch.log(total_radiance(every.mirror_ball))
+        torch.testing.assert_close(e, e[:1].expand_as(e), rtol=0, atol=1e-4)  # one strength
+        valid = every.valid
+        ratio = every.mirror_ball[:, :, valid] / alone.mirror_ball[:, :, valid]  # each face's own shape
+        torch.testing.assert_close(ratio, ratio[..., :1].expand_as(ratio), rtol=1e-3, atol=0)
+        torch.testing.assert_close(every.boxes, alone.boxes)
 
     def test_bad_scene(self, astronaut):
         with pytest.raises(TypeCheckError, match="scene must be a SceneStrength"):

@@ -65,8 +65,10 @@ class TestEstimate:
         record = json.loads(exr.with_suffix(".json").read_text())  # the main light beside the .exr
         assert record["image"] == "astronaut" and record["face"] == 0 and len(record["box"]) == 4
         expected = light.dominant_light().to_dict(0)
-        assert record.keys() == {"image", "face", "box", "estimator", "log_energy_spread"} | expected.keys()
+        assert record.keys() == {"image", "face", "box", "estimator", "log_energy_spread", "scene_share",
+                                 "strength_evidence"} | expected.keys()
         assert record["log_energy_spread"] == pytest.approx(float(light.log_energy_spread[0]))
+        assert record["scene_share"] is None and record["strength_evidence"] == "face"  # no scene branch
         for key in ("direction", "irradiance_rgb", "ambient_sh_arcore"):
             np.testing.assert_allclose(record[key], expected[key], rtol=1e-5, atol=1e-7)
 
@@ -98,6 +100,29 @@ class TestEstimate:
         assert written == ["group-0.exr", "group-1.exr", "group-2.exr"]
         assert main(["estimate", single, group, "-o", str(tmp_path / "{stem}.exr")]) == 0  # largest face each
         assert (tmp_path / "astro.exr").is_file() and (tmp_path / "group.exr").is_file()
+
+    def test_scene_one_strength_per_photo(self, tmp_path, group, capsys):
+        """``--scene FILE``: the faces of a photo share one strength, the JSON says how much the photo set."""
+        import safetensors.torch
+
+        from kornia_ilum.estimators import SceneStrength
+
+        torch.manual_seed(0)
+        weights = tmp_path / "scene.safetensors"
+        safetensors.torch.save_file(SceneStrength().state_dict(), str(weights))
+        out = tmp_path / "out"
+        assert main(["estimate", group, "-o", f"{out}/", "--faces", "all", "--scene", str(weights)]) == 0
+        records = [json.loads(p.read_text()) for p in sorted(out.glob("*.json"))]
+        assert len(records) == 3
+        shares = [r["scene_share"] for r in records]
+        assert all(0.0 < v < 1.0 for v in shares) and len({round(v, 6) for v in shares}) == 1
+        assert all(r["strength_evidence"] in ("face", "both", "scene") for r in records)
+        spreads = [r["log_energy_spread"] for r in records]
+        assert max(spreads) == pytest.approx(min(spreads))  # one strength, one spread
+        safetensors.torch.save_file({"w": torch.ones(2)}, str(tmp_path / "bad.safetensors"))
+        assert main(["estimate", group, "-o", f"{tmp_path}/bad/", "--scene", str(tmp_path / "bad.safetensors")]) == 1
+        assert "holds no scene branch's weights" in capsys.readouterr().err
+        assert not (tmp_path / "bad").exists()
 
     def test_fallback(self, tmp_path, capsys):
         flat = _png(tmp_path / "flat.png", np.full((64, 96, 3), 100, np.uint8))

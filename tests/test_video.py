@@ -91,6 +91,20 @@ def test_a_frame_counts_as_its_inverse_variance() -> None:
     assert spread_same.item() == pytest.approx(0.3, rel=1e-6)
 
 
+def test_a_scene_branch_sets_the_strength_before_the_smoothing() -> None:
+    """``scene=``: the first frame is ``estimate_lighting``'s with the same branch, and says the scene's share."""
+    from kornia_ilum.api import estimate_lighting
+    from kornia_ilum.estimators import SceneStrength
+
+    torch.manual_seed(0)
+    scene = SceneStrength()
+    first = LightingTracker(estimator="ours", scene=scene)(FACE).lighting
+    photo = estimate_lighting(FACE, estimator="ours", scene=scene)
+    torch.testing.assert_close(first.mirror_ball, photo.mirror_ball, rtol=1e-4, atol=1e-5)
+    torch.testing.assert_close(first.scene_share, photo.scene_share)
+    assert LightingTracker(estimator="ours")(FACE).lighting.scene_share is None
+
+
 def test_a_cut_restarts_the_smoothing_and_detects_again() -> None:
     tracker = LightingTracker(estimator="uniform", time_constant=10.0, detect_every=100)
     tracker(FACE)

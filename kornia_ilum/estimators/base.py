@@ -116,12 +116,15 @@ class LightingEstimate:
             lies within ``exp(+-b)`` times the estimate's energy with probability ``1 - 1/e`` (63.2 %), within
             ``exp(+-2b)`` with 86.5 %; a face that cannot settle the light's strength (a dark skin of unknown
             albedo, a crop that hides the face) gets a larger ``b``. ``None`` for estimators without it.
+        scene_share: how much of the strength the whole photo set, where a scene branch was used
+            (:func:`~kornia_ilum.estimators.fuse_strength`): the scene's share of the inverse-variance weight,
+            0 (the face alone) to 1 (the scene alone). ``None`` without a scene branch.
 
     Shape:
         - mirror_ball, log_mirror_ball: :math:`(B, 3, S, S)`, ``S = 32`` for every estimator so far
         - valid: :math:`(S, S)` bool
         - sh: :math:`(B, 9, 3)`; boxes: :math:`(B, 4)`; image_index: :math:`(B,)` int64
-        - log_energy_spread: :math:`(B,)`, positive
+        - log_energy_spread, scene_share: :math:`(B,)`
 
     Raises:
         ShapeError, TypeCheckError: on construction, when a field has the wrong shape or dtype.
@@ -140,7 +143,8 @@ class LightingEstimate:
         (2, (2, 3, 16, 32))
         >>> est  # doctest: +NORMALIZE_WHITESPACE
         LightingEstimate(mirror_ball=<(2, 3, 32, 32) float32 cpu>, valid=<(32, 32) bool cpu>,
-                         log_mirror_ball=None, sh=None, boxes=None, image_index=None, log_energy_spread=None)
+                         log_mirror_ball=None, sh=None, boxes=None, image_index=None, log_energy_spread=None,
+                         scene_share=None)
         >>> round(est.render_spheres(16)["diffuse"][0, 0, 8, 8].item(), 3)  # albedo 0.8 under L = 1
         0.8
     """
@@ -152,6 +156,7 @@ class LightingEstimate:
     boxes: Tensor | None = None
     image_index: Tensor | None = None
     log_energy_spread: Tensor | None = None
+    scene_share: Tensor | None = None
 
     def __post_init__(self) -> None:
         check_tensor(self.mirror_ball, "mirror_ball", ["B", "3", "S", "S"], finite=False)
@@ -175,8 +180,9 @@ class LightingEstimate:
             check_tensor(self.boxes, "boxes", [str(batch), "4"], finite=False)
         if self.image_index is not None:
             check_tensor(self.image_index, "image_index", [str(batch)], floating=False, finite=False)
-        if self.log_energy_spread is not None:
-            check_tensor(self.log_energy_spread, "log_energy_spread", [str(batch)], finite=False)
+        for name in ("log_energy_spread", "scene_share"):
+            if getattr(self, name) is not None:
+                check_tensor(getattr(self, name), name, [str(batch)], finite=False)
 
     def __len__(self) -> int:
         return self.mirror_ball.shape[0]
@@ -189,7 +195,8 @@ class LightingEstimate:
                 else f"<{tuple(t.shape)} {str(t.dtype).removeprefix('torch.')} {t.device}>"
             )
 
-        names = ("mirror_ball", "valid", "log_mirror_ball", "sh", "boxes", "image_index", "log_energy_spread")
+        names = ("mirror_ball", "valid", "log_mirror_ball", "sh", "boxes", "image_index", "log_energy_spread",
+                 "scene_share")
         return f"LightingEstimate({', '.join(f'{n}={describe(getattr(self, n))}' for n in names)})"
 
     def to_latlong(self, height: int = 64) -> Tensor:

@@ -25,6 +25,7 @@ No branch ships yet: trained on the light stage's bare busts, the branch still r
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import torch
 import torch.nn.functional as F
@@ -32,8 +33,8 @@ from torch import Tensor, nn
 
 from kornia_ilum.color import EXPOSURE_KEY, LUMINANCE, linear_to_srgb, srgb_to_linear
 from kornia_ilum.core.check import check_tensor
-from kornia_ilum.core.errors import ShapeError
-from kornia_ilum.estimators.base import LightingEstimate
+from kornia_ilum.core.errors import ShapeError, ValueCheckError
+from kornia_ilum.estimators.base import LightingEstimate, read_weights
 from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.metrics import total_radiance
 
@@ -112,6 +113,21 @@ class SceneStrength(nn.Module):
         self.features = nn.Sequential(*layers, nn.AdaptiveAvgPool2d(1), nn.Flatten())
         self.head = nn.Sequential(nn.Linear(depth_in, hidden), nn.ReLU(), nn.Linear(hidden, 4))
 
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str]) -> SceneStrength:
+        """A trained branch, in eval mode, from its weight file (``kornia-ilum train --estimator scene``), read
+        by :func:`~kornia_ilum.estimators.read_weights` (no pickle).
+
+        Raises:
+            OSError: the file cannot be read; ValueCheckError: its tensors are not this network's.
+        """
+        net = cls()
+        try:
+            net.load_state_dict(read_weights(path, expected_by="SceneStrength.from_file")[0], strict=True)
+        except RuntimeError as e:  # missing, unexpected or misshapen tensors
+            raise ValueCheckError(f"{os.fspath(path)} holds no scene branch's weights: {e}") from None
+        return net.eval()
+
     def forward(self, frames: Tensor) -> tuple[Tensor, Tensor]:
         r"""``(log_energy, spread)`` of each face's photo.
 
@@ -136,18 +152,24 @@ class SceneStrength(nn.Module):
         return out[:, :3] + torch.log(scale)[:, None], torch.exp(out[:, 3].clamp(*LOG_SPREAD_RANGE))
 
 
-def fuse_strength(estimate: LightingEstimate, log_energy: Tensor, spread: Tensor) -> LightingEstimate:
-    r"""The face estimate with its strength fused with the scene's, per channel, by inverse variance.
+def fuse_strength(estimate: LightingEstimate, log_energy: Tensor, spread: Tensor,
+                  image_index: Tensor | None = None) -> LightingEstimate:
+    r"""The face estimates with one strength per photo: the faces' own and the scene's, fused per channel by
+    inverse variance.
 
-    With the face's log energy :math:`e_f` (:func:`~kornia_ilum.metrics.total_radiance`) and spread :math:`b_f`,
-    the scene's :math:`e_s`, :math:`b_s`: :math:`e = (e_f / b_f^2 + e_s / b_s^2) / (1 / b_f^2 + 1 / b_s^2)`;
-    the mirror ball (and SH) are scaled by :math:`\exp(e - e_f)` and the spread becomes
-    :math:`(1 / b_f^2 + 1 / b_s^2)^{-1/2}`. The shape is the face's.
+    With face :math:`f`'s log energy :math:`e_f` (:func:`~kornia_ilum.metrics.total_radiance`) and spread
+    :math:`b_f`, and the photo's scene estimate :math:`e_s`, :math:`b_s` (the mean of the scene branch's outputs
+    for the photo's faces: one scene, one piece of evidence, however many faces look at it),
+    :math:`e = (\sum_f e_f / b_f^2 + e_s / b_s^2) / (\sum_f 1 / b_f^2 + 1 / b_s^2)`; every face's mirror ball
+    (and SH) is scaled by :math:`\exp(e - e_f)`, so each keeps its own shape and all share the photo's strength,
+    and its spread becomes :math:`(\sum_f 1 / b_f^2 + 1 / b_s^2)^{-1/2}`. ``scene_share`` says how much of the
+    weight was the scene's: :math:`b_s^{-2} / (\sum_f b_f^{-2} + b_s^{-2})`.
 
     Args:
         estimate: ``N`` face estimates with ``log_energy_spread``.
-        log_energy: :math:`(N, 3)` the scene's.
-        spread: :math:`(N,)` the scene's.
+        log_energy: :math:`(N, 3)` the scene branch's, per face.
+        spread: :math:`(N,)` the scene branch's, per face.
+        image_index: :math:`(N,)` int64, the photo of each face; ``None``: every face a photo of its own.
 
     Returns:
         the fused :class:`~kornia_ilum.estimators.LightingEstimate`.
@@ -164,22 +186,35 @@ def fuse_strength(estimate: LightingEstimate, log_energy: Tensor, spread: Tensor
         >>> fused = fuse_strength(face, e_face + 1.0, torch.tensor([0.5]))  # equally sure, e times brighter
         >>> bool(torch.allclose(fused.mirror_ball[0, :, 16, 16], torch.full((3,), 0.5).exp()))
         True
-        >>> round(fused.log_energy_spread.item(), 4)  # 0.5 / sqrt(2)
-        0.3536
+        >>> round(fused.log_energy_spread.item(), 4), round(fused.scene_share.item(), 4)  # 0.5 / sqrt(2)
+        (0.3536, 0.5)
     """
     n = estimate.mirror_ball.shape[0]
-    if estimate.log_energy_spread is None or log_energy.shape != (n, 3) or spread.shape != (n,):
-        raise ShapeError(f"fuse_strength needs the face's spread and ({n}, 3), ({n},) of the scene, got "
-                         f"{tuple(log_energy.shape)}, {tuple(spread.shape)}")
+    index = torch.arange(n, device=spread.device) if image_index is None else image_index.to(spread.device)
+    if estimate.log_energy_spread is None or log_energy.shape != (n, 3) or spread.shape != (n,) or \
+            index.shape != (n,):
+        raise ShapeError(f"fuse_strength needs the face's spread and ({n}, 3), ({n},) of the scene (and ({n},) "
+                         f"photo indices), got {tuple(log_energy.shape)}, {tuple(spread.shape)}, "
+                         f"{tuple(index.shape)}")
     work = torch.promote_types(estimate.mirror_ball.dtype, torch.float32)
     light = estimate.mirror_ball.to(work)
     e_face = torch.log(total_radiance(light).clamp(min=torch.finfo(work).tiny))
-    w_face, w_scene = estimate.log_energy_spread.to(work) ** -2, spread.to(work) ** -2
-    fused = (w_face[:, None] * e_face + w_scene[:, None] * log_energy.to(work)) / (w_face + w_scene)[:, None]
+    photos = int(index.max()) + 1 if n else 0
+
+    def per_photo(x: Tensor) -> Tensor:  # sums over each photo's faces
+        return x.new_zeros((photos, *x.shape[1:])).index_add_(0, index, x)
+
+    faces = per_photo(torch.ones(n, dtype=work, device=light.device)).clamp(min=1.0)
+    w_scene = (per_photo(spread.to(work)) / faces) ** -2
+    e_scene = per_photo(log_energy.to(work)) / faces[:, None]
+    w_face = estimate.log_energy_spread.to(work) ** -2
+    weight = per_photo(w_face) + w_scene
+    fused = ((per_photo(w_face[:, None] * e_face) + w_scene[:, None] * e_scene) / weight[:, None])[index]
     gain = torch.exp(fused - e_face)
     ball = light * gain[:, :, None, None]
     sh = None if estimate.sh is None else (estimate.sh.to(work) * gain[:, None, :]).to(estimate.sh.dtype)
     return dataclasses.replace(
         estimate, mirror_ball=ball.to(estimate.mirror_ball.dtype), sh=sh,
         log_mirror_ball=torch.where(estimate.valid, torch.log1p(ball), 0.0).to(estimate.mirror_ball.dtype),
-        log_energy_spread=(w_face + w_scene).rsqrt().to(estimate.log_energy_spread.dtype))
+        log_energy_spread=weight.rsqrt()[index].to(estimate.log_energy_spread.dtype),
+        scene_share=(w_scene / weight)[index].to(estimate.log_energy_spread.dtype))

@@ -100,6 +100,23 @@ class TestFuseStrength:
         assert torch.allclose(unsure.log_energy_spread, torch.full((2,), 0.3), rtol=1e-3)
         torch.testing.assert_close(sure.log_mirror_ball, torch.log1p(sure.mirror_ball) * face.valid)
 
+    def test_one_strength_per_photo(self):
+        """Two faces of one photo: each keeps its shape, both get the photo's strength; the scene counts once."""
+        face = self.face(0.5)
+        e_face = torch.log(total_radiance(face.mirror_ball))
+        scene = torch.zeros(2, 3)
+        shared = fuse_strength(face, scene, torch.full((2,), 0.5), torch.zeros(2, dtype=torch.int64))
+        e = torch.log(total_radiance(shared.mirror_ball))
+        torch.testing.assert_close(e[0], e[1], rtol=0, atol=1e-5)
+        torch.testing.assert_close(e[0], (e_face.sum(0) + scene[0]) / 3, rtol=0, atol=1e-5)  # 3 equal weights
+        ratio = shared.mirror_ball[:, :, face.valid] / face.mirror_ball[:, :, face.valid]
+        torch.testing.assert_close(ratio, ratio[..., :1].expand_as(ratio), rtol=1e-4, atol=0)  # shapes kept
+        torch.testing.assert_close(shared.log_energy_spread, torch.full((2,), 0.5 / 3**0.5), rtol=1e-5, atol=0)
+        torch.testing.assert_close(shared.scene_share, torch.full((2,), 1 / 3), rtol=1e-5, atol=0)
+        alone = fuse_strength(face, scene, torch.full((2,), 0.5), torch.tensor([0, 1]))
+        torch.testing.assert_close(alone.mirror_ball, fuse_strength(face, scene, torch.full((2,), 0.5)).mirror_ball)
+        torch.testing.assert_close(alone.scene_share, torch.full((2,), 0.5), rtol=1e-5, atol=0)
+
     def test_needs_the_face_spread(self):
         face = self.face(0.3)
         with pytest.raises(ShapeError, match="spread"):
@@ -107,3 +124,5 @@ class TestFuseStrength:
                           torch.ones(2))
         with pytest.raises(ShapeError):
             fuse_strength(face, torch.zeros(3, 3), torch.ones(3))
+        with pytest.raises(ShapeError, match="photo"):
+            fuse_strength(face, torch.zeros(2, 3), torch.ones(2), torch.zeros(3, dtype=torch.int64))
