@@ -4,8 +4,9 @@ Run: ``python benchmarks/scene_strength.py --cache EVAL_CACHE --hdri ../shared/d
 --scene runs/scene/scene.safetensors [--weights ours.safetensors] [--samples 512]``
 
 The eval split's portraits with their whole frames (:func:`~kornia_ilum_lab.evaluation.evaluate.build_eval_set`
-with ``frame=128``: the same subjects, maps and draws every time), three ways: in front of the far environment,
-in front of a plain backdrop, and with a wall and a floor lit by the same environment (``surroundings=1``). For
+with ``frame=128``: the same subjects, maps and draws every time), four ways: in front of the far environment,
+in front of a plain backdrop, with a wall and a floor lit by the same environment (``surroundings=1``), and with
+a second subject beside (``companions=1``). For
 each: :func:`~kornia_ilum_lab.evaluation.scene.scene_check`, the median of the estimated over the true energy per
 Monk tone, the tone spread (largest over smallest per-tone median) with its 95 % interval over subjects, and how
 often the truth lies within one spread of each estimate (nominal 0.63). A measurement, not a test.
@@ -22,7 +23,7 @@ from kornia_ilum_lab.evaluation.scene import NOMINAL_COVERAGE, scene_check
 from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
 
 KINDS = {"far environment": {}, "plain backdrop": {"plain_background": 1.0},
-         "wall and floor": {"surroundings": 1.0}}
+         "wall and floor": {"surroundings": 1.0}, "a companion beside": {"companions": 1.0}}
 
 
 def main() -> None:

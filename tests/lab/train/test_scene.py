@@ -11,7 +11,7 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
 from kornia_ilum_lab.train import TrainConfig, read_log, train
 from kornia_ilum_lab.train.recipes import get_recipe
-from kornia_ilum_lab.train.scene import SceneRecipe, scene_nll
+from kornia_ilum_lab.train.scene import SceneRecipe, scene_batch, scene_nll
 from tests.lab.train.helpers import small_data
 
 
@@ -20,6 +20,24 @@ def test_nll_is_lowest_at_the_error_and_the_spread_that_fit():
     error = torch.full((4, 3), 0.5)
     at = {b: scene_nll(error, torch.full((4,), b), truth).item() for b in (0.25, 0.5, 1.0)}
     assert at[0.5] < at[0.25] and at[0.5] < at[1.0]  # the Laplace scale's optimum is the mean absolute error
+
+
+def test_a_batch_is_cut_to_its_photo_windows():
+    """``frame_window``: each frame is cut to its window and letterboxed as scene_input does a photo of that
+    shape; without windows, the whole square frame."""
+    frames = torch.full((2, 3, 16, 16), 128, dtype=torch.uint8)
+    batch = {"frame": frames, "frame_box": torch.tensor([[4.0, 4, 8, 8], [6, 6, 10, 10]]),
+             "mirror_ball": torch.ones(2, 3, 8, 8),
+             "frame_window": torch.tensor([[0.0, 2, 16, 14], [4, 0, 13, 16]])}  # 16 x 12 and 9 x 16
+    x, truth = scene_batch(batch, torch.device("cpu"))
+    assert x.shape == (2, 5, 16, 16) and truth.shape == (2, 3)
+    extent = x[:, 4]
+    assert extent[0].sum() == 16 * 12 and bool((extent[0, :2] == 0).all())  # padded above and below
+    assert extent[1].sum() == 9 * 16 and bool((extent[1][:, :3] == 0).all())  # padded left and right
+    assert x[0, 3].sum() == 16 and x[1, 3].sum() == 16  # the face's box moved with the window, 4 x 4
+    del batch["frame_window"]
+    whole, _ = scene_batch(batch, torch.device("cpu"))
+    assert bool((whole[:, 4] == 1).all())
 
 
 def test_registered_and_strict():

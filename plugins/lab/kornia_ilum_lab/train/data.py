@@ -161,8 +161,8 @@ def write_training_probe(folder: str | os.PathLike[str], cache: Sequence[str | o
 def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
     """Stack what training reads: ``image`` (uint8), ``mirror_ball``, and the per-sample labels; for paired
     samples (``PortraitConfig.pairs``) also ``pair_image``, ``pair_mirror_ball`` and ``alpha`` (uint8); with
-    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``; with ``PortraitConfig.frame``, ``frame`` (uint8)
-    and ``frame_box`` ``(B, 4)``.
+    ``PortraitConfig.second_crop``, ``second_crop`` ``(B, 4)``; with ``PortraitConfig.frame``, ``frame`` (uint8),
+    ``frame_box`` and ``frame_window`` ``(B, 4)``.
 
     Args:
         samples: samples of a :class:`~kornia_ilum_lab.synth.lightstage.portraits.PortraitDataset`.
@@ -200,6 +200,7 @@ def collate(samples: list[dict[str, Any]]) -> dict[str, Any]:
     if "frame" in samples[0]:
         batch["frame"] = torch.stack([s["frame"] for s in samples])
         batch["frame_box"] = torch.stack([s["frame_box"] for s in samples])
+        batch["frame_window"] = torch.stack([s["frame_window"] for s in samples])
     return batch
 
 

@@ -44,12 +44,25 @@ def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tens
     r"""``(frames, log_energy)`` of a collated batch with frames: the network's input and the true log energy per
     channel.
 
+    Each frame is cut to its ``frame_window`` where the batch has them (a common photo's aspect around the face,
+    :func:`~kornia_ilum_lab.synth.lightstage.portraits.aspect_windows`), so the network learns on photos
+    letterboxed as :func:`~kornia_ilum.estimators.scene.scene_input` letterboxes a 4:3 or 16:9 photo.
+
     Shape:
         - Output: :math:`(B, 5, S, S)`, :math:`(B, 3)`
     """
     frames = batch["frame"].to(device).float() / 255.0
     boxes = batch["frame_box"].to(device).float()
-    x = scene_input(frames, boxes, torch.arange(len(frames), device=device), size=frames.shape[-1])
+    size = frames.shape[-1]
+    if "frame_window" in batch:
+        first = torch.zeros(1, dtype=torch.int64, device=device)
+        parts = []
+        for i, (x0, y0, x1, y1) in enumerate(batch["frame_window"].round().long().tolist()):
+            shift = torch.tensor([x0, y0, x0, y0], dtype=boxes.dtype, device=device)
+            parts.append(scene_input(frames[i : i + 1, :, y0:y1, x0:x1], boxes[i : i + 1] - shift, first, size=size))
+        x = torch.cat(parts)
+    else:
+        x = scene_input(frames, boxes, torch.arange(len(frames), device=device), size=size)
     truth = torch.log(total_radiance(batch["mirror_ball"].to(device).float()).clamp(min=1e-12))
     return x, truth
 

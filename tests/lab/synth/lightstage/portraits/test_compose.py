@@ -18,6 +18,8 @@ from kornia_ilum_lab.synth.background import LUMINANCE, camera_rays, latlong_gri
 from kornia_ilum_lab.synth.environments import lighting_rotation
 from kornia_ilum_lab.synth.lightstage import LANDMARK_NAMES
 from kornia_ilum_lab.synth.lightstage.portraits import (
+    PHOTO_ASPECTS,
+    aspect_windows,
     auto_exposure,
     background_pyramid,
     crop_images,
@@ -269,3 +271,28 @@ class TestEnlarge:
         assert close.all()
         torch.testing.assert_close(_rotated_grid(40.0, 16, 32, views[1])[0], latlong_grid(rays, 32).float(),
                                    rtol=0, atol=1e-5)
+
+
+class TestAspectWindows:
+    def test_photo_shapes_around_the_face(self):
+        boxes = torch.tensor([[50.0, 20, 70, 45]]).expand(400, 4)
+        w = aspect_windows(boxes, 128, generator=torch.Generator().manual_seed(0))
+        width, height = w[:, 2] - w[:, 0], w[:, 3] - w[:, 1]
+        assert bool((torch.maximum(width, height) == 128).all())
+        ratio = torch.maximum(width, height) / torch.minimum(width, height)
+        seen = {round(float(r), 2) for r in ratio}
+        assert seen == {round(128 / round(128 / a), 2) for a in PHOTO_ASPECTS}
+        wide, tall = int((width > height).sum()), int((width < height).sum())  # a quarter square
+        assert 110 < wide < 190 and 110 < tall < 190  # landscape and portrait alike
+        assert bool(((w[:, :2] <= boxes[:, :2]) & (w[:, 2:] >= boxes[:, 2:])).all())  # the face inside
+        assert bool((w >= 0).all() and (w <= 128).all() and (w == w.round()).all())
+
+    def test_a_face_larger_than_the_window_is_centred(self):
+        w = aspect_windows(torch.tensor([[0.0, 10, 128, 110]] * 50), 128, generator=torch.Generator().manual_seed(1))
+        wide = w[w[:, 2] - w[:, 0] == 128]
+        short = wide[:, 3] - wide[:, 1]
+        small = short < 100  # the 16:9 and 3:2 windows: narrower than the box
+        torch.testing.assert_close((wide[small, 1] + wide[small, 3]) / 2, torch.full((int(small.sum()),), 60.0),
+                                   atol=0.5, rtol=0)
+        with pytest.raises(ValueCheckError):
+            aspect_windows(torch.zeros(3), 128, generator=torch.Generator())

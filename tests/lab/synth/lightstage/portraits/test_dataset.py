@@ -426,8 +426,10 @@ class TestFrame:
             x0, y0, x1, y1 = b["frame_box"].round().long().tolist()
             face = b["frame"][:, max(y0, 0):y1, max(x0, 0):x1].float().mean()
             assert face > 0
+            x0, y0, x1, y1 = b["frame_window"].tolist()  # a photo's window around the face, its long side 16
+            assert 0 <= x0 < x1 <= 16 and 0 <= y0 < y1 <= 16 and max(x1 - x0, y1 - y0) == 16
         batch = collate(whole)
-        assert batch["frame"].shape == (8, 3, 16, 16) and batch["frame_box"].shape == (8, 4)
+        assert batch["frame"].shape == (8, 3, 16, 16) and batch["frame_box"].shape == batch["frame_window"].shape
         with pytest.raises(ValueCheckError, match="frame"):
             PortraitConfig(frame=-1)
 

@@ -50,6 +50,8 @@ The package holds :mod:`~kornia_ilum_lab.synth.lightstage.portraits.compose` (th
 
 from kornia_ilum_lab.synth.lightstage.portraits.compose import (
     DETECTOR_BOX,
+    PHOTO_ASPECTS,
+    aspect_windows,
     auto_exposure,
     background_pyramid,
     crop_images,
@@ -73,8 +75,10 @@ from kornia_ilum_lab.synth.lightstage.portraits.dataset import (
 __all__ = [
     "DETECTOR_BOX",
     "MAX_WORKERS",
+    "PHOTO_ASPECTS",
     "PortraitConfig",
     "PortraitDataset",
+    "aspect_windows",
     "auto_exposure",
     "background_pyramid",
     "crop_images",

@@ -32,7 +32,9 @@ from kornia_ilum_lab.synth.lightstage.subjects import LANDMARK_NAMES
 
 __all__ = [
     "DETECTOR_BOX",
+    "PHOTO_ASPECTS",
     "add_relit",
+    "aspect_windows",
     "auto_exposure",
     "background_pyramid",
     "crop_images",
@@ -213,6 +215,53 @@ def inner_crop_boxes(
     cx = size / 2 + size * uniform_draws(n, -position, position, generator)
     cy = size / 2 + size * uniform_draws(n, -position, position, generator)
     return _fit_inside(torch.stack([cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2], -1), size)
+
+
+#: Photo aspects (width over height) of :func:`aspect_windows`, each landscape or portrait alike.
+PHOTO_ASPECTS: tuple[float, ...] = (1.0, 4.0 / 3.0, 3.0 / 2.0, 16.0 / 9.0)
+
+
+def aspect_windows(boxes: torch.Tensor, size: int, *, generator: torch.Generator) -> torch.Tensor:
+    r"""Windows of a square ``size x size`` frame with a common photo's aspect, around each face: what a photo of
+    that shape would show of the scene (the scene branch's training input, ``PortraitConfig.frame``).
+
+    The aspect is one of :data:`PHOTO_ASPECTS`, landscape or portrait with equal odds; the window's longer side
+    is the frame's, and along the shorter it is placed uniformly among the positions that keep the face's box
+    inside (centred on the box where none does).
+
+    Args:
+        boxes: ``(N, 4)`` face boxes ``(x0, y0, x1, y1)`` in the frame's pixels.
+        size: the frame's side.
+        generator: the random source (three draws of ``N``).
+
+    Returns:
+        ``(N, 4)`` float32 windows ``(x0, y0, x1, y1)`` in whole pixels.
+
+    Examples:
+        >>> w = aspect_windows(torch.tensor([[40.0, 40, 80, 80]] * 8), 128, generator=torch.Generator().manual_seed(0))
+        >>> bool(((w[:, 2] - w[:, 0] == 128) | (w[:, 3] - w[:, 1] == 128)).all())  # the longer side: the frame's
+        True
+        >>> bool(((w[:, :2] <= 40) & (w[:, 2:] >= 80)).all())  # the face inside
+        True
+    """
+    check_positive_int(size, "size")
+    if boxes.ndim != 2 or boxes.shape[-1] != 4:
+        raise ValueCheckError(f"boxes must be (N, 4), got {tuple(boxes.shape)}")
+    n = boxes.shape[0]
+    aspect = torch.tensor(PHOTO_ASPECTS, dtype=torch.float64)[torch.randint(len(PHOTO_ASPECTS), (n,),
+                                                                            generator=generator)]
+    tall = torch.rand(n, generator=generator) < 0.5
+    u = torch.rand(n, generator=generator, dtype=torch.float64)
+    short = torch.round(size / aspect)
+    b = boxes.double()
+    low, high = torch.where(tall, b[:, 0], b[:, 1]), torch.where(tall, b[:, 2], b[:, 3])
+    first, last = (high - short).clamp(min=0.0), torch.minimum(low, size - short)
+    centred = ((low + high - short) / 2).clamp(min=0.0).minimum(size - short)
+    start = torch.floor(torch.where(first <= last, first + u * (last - first), centred))
+    zero, full = torch.zeros_like(start), torch.full_like(start, float(size))
+    windows = torch.where(tall[:, None], torch.stack([start, zero, start + short, full], -1),
+                          torch.stack([zero, start, full, start + short], -1))
+    return windows.float()
 
 
 def random_crop_boxes(

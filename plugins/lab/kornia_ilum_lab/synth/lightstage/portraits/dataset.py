@@ -44,6 +44,7 @@ from kornia_ilum_lab.synth.lightstage.cache import read_field, read_manifest
 from kornia_ilum_lab.synth.lightstage.field import ReflectanceField
 from kornia_ilum_lab.synth.lightstage.portraits.compose import (
     add_relit,
+    aspect_windows,
     auto_exposure,
     background_pyramid,
     crop_images,
@@ -174,8 +175,10 @@ class PortraitConfig:
             effects (no sensor noise, lens blur or JPEG, which the shrinking averages away), mirrored and with the
             colour look as the crop: ``sample["frame"]`` ``(3, frame, frame)`` uint8 sRGB codes and
             ``sample["frame_box"]`` ``(4,)``, the face box in its pixels (the scene branch's input,
-            :func:`kornia_ilum.estimators.scene.scene_input`). It draws nothing: 0 (off) or not, every other
-            field of a sample is the same, bit for bit.
+            :func:`kornia_ilum.estimators.scene.scene_input`), and ``sample["frame_window"]`` ``(4,)``, a window
+            of a common photo's aspect around the face (:func:`aspect_windows`: what a photo of that shape would
+            show; training's scene branch reads it). Its draws are a stream of its own: 0 (off) or not, every
+            other field of a sample is the same, bit for bit.
         flip_probability: the fraction of samples mirrored left-right.
         crop_scale, crop_position, crop_extent: the face crop's expansion and jitter (:func:`face_crop_boxes`).
         exposure_key: the range of the auto-exposure's key (log-uniform).
@@ -702,10 +705,11 @@ class PortraitDataset(IterableDataset):
             if whole:
                 views[-1]["frame"] = whole[0]
         boxes, faces = torch.cat(boxes).float(), torch.cat(faces).float()
-        frame_boxes = None
+        frame_boxes = windows = None
         if cfg.frame:
             sides = torch.tensor([float(self.fields[f].size) for f in field_ids]).repeat_interleave(nl)
             frame_boxes = faces * (cfg.frame / sides)[:, None]
+            windows = aspect_windows(frame_boxes, cfg.frame, generator=_generator(self.seed, worker, index, -6))
         second = None
         if cfg.second_crop:  # the chunk's last draws, and only when asked for: the others stay what they were
             second = inner_crop_boxes(n, cfg.size, generator=g, position=cfg.crop_position,
@@ -741,7 +745,7 @@ class PortraitDataset(IterableDataset):
             if mates is not None:
                 sample["companion"] = mates[j] is not None
             if frame_boxes is not None:
-                sample["frame_box"] = frame_boxes[j]
+                sample["frame_box"], sample["frame_window"] = frame_boxes[j], windows[j]
             if cfg.pairs:
                 sample["pair"] = one[1]
             if second is not None:
