@@ -220,15 +220,17 @@ def test_tests_mirror_the_package() -> None:
 
 
 def test_the_library_stays_small() -> None:
-    """The library a user installs holds at most 7,000 lines of code (docstrings, comments and blank lines aside;
-    ``benchmarks/count_lines.py``): what makes the estimators is the lab's."""
+    """The library a user installs holds at most 7,100 lines of code (docstrings, comments and blank lines aside;
+    ``benchmarks/count_lines.py``): what makes the estimators is the lab's. (7,000 until issue 47 brought the
+    scene branch into the library: its network and input, one strength per photo, and their use by
+    ``estimate_lighting``, the tracker and the CLI.)"""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("count_lines", ROOT / "benchmarks" / "count_lines.py")
     count_lines = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(count_lines)
     total = sum(count_lines.code_lines(p) for p in (ROOT / "kornia_ilum").rglob("*.py"))
-    assert total <= 7000, total
+    assert total <= 7100, total
 
 
 def test_no_function_takes_more_than_five_positional_parameters() -> None:

@@ -38,10 +38,14 @@ from kornia_ilum.estimators.base import LightingEstimate, read_weights
 from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
 from kornia_ilum.metrics import total_radiance
 
-__all__ = ["SCENE_DEPTHS", "SCENE_SIZE", "SceneStrength", "fuse_strength", "scene_input"]
+__all__ = ["MIN_REST", "SCENE_DEPTHS", "SCENE_SIZE", "SceneStrength", "fuse_strength", "scene_input"]
 
 #: Side of the square the photo is letterboxed into for :class:`SceneStrength`.
 SCENE_SIZE = 128
+#: The least share of the square that the photo must show besides the face for :class:`SceneStrength` to read it:
+#: below it (a face that fills the photo, a strip of a panorama wider than about 3:1) the branch gives its widest
+#: spread, and the face's own estimate stays in charge.
+MIN_REST = 1.0 / 3.0
 #: Depths of the scene network's five stride-2 convolutions.
 SCENE_DEPTHS: tuple[int, ...] = (16, 32, 64, 96, 128)
 
@@ -137,7 +141,8 @@ class SceneStrength(nn.Module):
         Returns:
             :math:`(N, 3)` natural-log energy per channel in the photo's units, and :math:`(N,)` the spread ``b``
             of a Laplace distribution of the true log energy around it (``log b`` clamped to ``ours``'
-            :data:`~kornia_ilum.estimators.ours.LOG_SPREAD_RANGE`).
+            :data:`~kornia_ilum.estimators.ours.LOG_SPREAD_RANGE`; its top, ``e^3``, where the photo shows less
+            than :data:`MIN_REST` of the square besides the face).
         """
         check_tensor(frames, "frames", ["N", "5", "S", "S"])
         work = torch.promote_types(frames.dtype, torch.float32)
@@ -149,7 +154,9 @@ class SceneStrength(nn.Module):
         scale = (luma / rest.sum((1, 2, 3)).clamp(min=1.0) / EXPOSURE_KEY).clamp(min=1e-6)
         x = torch.cat([linear_to_srgb((linear / scale[:, None, None, None]).clamp(max=1.0)), box, extent], 1)
         out = self.head(self.features(x.to(self.head[0].weight.dtype) - 0.5)).to(work)
-        return out[:, :3] + torch.log(scale)[:, None], torch.exp(out[:, 3].clamp(*LOG_SPREAD_RANGE))
+        void = rest.sum((1, 2, 3)) < MIN_REST * frames.shape[-2] * frames.shape[-1]  # too little to read
+        log_spread = torch.where(void, LOG_SPREAD_RANGE[1], out[:, 3].clamp(*LOG_SPREAD_RANGE))
+        return out[:, :3] + torch.log(scale)[:, None], torch.exp(log_spread)
 
 
 def fuse_strength(estimate: LightingEstimate, log_energy: Tensor, spread: Tensor,

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
 
 from kornia_ilum.color import linear_to_srgb
 from kornia_ilum.core.errors import ShapeError
 from kornia_ilum.estimators import LightingEstimate
-from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength, fuse_strength, scene_input
+from kornia_ilum.estimators.ours import LOG_SPREAD_RANGE
+from kornia_ilum.estimators.scene import MIN_REST, SCENE_SIZE, SceneStrength, fuse_strength, scene_input
 from kornia_ilum.geometry import mirror_ball_valid
 from kornia_ilum.metrics import total_radiance
 
@@ -73,6 +76,21 @@ class TestSceneStrength:
         (e.sum() + b.sum()).backward()
         assert all(p.grad is not None for p in net.parameters())
         assert bool(((b > 0) & (b < 21)).all())
+
+    def test_a_photo_with_little_besides_the_face_tells_nothing(self):
+        """The face filling the photo, or a panorama's strip: the widest spread, so the face stays in charge."""
+        torch.manual_seed(0)
+        net = SceneStrength().eval()
+        widest = math.exp(LOG_SPREAD_RANGE[1])
+        cases = {"face fills it": (torch.rand(1, 3, 90, 120), [[5.0, 0, 115, 90]]),
+                 "panorama 4:1": (torch.rand(1, 3, 100, 400), [[180.0, 30, 220, 70]]),
+                 "4:3 portrait": (torch.rand(1, 3, 90, 120), [[45.0, 20, 75, 60]])}
+        with torch.no_grad():
+            spreads = {k: net(scene_input(p, torch.tensor(b), torch.tensor([0])))[1].item() for k, (p, b) in
+                       cases.items()}
+        assert spreads["face fills it"] == pytest.approx(widest) and spreads["panorama 4:1"] == pytest.approx(widest)
+        assert spreads["4:3 portrait"] < widest * 0.99
+        assert MIN_REST == pytest.approx(1 / 3)
 
     def test_bad_frames(self):
         with pytest.raises(ShapeError):
