@@ -160,13 +160,15 @@ def format_bench(result: dict[str, Any]) -> str:
         lines += ["", "## One photograph end to end (JPEG file to .exr)", "",
                   "Medians in ms. `x baseline` is the speed-up over the first row of the same photo size: the first "
                   "detector's eager path (eager float32, detection at full resolution; Haar's in the default run). "
-                  "The row marked *defaults* is `kornia-ilum estimate` with no option.", "",
+                  "The row marked *defaults* is `kornia-ilum estimate` with no option; *+ scene* is the same with "
+                  "a scene branch (`--scene`: the light's strength from the whole photo).", "",
                   "| photo | detector | detect side | runtime | read | check | detect | crop | estimate | write | "
                   "total | x baseline |", "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for e in result["e2e"]:
             stages = " | ".join(_f(e["ms"][k], 1) for k in ("read", "check", "detect", "crop", "estimate", "write",
                                                             "total"))
             runtime = f"{e['runtime']}, *defaults*" if e.get("defaults") else e["runtime"]
+            runtime += ", *+ scene*" if e.get("scene") else ""
             lines.append(f"| {e['photo']} | {e['detector']} | {e['max_side'] or 'full'} | {runtime} | "
                          f"{stages} | {e['speedup']:.2f} |")
     if result.get("skips_what"):

@@ -29,7 +29,7 @@ from torch.utils.flop_counter import FlopCounterMode
 from kornia_ilum.api import estimate_lighting
 from kornia_ilum.bench.machine import median_seconds
 from kornia_ilum.detection import FaceDetector
-from kornia_ilum.estimators import LightingEstimator
+from kornia_ilum.estimators import LightingEstimator, SceneStrength
 from kornia_ilum.estimators.probe import CHECK, fit_crops, load_probe
 from kornia_ilum.io import read_ldr, write_ldr
 
@@ -125,8 +125,8 @@ def portrait_photo(width: int, height: int) -> np.ndarray:
     return (canvas[0].permute(1, 2, 0) * 255).round().to(torch.uint8).numpy()
 
 
-def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDetector, repeats: int = 10
-               ) -> dict[str, float]:
+def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDetector, repeats: int = 10,
+               scene: SceneStrength | None = None) -> dict[str, float]:
     r"""One photograph from its JPEG file to its ``.exr``, stage by stage: medians in ms.
 
     The photo is written once as a JPEG (quality 95) into a temporary folder (removed afterwards); each run
@@ -140,6 +140,7 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
         detector: the face detector (the bench's: :func:`~kornia_ilum.api.cached_detector`, possibly detecting
             on a downscaled copy).
         repeats: timed runs.
+        scene: a scene branch for :func:`~kornia_ilum.estimate_lighting` (its time is in ``estimate``).
 
     Returns:
         ``{"read", "check", "detect", "crop", "estimate", "write", "total"}`` in ms, each the median over
@@ -162,7 +163,8 @@ def end_to_end(photo: np.ndarray, estimator: LightingEstimator, detector: FaceDe
             t0 = time.perf_counter()
             image = read_ldr(src)
             times = {"read": 1e3 * (time.perf_counter() - t0)}
-            light = estimate_lighting(image, estimator=estimator, detector=detector, on_stage=times.__setitem__)
+            light = estimate_lighting(image, estimator=estimator, detector=detector, on_stage=times.__setitem__,
+                                      scene=scene)
             t1 = time.perf_counter()
             light.save(dst)
             t2 = time.perf_counter()

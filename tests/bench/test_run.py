@@ -33,7 +33,7 @@ def test_a_run_times_scores_and_picks() -> None:
     assert [e["max_side"] for e in result["e2e"]] == [None, None, 320, 240] and result["e2e"][0]["speedup"] == 1.0
     # the last row: `kornia-ilum estimate`'s defaults (YuNet at its own 240 pixels, eager)
     assert [e["defaults"] for e in result["e2e"]] == [False, False, False, True]
-    assert result["e2e"][-1]["detector"] == "yunet"
+    assert result["e2e"][-1]["detector"] == "yunet" and not any(e["scene"] for e in result["e2e"])
     assert result["error"]["what"] == "a stand-in" and result["paper"]["fps"] == 27.5
 
 
@@ -41,3 +41,11 @@ def test_without_an_error_part_it_times_only() -> None:
     result = run_bench(None, ["uniform"], runtimes=["eager"], quick=True, e2e_detectors=("none",), progress=False)
     assert [r["label"] for r in result["rows"]] == ["uniform"] and result["per_tone"] == {}
     assert result["error"]["what"].startswith("not measured")
+
+
+def test_ours_gets_a_row_with_the_scene_branch() -> None:
+    """Issue 47: the defaults again with a scene branch, so its cost is one row of the same run."""
+    result = run_bench(None, ["ours"], runtimes=["eager"], quick=True, e2e_detectors=("none",), progress=False)
+    last, defaults = result["e2e"][-1], result["e2e"][-2]
+    assert last["scene"] and not last["defaults"] and defaults["defaults"] and not defaults["scene"]
+    assert (last["detector"], last["runtime"], last["max_side"]) == (defaults["detector"], "eager", 240)
