@@ -11,7 +11,7 @@ from kornia_ilum.core.errors import ValueCheckError
 from kornia_ilum.estimators.scene import SCENE_SIZE, SceneStrength
 from kornia_ilum_lab.train import TrainConfig, read_log, train
 from kornia_ilum_lab.train.recipes import get_recipe
-from kornia_ilum_lab.train.scene import SceneRecipe, scene_batch, scene_nll
+from kornia_ilum_lab.train.scene import SceneRecipe, scene_batch, scene_nll, tone_slope
 from tests.lab.train.helpers import small_data
 
 
@@ -42,8 +42,22 @@ def test_a_batch_is_cut_to_its_photo_windows():
 
 def test_registered_and_strict():
     assert isinstance(get_recipe("scene"), SceneRecipe)
-    with pytest.raises(ValueCheckError, match="no model options"):
+    with pytest.raises(ValueCheckError, match="one model option is tone_blind"):
         SceneRecipe().build(spread_head=True)
+    with pytest.raises(ValueCheckError, match="tone_blind"):
+        SceneRecipe().build(tone_blind=-1.0)
+    recipe = SceneRecipe()
+    recipe.build(tone_blind=10)
+    assert recipe.tone_blind == 10.0 and SceneRecipe().tone_blind == 0.0
+
+
+def test_tone_slope_is_zero_for_errors_that_do_not_follow_the_tone():
+    tones = torch.tensor([1, 2, 3, 4, 5, 6, 7, 8, -1])
+    flat = torch.tensor([0.3, -0.2, 0.1, 0.3, -0.2, 0.1, 0.3, -0.2, 5.0])  # no trend; the unknown tone ignored
+    falling = -0.1 * tones.double()
+    assert abs(tone_slope(flat.double() - flat[:8].double().mean(), tones).item()) < 0.08
+    assert tone_slope(falling, tones).item() == pytest.approx(-0.1 * tones[:8].double().std(unbiased=False).item())
+    assert tone_slope(torch.ones(3), torch.tensor([-1, -1, 4])).item() == 0.0
 
 
 @pytest.mark.slow  # the tiny_cache fixture renders with Mitsuba; the test trains
@@ -51,7 +65,7 @@ def test_trains_logs_and_exports(tiny_cache, tmp_path, monkeypatch):
     monkeypatch.setattr(recipes, "PROBE_SIZE", 2)
     threads = torch.get_num_threads()
     config = TrainConfig(estimator="scene", out=str(tmp_path / "run"), cache=(str(tiny_cache),), steps=2, batch=2,
-                         workers=0, threads=1, bf16=False, log_every=1, data={**small_data(), "surroundings": 0.5})
+                         workers=0, threads=1, bf16=False, log_every=1, data={**small_data(), "surroundings": 0.5}, model={"tone_blind": 1.0})
     try:
         summary = train(config)
         again = train(config)  # complete: resumed at its end, the same file
@@ -67,6 +81,6 @@ def test_trains_logs_and_exports(tiny_cache, tmp_path, monkeypatch):
     net = SceneStrength()
     net.load_state_dict(safetensors.torch.load_file(tmp_path / "run" / "scene.safetensors"), strict=True)
     rows = read_log(tmp_path / "run")
-    assert len(rows) == 2 and "spread" in rows[0] and "rec_diffuse" not in rows[0]
+    assert len(rows) == 2 and "spread" in rows[0] and "tone" in rows[0] and "rec_diffuse" not in rows[0]
     assert all(r["rec"] > 0 for r in rows)
     assert summary["config"]["estimator"] == "scene" and SCENE_SIZE == 128

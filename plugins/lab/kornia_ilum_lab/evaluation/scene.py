@@ -46,7 +46,8 @@ def scene_check(estimator: nn.Module, scene: nn.Module, eval_set: EvalSet, *, ba
         a dict: ``table`` (per group, ``all`` and each tone, and per estimate, ``face``, ``scene`` and
         ``fused``: the median ``ratio``, its interval ``ratio_ci`` and the ``coverage``; and the group's
         ``count``), ``tone_spread`` (per estimate, :func:`~kornia_ilum_lab.evaluation.bootstrap.ratio_interval`'s
-        result) and ``count``.
+        result), ``count``, and ``samples``: per estimate, each portrait's ``ratio`` (estimated over true energy)
+        and ``spread``, in the set's order.
 
     Raises:
         ValueCheckError: the set has no frames, or the estimator gives no spread.
@@ -86,4 +87,5 @@ def scene_check(estimator: nn.Module, scene: nn.Module, eval_set: EvalSet, *, ba
         table[g]["count"] = int(m.sum())
     tone_spread = {k: ratio_interval({g: (r[m], subjects[m]) for g, m in groups.items() if g != "all"})
                    for k, r in ratios.items()}
-    return {"table": table, "tone_spread": tone_spread, "count": len(eval_set)}
+    samples = {k: {"ratio": ratios[k], "spread": torch.cat(spread[k])} for k in ratios}
+    return {"table": table, "tone_spread": tone_spread, "count": len(eval_set), "samples": samples}

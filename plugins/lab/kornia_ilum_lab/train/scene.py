@@ -37,7 +37,7 @@ from kornia_ilum_lab.synth.lightstage.portraits import PortraitDataset
 from kornia_ilum_lab.train.config import RuntimeSettings, TrainConfig
 from kornia_ilum_lab.train.recipes import Recipe
 
-__all__ = ["SceneRecipe", "scene_batch", "scene_nll"]
+__all__ = ["SceneRecipe", "scene_batch", "scene_nll", "tone_slope"]
 
 
 def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
@@ -77,11 +77,33 @@ def scene_nll(log_energy: torch.Tensor, spread: torch.Tensor, truth: torch.Tenso
     return ((truth - log_energy).abs().mean(1) / spread + torch.log(spread)).mean()
 
 
+def tone_slope(error: torch.Tensor, tones: torch.Tensor) -> torch.Tensor:
+    r"""How far the log-energy error moves per standard deviation of the skin's Monk tone, over a batch: the
+    covariance of ``error`` :math:`(B,)` with ``tones`` :math:`(B,)` over the tones' standard deviation (samples of
+    unknown tone, ``<= 0``, left out; 0 with fewer than two known tones). 0 for a branch blind to the skin.
+
+    Examples:
+        >>> tones = torch.tensor([1.0, 3.0, 5.0, 7.0])
+        >>> round(tone_slope(-0.1 * tones, tones).item(), 4)  # 0.1 lower per tone, the tones' sd sqrt(5)
+        -0.2236
+    """
+    known = tones > 0
+    if int(known.sum()) < 2:
+        return error.new_zeros(())
+    t, e = tones[known].to(error), error[known]
+    t = t - t.mean()
+    return (t * (e - e.mean())).mean() / t.pow(2).mean().sqrt().clamp(min=1e-6)
+
+
 class SceneRecipe(Recipe):
     """``scene``: :class:`~kornia_ilum.estimators.scene.SceneStrength` on whole frames (module docstring).
 
-    It takes no model options, no adversarial term and none of ``ours``' terms; its spread is its own NLL's, so
-    the export's calibrations (``--fit-spread``, ``--calibrate-energy``) do not apply. Its weights are written in
+    Its one option, ``--model tone_blind=L``, adds ``L`` times the square of :func:`tone_slope` of the batch's
+    errors to the loss: the NLL alone lets the branch read whatever skin the frame shows besides the face (a neck,
+    arms) as a reference, as the face network does, which gives the same fall of the strength with the tone;
+    the term asks for errors that do not follow the tone, which is what makes the branch's estimate worth fusing
+    with the face's. No adversarial term and none of ``ours``' terms; its spread is its own NLL's, so the
+    export's calibrations (``--fit-spread``, ``--calibrate-energy``) do not apply. Its weights are written in
     float32 (0.8 MB).
 
     Examples:
@@ -92,11 +114,14 @@ class SceneRecipe(Recipe):
     """
 
     name = "scene"
-    log_fields = ("spread",)
+    log_fields = ("spread", "tone")
+    tone_blind = 0.0
 
     def build(self, **options: Any) -> tuple[nn.Module, None]:
-        if options:
-            raise ValueCheckError(f"the scene branch takes no model options, got {sorted(options)}")
+        self.tone_blind = float(options.pop("tone_blind", 0.0))
+        if options or not self.tone_blind >= 0.0:
+            raise ValueCheckError(f"the scene branch's one model option is tone_blind >= 0, got "
+                                  f"{sorted(options) or self.tone_blind}")
         return SceneStrength(), None
 
     def dataset(self, dataset: PortraitDataset) -> PortraitDataset:
@@ -117,13 +142,14 @@ class SceneRecipe(Recipe):
         """One step of :func:`scene_nll`; ``rec`` is the mean absolute error of the log energy (natural log)."""
         x, truth = scene_batch(batch, device)
         log_energy, spread = model(x)
-        loss = scene_nll(log_energy, spread, truth)
+        slope = tone_slope((log_energy - truth).mean(1), batch["skin_tone"].to(device))
+        loss = scene_nll(log_energy, spread, truth) + self.tone_blind * slope**2
         opt_g.zero_grad(set_to_none=True)
         loss.backward()
         opt_g.step()
         zero = torch.zeros(())
         return {"loss": loss.detach(), "rec": (truth - log_energy).abs().mean().detach(), "adv": zero,
-                "disc": zero, "extra": zero, "spread": spread.mean().detach()}
+                "disc": zero, "extra": zero, "spread": spread.mean().detach(), "tone": slope.detach()}
 
     def export(self, estimator: nn.Module, path: Path, probe: dict[str, Any]) -> dict[str, Any]:
         """float32 weights, and the mean absolute log-energy error and mean spread on the probe."""
