@@ -527,6 +527,16 @@ class TestScene:
         assert len(fused) == 1 and fused.log_energy_spread is not None and fused.scene_share is not None
         assert est.scene_share is not None and bool(((est.scene_share > 0) & (est.scene_share < 1)).all())
 
+    def test_a_crop_leaves_the_face_in_charge(self, astronaut):
+        """``detector="none"``: the photo is the face, nothing besides it to read: the face's own strength."""
+        from kornia_ilum.estimators import SceneStrength
+
+        crop = torch.from_numpy(astronaut[30:230, 140:340].copy()).permute(2, 0, 1).float() / 255
+        alone = estimate_lighting(crop, detector="none")
+        est = estimate_lighting(crop, detector="none", scene=SceneStrength())
+        assert float(est.scene_share) < 1e-3
+        torch.testing.assert_close(est.mirror_ball, alone.mirror_ball, rtol=2e-3, atol=1e-5)
+
     def test_the_faces_of_a_photo_share_its_strength(self):
         from kornia_ilum.estimators import SceneStrength
 

@@ -18,8 +18,10 @@ that sees and meters the face learns the face's own tone bias, and worse: docs/t
 scales exactly with the photo's exposure, as the face's does. The energy of a lighting is each channel's
 radiance summed over the sphere (:func:`~kornia_ilum.metrics.total_radiance`).
 
-No branch ships yet: trained on the light stage's bare busts, the branch still reads the skin below the face
-(docs/training.rst, issue 47), so :func:`~kornia_ilum.estimate_lighting` uses one only when given it.
+No branch ships yet: trained on the light stage (dressed subjects, walls, floors, backdrops, companions), the
+branch does not improve the face's strength: it either reads the skin it still sees (a neck, arms) as the face
+does, or, kept from following the tone, is too unsure of the unknown reflectances around the face to move it
+(docs/training.rst, issue 47); :func:`~kornia_ilum.estimate_lighting` uses one only when given it.
 """
 
 from __future__ import annotations
