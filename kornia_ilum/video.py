@@ -101,7 +101,7 @@ def read_frames(source: str | os.PathLike[str]) -> Iterator[np.ndarray]:
         ...     [int(f[0, 0, 0]) for f in read_frames(tmp)]
         [0, 40, 80]
     """
-    import cv2
+    import cv2  # OpenCV only for reading video
 
     text = os.fspath(source)
     path = Path(text)
