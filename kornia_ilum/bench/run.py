@@ -204,7 +204,8 @@ def run_bench(
                         "estimator": default, "runtime": runtime, "ms": ms, "speedup": base_ms / ms["total"],
                         "defaults": k == defaults, "scene": scene is not None})
             say(f"e2e {width}x{height} {det_name} side {detector.max_side or 'full'} {runtime}"
-                f"{' + scene branch' if scene is not None else ''}: {ms['total']:.1f} ms")
+                f"{' (the defaults)' if k == defaults else ' + scene branch' if scene is not None else ''}: "
+                f"{ms['total']:.1f} ms")
     return {
         "machine": machine,
         "software": run_info(),

@@ -59,7 +59,8 @@ def scene_batch(batch: dict[str, Any], device: torch.device) -> tuple[torch.Tens
         parts = []
         for i, (x0, y0, x1, y1) in enumerate(batch["frame_window"].round().long().tolist()):
             shift = torch.tensor([x0, y0, x0, y0], dtype=boxes.dtype, device=device)
-            parts.append(scene_input(frames[i : i + 1, :, y0:y1, x0:x1], boxes[i : i + 1] - shift, first, size=size))
+            window = frames[i : i + 1, :, y0:y1, x0:x1]
+            parts.append(scene_input(window, boxes[i : i + 1] - shift, first, size=size))
         x = torch.cat(parts)
     else:
         x = scene_input(frames, boxes, torch.arange(len(frames), device=device), size=size)
