@@ -263,6 +263,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                      "passes its parity check, ONNX Runtime then bfloat16, exported once per machine into the "
                      "cache: video is where speed counts; int8 is left out, its estimates move more with the crop; "
                      "eager for PyTorch float32; docs/skipping.rst gives the frame rates)")
+    vid.add_argument("--scene", metavar="FILE", default=None,
+                     help="a scene branch's weights: each estimated frame's strength fused with the whole frame's "
+                     "before the smoothing (default: the face's own)")
     plugins = plugin_commands()
     commands = {name: (plugins[name].add_parser, plugins[name].help) for name in plugins}
     commands |= {name: (None, f"{help_line} (needs the lab: {LAB_INSTALL})")
@@ -408,6 +411,7 @@ def _cmd_video(args: argparse.Namespace) -> int:
         raise _UsageError(f"unknown estimator {estimator!r}; choose one of: {', '.join(list_estimators())}")
     if args.detector not in list_detectors():
         raise _UsageError(f"unknown detector {args.detector!r}; choose one of: {', '.join(list_detectors())}")
+    scene = None if args.scene is None else SceneStrength.from_file(args.scene)
     source = read_frames(args.source)
     first = next(source, None)  # a missing source, no image, an unreadable first frame: fail before any work
     if first is None:
@@ -417,7 +421,7 @@ def _cmd_video(args: argparse.Namespace) -> int:
     stream = estimate_video(itertools.chain([first], source), estimator=estimator, detector=args.detector,
                             detect_every=args.detect_every, reuse_below=args.reuse_below,
                             time_constant=args.time_constant, cut_above=args.cut_above, fallback=args.fallback,
-                            runtime=args.runtime)
+                            runtime=args.runtime, scene=scene)
     try:
         for frame in stream:
             if not frames:

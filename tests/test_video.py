@@ -198,3 +198,26 @@ def test_the_video_command_writes_one_exr_per_frame(tmp_path) -> None:
     none = subprocess.run([sys.executable, "-m", "kornia_ilum", "video", str(faceless), "-o", str(out),
                            "--estimator", "uniform"], capture_output=True, text=True, check=False)
     assert none.returncode == 1 and "--fallback full_image" in none.stderr
+
+
+def test_the_video_command_takes_a_scene_branch(tmp_path) -> None:
+    """``--scene FILE``: the frames' strength fused with the whole frame's; a file that holds no branch fails
+    before anything is written."""
+    import safetensors.torch
+
+    from kornia_ilum.cli import main
+    from kornia_ilum.estimators import SceneStrength
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(2):
+        cv2.imwrite(str(frames / f"f{i}.png"), cv2.cvtColor(FACE, cv2.COLOR_RGB2BGR))
+    torch.manual_seed(0)
+    weights = tmp_path / "scene.safetensors"
+    safetensors.torch.save_file(SceneStrength().state_dict(), str(weights))
+    assert main(["video", str(frames), "-o", str(tmp_path / "out"), "--runtime", "eager",
+                 "--scene", str(weights)]) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["frame_00000.exr", "frame_00001.exr"]
+    safetensors.torch.save_file({"w": torch.ones(2)}, str(tmp_path / "bad.safetensors"))
+    assert main(["video", str(frames), "-o", str(tmp_path / "bad"), "--scene", str(tmp_path / "bad.safetensors")]) == 1
+    assert not (tmp_path / "bad").exists()
