@@ -52,6 +52,7 @@ from kornia_ilum.estimators import (
     SceneStrength,
     create_estimator,
     estimator_info,
+    export_scene_onnx,
     list_estimators,
     onnx_model,
     runtime_parity,
@@ -225,6 +226,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     exp.add_argument("--runtime", choices=("onnx", "onnx-int8"), default="onnx",
                      help="float32 (default) or static int8 calibrated on the shipped probe")
     exp.add_argument("--probe", metavar="DIR", help="write probe.jpg and probe.safetensors into DIR instead")
+    exp.add_argument("--scene", metavar="FILE", help="export this scene branch's weights instead (with --onnx): "
+                     "frames (B, 5, 128, 128) in, log_energy and spread out, checked against PyTorch")
     exp.add_argument("--cache", nargs="+", default=[], metavar="DIR", help="light-stage caches (with --probe)")
     exp.add_argument("--hdri", nargs="*", default=[], metavar="DIR", help="real maps' folders (with --probe)")
 
@@ -457,6 +460,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if not target.parent.is_dir():
         raise HDRIOError(f"cannot write {target}: the folder {target.parent} does not exist")
     t0 = time.perf_counter()
+    if args.scene is not None:
+        data = export_scene_onnx(SceneStrength.from_file(args.scene), target)
+        print(f"wrote {target} ({len(data) / 2**20:.1f} MiB, scene branch {args.scene}, input (B, 5, 128, 128); "
+              f"ONNX Runtime within {PARITY_ATOL:g} of PyTorch; {_ms(t0)})")
+        return 0
     estimator = create_estimator(name)
     model = onnx_model(estimator, args.runtime, cache=False)
     size = estimator.info.input_size

@@ -273,6 +273,29 @@ class TestExport:
         assert target.read_bytes()[:2] == b"\x08\x0a" or target.stat().st_size > 1000
         assert sorted(p.name for p in tmp_path.iterdir()) == ["uniform.onnx"]
 
+    def test_a_scene_branch_exports_checked(self, tmp_path, capsys) -> None:
+        """``export --scene FILE --onnx OUT``: the branch's frames in, its strength out, as PyTorch gives them."""
+        import onnxruntime as ort
+        import safetensors.torch
+
+        from kornia_ilum.estimators import SceneStrength, scene_input
+
+        torch.manual_seed(0)
+        branch = SceneStrength().eval()
+        weights, target = tmp_path / "scene.safetensors", tmp_path / "scene.onnx"
+        safetensors.torch.save_file(branch.state_dict(), str(weights))
+        assert main(["export", "--onnx", str(target), "--scene", str(weights)]) == 0
+        assert f"wrote {target}" in capsys.readouterr().out
+        frames = scene_input(torch.rand(5, 3, 64, 128), torch.tensor([[40.0, 10, 70, 50]] * 5), torch.arange(5))
+        got = ort.InferenceSession(str(target), providers=["CPUExecutionProvider"]).run(None,
+                                                                                      {"frames": frames.numpy()})
+        with torch.no_grad():
+            want = branch(frames)
+        for g, w in zip(got, want, strict=True):  # a batch of 5: the batch is dynamic
+            torch.testing.assert_close(torch.from_numpy(g), w, atol=1e-4, rtol=1e-4)
+        assert main(["export", "--onnx", str(tmp_path / "bad.onnx"), "--scene", str(tmp_path / "none")]) == 1
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.onnx", "scene.safetensors"]
+
     def test_int8_is_written_only_if_it_passes_its_lrec_check(self, tmp_path, capsys) -> None:
         target = tmp_path / "sh_int8.onnx"
         status = main(["export", "--onnx", str(target), "--estimator", "sh", "--runtime", "onnx-int8"])

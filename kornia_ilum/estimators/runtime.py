@@ -57,6 +57,7 @@ from kornia_ilum.estimators.base import (
     check_crop_range,
     check_crops,
 )
+from kornia_ilum.estimators.scene import SceneStrength, scene_input
 
 __all__ = [
     "AUTO_ORDER",
@@ -68,6 +69,7 @@ __all__ = [
     "OnnxEstimator",
     "cache_dir",
     "export_onnx",
+    "export_scene_onnx",
     "native_bf16",
     "onnx_model",
     "parity",
@@ -179,6 +181,45 @@ def export_onnx(
         entry = proto.metadata_props.add()
         entry.key, entry.value = f"kornia_ilum.{key}", value
     data = proto.SerializeToString()
+    if path is not None:
+        atomic_write(Path(os.fspath(path)), lambda tmp: tmp.write_bytes(data))
+    return data
+
+
+def export_scene_onnx(branch: SceneStrength, path: str | os.PathLike[str] | None = None, *,
+                      opset: int = _OPSET) -> bytes:
+    r"""Export a scene branch to ONNX: :func:`~kornia_ilum.estimators.scene.scene_input`'s frames in,
+    ``log_energy`` and ``spread`` out, with a dynamic batch; checked by ONNX Runtime against PyTorch.
+
+    Args:
+        branch: a :class:`~kornia_ilum.estimators.SceneStrength` (exported as a float32 CPU copy in eval mode).
+        path: also write the model here (atomically), once it passed; ``None`` keeps it in memory only.
+        opset: the ONNX opset.
+
+    Returns:
+        the serialized model: input ``frames`` :math:`(B, 5, 128, 128)`; outputs ``log_energy`` :math:`(B, 3)`
+        and ``spread`` :math:`(B,)`.
+
+    Raises:
+        ValueCheckError: ONNX Runtime's outputs differ from PyTorch's by more than :data:`PARITY_ATOL` on a probe
+            batch (nothing is written).
+        ImportError: the exporter's packages are not installed.
+    """
+    ort = _onnxruntime()
+    model = copy.deepcopy(branch).to("cpu", torch.float32).eval()
+    probe = scene_input(torch.rand(3, 3, 96, 128, generator=torch.Generator().manual_seed(0)),
+                        torch.tensor([[40.0, 20, 80, 70], [10, 10, 50, 60], [0, 0, 128, 96]]), torch.arange(3))
+    batch = torch.export.Dim("batch", min=1, max=1 << 16)
+    with torch.no_grad(), _quiet_exporter():
+        data = torch.onnx.export(model, (probe,), input_names=["frames"], output_names=["log_energy", "spread"],
+                                 dynamic_shapes=({0: batch},), opset_version=opset, dynamo=True,
+                                 verbose=False).model_proto.SerializeToString()
+        want = model(probe)
+    got = ort.InferenceSession(data, providers=["CPUExecutionProvider"]).run(None, {"frames": probe.numpy()})
+    gap = max(float((torch.from_numpy(g) - w).abs().max()) for g, w in zip(got, want, strict=True))
+    if not gap <= PARITY_ATOL:
+        raise ValueCheckError(f"the scene branch's ONNX export differs from PyTorch by {gap:.3g} (at most "
+                              f"{PARITY_ATOL:g}); nothing was written")
     if path is not None:
         atomic_write(Path(os.fspath(path)), lambda tmp: tmp.write_bytes(data))
     return data
