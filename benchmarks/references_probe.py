@@ -85,9 +85,7 @@ def portraits(caches: list[str], hdri: list[str], samples: int, size: int
     by_view = {(f.subject_seed, int(f.meta.get("view_index", -1))): f for f in fields}
     config = PortraitConfig(split=None, environments=EnvironmentSampler(eval_environment_sources(hdri), seed=5),
                             size=size, length=samples, sphere_sizes=())
-    feats: dict[str, list[torch.Tensor]] = {}
-    seeds, tones = [], []
-    crops, marks = [], []
+    seeds, tones, crops, marks = [], [], [], []
     for s in PortraitDataset(fields, config, seed=5):
         rf = by_view[s["subject_seed"], s["view_index"]]
         lm = torch.tensor(rf.meta["landmarks"], dtype=torch.float64)
@@ -98,14 +96,9 @@ def portraits(caches: list[str], hdri: list[str], samples: int, size: int
         crops.append(s["image"])
         seeds.append(int(s["subject_seed"]))
         tones.append(int(s["skin_tone"]))
-        if len(crops) == 256:
-            for k, v in patches(torch.stack(crops), torch.stack(marks)).items():
-                feats.setdefault(k, []).append(v)
-            crops, marks = [], []
-    if crops:
-        for k, v in patches(torch.stack(crops), torch.stack(marks)).items():
-            feats.setdefault(k, []).append(v)
-    out = {k: torch.cat(v).numpy().astype(np.float64) for k, v in feats.items()}
+    parts = [patches(torch.stack(crops[i : i + 256]), torch.stack(marks[i : i + 256]))
+             for i in range(0, len(crops), 256)]
+    out = {k: torch.cat([p[k] for p in parts]).numpy().astype(np.float64) for k in parts[0]}
     return out, np.log([albedo[s] for s in seeds]), np.array(seeds), np.array(tones)
 
 

@@ -130,6 +130,16 @@ def _quiet_exporter() -> Iterator[None]:
             lg.setLevel(level)
 
 
+def _exported(model: torch.nn.Module, probe: Tensor, name: str, outputs: list[str], opset: int) -> Any:
+    """The ONNX ``ModelProto`` of ``model`` on one input ``name`` with a dynamic batch (``probe`` shows its
+    shape), by :func:`torch.onnx.export` with ``dynamo=True``, its chatter silenced."""
+    batch = torch.export.Dim("batch", min=1, max=1 << 16)
+    with torch.no_grad(), _quiet_exporter():
+        return torch.onnx.export(model, (probe,), input_names=[name], output_names=outputs,
+                                 dynamic_shapes=({0: batch},), opset_version=opset, dynamo=True,
+                                 verbose=False).model_proto
+
+
 def export_onnx(
     estimator: LightingEstimator, path: str | os.PathLike[str] | None = None, *, opset: int = _OPSET
 ) -> bytes:
@@ -165,12 +175,7 @@ def export_onnx(
     probe = torch.rand(2, 3, size, size, generator=torch.Generator().manual_seed(0))
     with torch.no_grad():
         fields = [f for f in ESTIMATE_FIELDS if getattr(model(probe), f) is not None]
-    batch = torch.export.Dim("batch", min=1, max=1 << 16)
-    with torch.no_grad(), _quiet_exporter():
-        program = torch.onnx.export(model, (probe,), input_names=["crops"], output_names=fields,
-                                    dynamic_shapes=({0: batch},), opset_version=opset, dynamo=True,
-                                    verbose=False)
-    proto = program.model_proto
+    proto = _exported(model, probe, "crops", fields, opset)
     first = proto.graph.input[0].type.tensor_type.shape.dim[0]
     if not first.dim_param:  # the exporter fell back to the probe's batch: something in predict fixes it
         raise ValueCheckError(f"estimator '{model.info.name}' exports with a fixed batch of {first.dim_value}: "
@@ -209,11 +214,8 @@ def export_scene_onnx(branch: SceneStrength, path: str | os.PathLike[str] | None
     model = copy.deepcopy(branch).to("cpu", torch.float32).eval()
     probe = scene_input(torch.rand(3, 3, 96, 128, generator=torch.Generator().manual_seed(0)),
                         torch.tensor([[40.0, 20, 80, 70], [10, 10, 50, 60], [0, 0, 128, 96]]), torch.arange(3))
-    batch = torch.export.Dim("batch", min=1, max=1 << 16)
-    with torch.no_grad(), _quiet_exporter():
-        data = torch.onnx.export(model, (probe,), input_names=["frames"], output_names=["log_energy", "spread"],
-                                 dynamic_shapes=({0: batch},), opset_version=opset, dynamo=True,
-                                 verbose=False).model_proto.SerializeToString()
+    data = _exported(model, probe, "frames", ["log_energy", "spread"], opset).SerializeToString()
+    with torch.no_grad():
         want = model(probe)
     got = ort.InferenceSession(data, providers=["CPUExecutionProvider"]).run(None, {"frames": probe.numpy()})
     gap = max(float((torch.from_numpy(g) - w).abs().max()) for g, w in zip(got, want, strict=True))

@@ -81,7 +81,9 @@ def scene_input(images: Tensor, boxes: Tensor, index: Tensor, size: int = SCENE_
     # shrunk by averaging whole blocks of pixels (the light stage's frames are area-averaged), then a bilinear step
     block = max(1, int(1.0 / s))
     small = F.avg_pool2d(images, block) if block > 1 else images
-    small = F.interpolate(small, size=(nh, nw), mode="bilinear", align_corners=False).clamp(0, 1)
+    if small.shape[-2:] != (nh, nw):  # already at size (a training frame, a photo of 5 x 128): nothing to resample
+        small = F.interpolate(small, size=(nh, nw), mode="bilinear", align_corners=False)
+    small = small.clamp(0, 1)
     frame = F.pad(small, (left, size - nw - left, top, size - nh - top))[index]
     b = boxes.to(frame) * s + torch.tensor([left, top, left, top], dtype=frame.dtype, device=frame.device)
     centres = torch.arange(size, dtype=frame.dtype, device=frame.device) + 0.5
